@@ -1,0 +1,47 @@
+"""econmotor's command line: one Typer app (``econmotor --help``).
+
+Every module in this package registers its commands on :data:`app` when imported.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+import sys
+
+import typer
+
+from econmotor.cli._app import app, err_console
+from econmotor.errors import EconmotorError
+
+for _module in pkgutil.iter_modules(__path__):
+    if not _module.name.startswith("_"):
+        importlib.import_module(f"{__name__}.{_module.name}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the CLI; econmotor errors print as one clear line and exit with status 2."""
+    try:
+        app(args=argv, standalone_mode=False)
+    except EconmotorError as exc:
+        err_console.print(f"[bold red]error:[/] {exc}", highlight=False)
+        return 2
+    except typer.Abort:
+        err_console.print("[yellow]aborted[/]")
+        return 130
+    except typer.Exit as exc:
+        return exc.exit_code
+    except SystemExit as exc:  # click usage errors
+        return int(exc.code or 0)
+    except Exception as exc:  # click.ClickException and friends
+        import click
+
+        if isinstance(exc, click.ClickException):
+            exc.show()
+            return exc.exit_code
+        raise
+    return 0
+
+
+def entrypoint() -> None:
+    sys.exit(main())

@@ -1,0 +1,174 @@
+"""The motor-backend contract (spec: motor_backends.md).
+
+A backend trains, evaluates and deploys low-level motor policies::
+
+    train_policy(task_id, objective, datapack_ids, num_envs, max_steps, seed)
+    evaluate_policy(policy_id, task_id, objective, num_episodes, seed)
+    deploy_policy_handle(policy_id)
+
+and returns :class:`MotorTrainingResult` / :class:`MotorEvalResult` carrying the
+raw metrics of the motor stack, the econ metrics from
+:class:`econmotor.economics.EconomicMeter`, and one summary per evaluation episode.
+``policy_id`` is the path of the saved policy (a directory or file), so any
+process can evaluate or deploy it.
+
+Per-episode raw metrics use the meter's keys (``units_completed``, ``units_attempted``,
+``errors``, ``episode_length_s``, ``energy_wh``, ``risk_score``, ``novelty_score``)
+plus ``return`` and ``termination_reason``; :func:`summarize_episodes` turns them into
+the aggregate raw metrics, the econ metrics and per-episode summaries that also carry
+the RewardBuilder names (``mpl_episode``, ``error_rate_episode``, ``energy_Wh``,
+``energy_Wh_per_unit``, ``wage_parity``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from econmotor.config.task_economics import TaskEconomics
+from econmotor.economics.meter import EconomicMeter
+from econmotor.objectives.economic_objective import EconomicObjectiveSpec
+
+#: progress(label, completed, total): backends report long work through this; the CLI draws bars.
+ProgressFn = Callable[[str, float, float], None]
+
+#: raw per-episode keys that are summed when episodes are aggregated.
+ADDITIVE_RAW_KEYS = ("units_completed", "units_attempted", "errors", "episode_length_s", "energy_wh")
+#: raw per-episode keys that are averaged.
+MEAN_RAW_KEYS = ("risk_score", "novelty_score", "return", "length_steps")
+
+
+def no_progress(label: str, completed: float, total: float) -> None:
+    """The default progress callback: report nothing."""
+
+
+@dataclass(frozen=True)
+class MotorTrainingResult:
+    """What ``train_policy`` returns.
+
+    Attributes:
+        policy_id: path of the saved policy; pass it to ``evaluate_policy`` / ``deploy_policy_handle``.
+        task_id: the task trained on.
+        backend: the backend's factory name.
+        raw_metrics: aggregate raw metrics of the post-training evaluation episodes.
+        econ_metrics: ``EconomicMeter.summarize(raw_metrics)``.
+        episodes: one summary per evaluation episode (see :func:`summarize_episodes`).
+        training_curve: ``[{"timesteps": int, "mean_return": float}, ...]`` during training.
+        config: everything needed to reproduce the run (seed, objective, datapacks, hyperparameters).
+        artifacts: named output files (policy, TensorBoard dir, ONNX, ...).
+    """
+
+    policy_id: str
+    task_id: str
+    backend: str
+    raw_metrics: dict[str, float]
+    econ_metrics: dict[str, float]
+    episodes: list[dict[str, Any]] = field(default_factory=list)
+    training_curve: list[dict[str, float]] = field(default_factory=list)
+    config: dict[str, Any] = field(default_factory=dict)
+    artifacts: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class MotorEvalResult:
+    """What ``evaluate_policy`` returns (fields as in :class:`MotorTrainingResult`)."""
+
+    policy_id: str
+    task_id: str
+    backend: str
+    raw_metrics: dict[str, float]
+    econ_metrics: dict[str, float]
+    episodes: list[dict[str, Any]] = field(default_factory=list)
+    config: dict[str, Any] = field(default_factory=dict)
+
+
+@runtime_checkable
+class PolicyHandle(Protocol):
+    """A deployed policy: observation(s) in, action(s) out."""
+
+    def act(self, obs: np.ndarray) -> np.ndarray: ...
+
+
+@runtime_checkable
+class MotorBackend(Protocol):
+    """The three operations every backend provides (spec: motor_backends.md)."""
+
+    name: str
+
+    def train_policy(
+        self,
+        task_id: str,
+        objective: EconomicObjectiveSpec,
+        datapack_ids: Sequence[str],
+        num_envs: int,
+        max_steps: int,
+        seed: int,
+        *,
+        datapack_configs: Sequence[Any] | None = None,
+        output_dir: str | Path | None = None,
+        eval_episodes: int = 5,
+        progress: ProgressFn = no_progress,
+    ) -> MotorTrainingResult: ...
+
+    def evaluate_policy(
+        self,
+        policy_id: str,
+        task_id: str,
+        objective: EconomicObjectiveSpec,
+        num_episodes: int,
+        seed: int,
+        *,
+        datapack_configs: Sequence[Any] | None = None,
+        output_dir: str | Path | None = None,
+        progress: ProgressFn = no_progress,
+    ) -> MotorEvalResult: ...
+
+    def deploy_policy_handle(self, policy_id: str) -> PolicyHandle: ...
+
+
+def aggregate_raw(raw_episodes: Sequence[Mapping[str, Any]]) -> dict[str, float]:
+    """Sum the additive keys and average the rest over episodes; adds ``num_episodes``."""
+    out: dict[str, float] = {"num_episodes": float(len(raw_episodes))}
+    if not raw_episodes:
+        return out
+    for key in ADDITIVE_RAW_KEYS:
+        values = [float(ep[key]) for ep in raw_episodes if ep.get(key) is not None]
+        if values:
+            out[key] = float(np.sum(values))
+    for key in MEAN_RAW_KEYS:
+        values = [float(ep[key]) for ep in raw_episodes if ep.get(key) is not None]
+        if values:
+            out[key] = float(np.mean(values))
+    return out
+
+
+def episode_summary(raw_episode: Mapping[str, Any], meter: EconomicMeter, index: int) -> dict[str, Any]:
+    """One episode's raw metrics plus its econ metrics and the RewardBuilder field names."""
+    econ = meter.summarize(raw_episode, source=f"episode {index}")
+    summary: dict[str, Any] = {"episode_index": index, **dict(raw_episode), **econ}
+    summary.update(
+        mpl_episode=econ["mpl_units_per_hour"],
+        error_rate_episode=econ["error_rate"],
+        energy_Wh=econ["energy_wh"],
+        energy_Wh_per_unit=econ["energy_wh_per_unit"],
+    )
+    summary.setdefault("termination_reason", "max_steps")
+    return summary
+
+
+def summarize_episodes(
+    raw_episodes: Sequence[Mapping[str, Any]], economics: TaskEconomics
+) -> tuple[dict[str, float], dict[str, float], list[dict[str, Any]]]:
+    """Return (aggregate raw metrics, econ metrics, per-episode summaries) of evaluation episodes.
+
+    Aggregate econ metrics are ratios of sums (total good units / total hours, ...),
+    not means of per-episode ratios.
+    """
+    meter = EconomicMeter(economics)
+    raw = aggregate_raw(raw_episodes)
+    econ = meter.summarize(raw) if raw_episodes else {}
+    return raw, econ, [episode_summary(ep, meter, i) for i, ep in enumerate(raw_episodes)]

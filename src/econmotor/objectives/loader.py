@@ -1,0 +1,87 @@
+"""load_objective_spec: read an objective YAML in one of three forms.
+
+1. Flat weights (the spec's example)::
+
+       mpl_weight: 1.0
+       energy_weight: 0.2
+       error_weight: 0.5
+       novelty_weight: 0.0
+       risk_weight: 0.3
+       extra_weights: {stability_margin: -0.1}
+
+2. An objective vector ``[mpl, error, energy, safety, novelty]``::
+
+       objective_vector: [2.0, 1.0, 0.5, 1.0, 0.0]
+
+3. A preset (``throughput``, ``safety``, ``energy_saver``, ``balanced``,
+   ``throughput_focused``, ``premium_safety``)::
+
+       objective_preset: throughput
+
+Forms 2 and 3 map the vector onto the spec as mpl_weight=w_mpl,
+error_weight=w_error, energy_weight=w_energy, risk_weight=w_safety,
+novelty_weight=w_novelty. An optional ``name`` labels the objective in every form,
+and ``extra_weights`` may accompany any form.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from econmotor.config.loading import as_float, as_str, check_keys, read_yaml_mapping, require_mapping
+from econmotor.config.objective_profile import OBJECTIVE_PRESETS, ObjectiveVector
+from econmotor.errors import ConfigError
+from econmotor.objectives.economic_objective import EconomicObjectiveSpec
+
+_FLAT_KEYS = ("mpl_weight", "energy_weight", "error_weight", "novelty_weight", "risk_weight")
+_ALL_KEYS = (*_FLAT_KEYS, "extra_weights", "objective_vector", "objective_preset", "name")
+
+
+def objective_from_vector(vector: ObjectiveVector, name: str = "objective",
+                          extra_weights: dict[str, float] | None = None) -> EconomicObjectiveSpec:
+    """Map ``[mpl, error, energy, safety, novelty]`` weights onto an EconomicObjectiveSpec."""
+    return EconomicObjectiveSpec(
+        mpl_weight=vector.w_mpl,
+        error_weight=vector.w_error,
+        energy_weight=vector.w_energy,
+        risk_weight=vector.w_safety,
+        novelty_weight=vector.w_novelty,
+        extra_weights=extra_weights or {},
+        name=name,
+    )
+
+
+def parse_objective_spec(data: Any, source: str | Path = "<objective>") -> EconomicObjectiveSpec:
+    """Validate an already-parsed mapping (any of the three forms)."""
+    data = require_mapping(data, source, None)
+    check_keys(data, _ALL_KEYS, source)
+    forms = [k for k in ("objective_vector", "objective_preset") if k in data]
+    if any(k in data for k in _FLAT_KEYS):
+        forms.append("flat weights")
+    if len(forms) > 1:
+        raise ConfigError(source, None, f"give exactly one objective form, got {forms}",
+                          "flat *_weight keys | objective_vector | objective_preset")
+    name = as_str(data.get("name", Path(str(source)).stem if source != "<objective>" else "objective"),
+                  source, "name")
+    extras_raw = require_mapping(data["extra_weights"], source, "extra_weights") if "extra_weights" in data else {}
+    extras = {k: as_float(v, source, f"extra_weights.{k}") for k, v in extras_raw.items()}
+    for k in extras:
+        if k in ("mpl_per_hour", "energy_kwh", "error_rate", "novelty_score", "risk_score"):
+            raise ConfigError(source, f"extra_weights.{k}", "this metric has its own *_weight key")
+    if "objective_vector" in data:
+        vector = ObjectiveVector.from_list(data["objective_vector"], str(source))
+        return objective_from_vector(vector, name, extras)
+    if "objective_preset" in data:
+        preset = as_str(data["objective_preset"], source, "objective_preset", OBJECTIVE_PRESETS)
+        return objective_from_vector(ObjectiveVector.from_preset(preset), data.get("name", preset), extras)
+    if not forms:
+        raise ConfigError(source, None, "no objective given",
+                          "flat *_weight keys | objective_vector | objective_preset")
+    weights = {k: as_float(data[k], source, k) for k in _FLAT_KEYS if k in data}
+    return EconomicObjectiveSpec(**weights, extra_weights=extras, name=name)
+
+
+def load_objective_spec(path: str | Path) -> EconomicObjectiveSpec:
+    """Load an objective YAML file (see the module docstring for the three forms)."""
+    return parse_objective_spec(read_yaml_mapping(path), path)

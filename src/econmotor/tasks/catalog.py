@@ -1,0 +1,164 @@
+"""Task catalog: one registry of task ids, shipped as YAML, extendable by user YAML.
+
+Every ``*.yaml`` file in this package directory is loaded (each backend ships its
+own file: ``dishwashing.yaml``, ``mujoco.yaml``, ...), then any user files in
+order; a user file may add tasks or replace a shipped one whole. File schema::
+
+    tasks:
+      <task_id>:
+        description: "..."
+        unit: "clean dish"                 # the unit of work
+        error_definition: "..."            # what counts as an error, how error rate is counted
+        economics:                          # every number: value + source (unit is fixed per key)
+          wage_human_usd_per_hour: {value: 18.0, source: "..."}
+          ...
+        backends:                           # backend name -> that backend's own settings
+          dishwashing: {econ_preset: toy}
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+from econmotor.config.loading import (
+    as_float,
+    as_str,
+    check_keys,
+    read_yaml_mapping,
+    require_mapping,
+)
+from econmotor.config.task_economics import ECONOMICS_UNITS, TaskEconomics
+from econmotor.errors import ConfigError, UnknownNameError
+
+_PACKAGE_DIR = Path(__file__).parent
+_TASK_KEYS = ("description", "unit", "error_definition", "economics", "backends", "tags")
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """One catalog entry."""
+
+    task_id: str
+    description: str
+    unit: str
+    error_definition: str
+    economics: TaskEconomics
+    backends: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    tags: tuple[str, ...] = ()
+    source: str = "<builtin>"
+
+    def backend_entry(self, backend: str) -> dict[str, Any]:
+        """The backend's own settings for this task; a ConfigError if it cannot run it."""
+        if backend not in self.backends:
+            raise ConfigError(
+                self.source,
+                f"tasks.{self.task_id}.backends",
+                f"task '{self.task_id}' has no entry for backend '{backend}'",
+                list(self.backends),
+            )
+        return dict(self.backends[backend])
+
+
+class TaskCatalog:
+    """A registry of :class:`TaskSpec` by id (like Gymnasium's env registry)."""
+
+    def __init__(self, tasks: Mapping[str, TaskSpec]) -> None:
+        self._tasks = dict(tasks)
+
+    def get(self, task_id: str) -> TaskSpec:
+        try:
+            return self._tasks[task_id]
+        except KeyError:
+            raise UnknownNameError("task id", task_id, self._tasks) from None
+
+    def __contains__(self, task_id: object) -> bool:
+        return task_id in self._tasks
+
+    def ids(self, backend: str | None = None) -> list[str]:
+        """Task ids, optionally only those with an entry for ``backend``."""
+        return sorted(t for t, s in self._tasks.items() if backend is None or backend in s.backends)
+
+    def __iter__(self):
+        return iter(self._tasks.values())
+
+    def __len__(self) -> int:
+        return len(self._tasks)
+
+
+def parse_task(task_id: str, data: Any, source: str | Path) -> TaskSpec:
+    """Validate one task mapping from ``source`` into a :class:`TaskSpec`."""
+    prefix = f"tasks.{task_id}"
+    data = require_mapping(data, source, prefix)
+    check_keys(data, _TASK_KEYS, source, prefix, required=("unit", "economics", "backends"))
+    econ_raw = require_mapping(data["economics"], source, f"{prefix}.economics")
+    check_keys(econ_raw, ECONOMICS_UNITS, source, f"{prefix}.economics")
+    values: dict[str, Any] = {}
+    sources: dict[str, str] = {}
+    for name, entry in econ_raw.items():
+        key = f"{prefix}.economics.{name}"
+        entry = require_mapping(entry, source, key)
+        check_keys(entry, ("value", "unit", "source"), source, key, required=("value", "source"))
+        if "unit" in entry and entry["unit"] != ECONOMICS_UNITS[name]:
+            raise ConfigError(source, f"{key}.unit", f"unit must be {ECONOMICS_UNITS[name]!r}, got {entry['unit']!r}")
+        values[name] = as_float(entry["value"], source, f"{key}.value", allow_negative=False)
+        sources[name] = as_str(entry["source"], source, f"{key}.source")
+    try:
+        economics = TaskEconomics(**values, sources=sources)
+    except ConfigError as exc:
+        raise ConfigError(source, f"{prefix}.economics.{exc.key}", exc.detail) from None
+    backends_raw = require_mapping(data["backends"], source, f"{prefix}.backends")
+    backends = {
+        name: require_mapping(entry if entry is not None else {}, source, f"{prefix}.backends.{name}")
+        if entry is not None
+        else {}
+        for name, entry in backends_raw.items()
+    }
+    tags = data.get("tags", [])
+    if not isinstance(tags, list) or not all(isinstance(t, str) for t in tags):
+        raise ConfigError(source, f"{prefix}.tags", "expected a list of strings")
+    return TaskSpec(
+        task_id=task_id,
+        description=as_str(data.get("description", ""), source, f"{prefix}.description"),
+        unit=as_str(data["unit"], source, f"{prefix}.unit"),
+        error_definition=as_str(data.get("error_definition", ""), source, f"{prefix}.error_definition"),
+        economics=economics,
+        backends=backends,
+        tags=tuple(tags),
+        source=str(source),
+    )
+
+
+def read_task_file(path: str | Path) -> dict[str, TaskSpec]:
+    """Read one catalog YAML file (schema in the module docstring)."""
+    data = read_yaml_mapping(path)
+    check_keys(data, ("tasks",), path, required=("tasks",))
+    tasks = require_mapping(data["tasks"], path, "tasks")
+    return {str(tid): parse_task(str(tid), entry, path) for tid, entry in tasks.items()}
+
+
+@lru_cache(maxsize=1)
+def _builtin_tasks() -> dict[str, TaskSpec]:
+    tasks: dict[str, TaskSpec] = {}
+    for path in sorted(_PACKAGE_DIR.glob("*.yaml")):
+        for tid, spec in read_task_file(path).items():
+            if tid in tasks:
+                raise ConfigError(path, f"tasks.{tid}", f"task id already defined in {tasks[tid].source}")
+            tasks[tid] = spec
+    return tasks
+
+
+def load_catalog(user_files: Iterable[str | Path] = ()) -> TaskCatalog:
+    """The shipped catalog plus ``user_files`` (later files replace earlier ids whole)."""
+    tasks = dict(_builtin_tasks())
+    for path in user_files:
+        tasks.update(read_task_file(path))
+    return TaskCatalog(tasks)
+
+
+def get_task(task_id: str, user_files: Iterable[str | Path] = ()) -> TaskSpec:
+    """Look up one task id; an unknown id raises an error listing the known ones."""
+    return load_catalog(user_files).get(task_id)

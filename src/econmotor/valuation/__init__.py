@@ -1,0 +1,27 @@
+"""Valuation: RewardBuilder terms and constraint sets."""
+
+from econmotor.valuation.constraints import (
+    ConstraintSet,
+    apply_constraint_penalties,
+    load_constraint_set,
+    load_constraint_sets,
+    parse_constraint_set,
+)
+from econmotor.valuation.reward_builder import (
+    REWARD_TERM_NAMES,
+    build_reward_terms,
+    combine_reward,
+    default_objective_vector,
+)
+
+__all__ = [
+    "REWARD_TERM_NAMES",
+    "ConstraintSet",
+    "apply_constraint_penalties",
+    "build_reward_terms",
+    "combine_reward",
+    "default_objective_vector",
+    "load_constraint_set",
+    "load_constraint_sets",
+    "parse_constraint_set",
+]
