@@ -1,0 +1,3 @@
+from econmotor.cli import entrypoint
+
+entrypoint()

@@ -1,0 +1,74 @@
+import pytest
+
+from econmotor.errors import ConfigError, UnknownNameError
+from econmotor.tasks import get_task, load_catalog
+
+USER_TASK = """\
+tasks:
+  folding:
+    unit: "folded shirt"
+    economics:
+      wage_human_usd_per_hour: {value: 20.0, source: "local wage survey"}
+      mp_human_units_per_hour: {value: 40.0, unit: "units/h", source: "time study"}
+    backends:
+      dishwashing: {econ_preset: toy}
+"""
+
+
+def test_shipped_tasks_have_sources_for_every_number():
+    catalog = load_catalog()
+    assert "dishwashing" in catalog and "dishwashing_realistic" in catalog
+    for spec in catalog:
+        for row in spec.economics.parameters():
+            assert row["source"] and row["source"] != "econmotor default", (spec.task_id, row)
+            assert row["unit"]
+
+
+def test_dishwashing_economics_match_econ_context_defaults():
+    econ = get_task("dishwashing").economics
+    assert (econ.wage_human_usd_per_hour, econ.mp_human_units_per_hour, econ.value_per_unit) == (18.0, 60.0, 0.30)
+    assert get_task("dishwashing_realistic").backend_entry("dishwashing") == {"econ_preset": "realistic"}
+
+
+def test_user_file_extends_catalog(tmp_path):
+    path = tmp_path / "mine.yaml"
+    path.write_text(USER_TASK)
+    catalog = load_catalog([path])
+    spec = catalog.get("folding")
+    assert spec.economics.value_per_unit == pytest.approx(0.5)
+    assert spec.economics.sources["wage_human_usd_per_hour"] == "local wage survey"
+    assert "folding" in catalog.ids("dishwashing") and "folding" not in catalog.ids("holosoma")
+
+
+def test_unknown_task_lists_known():
+    with pytest.raises(UnknownNameError, match="known task ids: .*dishwashing"):
+        get_task("dishwasher")
+    with pytest.raises(UnknownNameError, match="did you mean 'dishwashing'"):
+        get_task("dishwashin")
+
+
+def test_backend_entry_missing_names_backends():
+    with pytest.raises(ConfigError, match="no entry for backend 'holosoma'"):
+        get_task("dishwashing").backend_entry("holosoma")
+
+
+@pytest.mark.parametrize("replace, key", [
+    ('{value: -20.0, source: "x"}', "tasks.folding.economics.wage_human_usd_per_hour.value"),
+    ('{value: 20.0}', "tasks.folding.economics.wage_human_usd_per_hour.source"),
+    ('{value: 20.0, unit: "EUR/h", source: "x"}', "tasks.folding.economics.wage_human_usd_per_hour.unit"),
+    ('{value: .nan, source: "x"}', "tasks.folding.economics.wage_human_usd_per_hour.value"),
+])
+def test_bad_user_task_files(tmp_path, replace, key):
+    text = USER_TASK.replace('{value: 20.0, source: "local wage survey"}', replace)
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as info:
+        load_catalog([path])
+    assert info.value.key == key and str(path) in str(info.value)
+
+
+def test_unknown_task_key_with_suggestion(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text(USER_TASK.replace('unit: "folded shirt"', 'unit: "folded shirt"\n    descripton: x'))
+    with pytest.raises(ConfigError, match="did you mean 'description'"):
+        load_catalog([path])
