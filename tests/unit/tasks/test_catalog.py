@@ -72,3 +72,11 @@ def test_unknown_task_key_with_suggestion(tmp_path):
     path.write_text(USER_TASK.replace('unit: "folded shirt"', 'unit: "folded shirt"\n    descripton: x'))
     with pytest.raises(ConfigError, match="did you mean 'description'"):
         load_catalog([path])
+
+
+def test_shipped_example_user_file_loads():
+    from pathlib import Path
+
+    path = Path(__file__).parents[3] / "configs" / "tasks" / "example_user_tasks.yaml"
+    spec = load_catalog([path]).get("dishwashing_hotel_eu")
+    assert spec.economics.value_per_unit == pytest.approx(24.0 / 70.0)
