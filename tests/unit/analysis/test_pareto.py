@@ -1,0 +1,90 @@
+"""Pareto filtering and exact hypervolume on hand-computed cases."""
+
+from itertools import combinations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from econmotor.analysis.pareto import (
+    PARETO_CRITERIA,
+    default_reference_point,
+    hypervolume,
+    pareto_front,
+    pareto_mask,
+)
+from econmotor.errors import ConfigError
+
+
+def test_pareto_mask_drops_dominated_points_and_keeps_duplicates():
+    pts = np.array([[1, 3], [2, 2], [3, 1], [2, 3], [3, 3], [1, 3]], float)  # minimise both
+    assert pareto_mask(pts).tolist() == [True, True, True, False, False, True]
+
+
+def test_a_point_equal_in_all_but_one_coordinate_is_dominated():
+    pts = np.array([[1.0, 1.0, 1.0, 1.0], [1.0, 1.0, 1.0, 1.5]])
+    assert pareto_mask(pts).tolist() == [True, False]
+
+
+def test_hypervolume_2d_staircase_by_hand():
+    # points (1,3), (2,2), (3,1) against (4,4): 3 + 2 + 1 unit-wide columns of heights 1, 2, 3 -> 6
+    assert hypervolume(np.array([[1, 3], [2, 2], [3, 1]], float), [4, 4]) == pytest.approx(6.0)
+
+
+def test_hypervolume_3d_two_boxes_by_inclusion_exclusion():
+    # box A = [0,2]x[0,1]x[0,1] (vol 2), box B = [0,1]x[0,2]x[0,1] (vol 2), overlap [0,1]^3 (vol 1)
+    pts = np.array([[0, 1, 1], [1, 0, 1]], float)
+    assert hypervolume(pts, [2, 2, 2]) == pytest.approx(3.0)
+
+
+def test_hypervolume_ignores_points_outside_the_reference_box():
+    pts = np.array([[1, 1, 1, 1], [5, 0, 0, 0]], float)
+    assert hypervolume(pts, [2, 2, 2, 2]) == pytest.approx(1.0)
+    assert hypervolume(np.zeros((0, 4)), [1, 1, 1, 1]) == 0.0
+
+
+def _inclusion_exclusion(pts: np.ndarray, ref: np.ndarray) -> float:
+    total = 0.0
+    for size in range(1, len(pts) + 1):
+        for subset in combinations(range(len(pts)), size):
+            corner = pts[list(subset)].max(axis=0)
+            total += (-1) ** (size + 1) * np.prod(np.clip(ref - corner, 0, None))
+    return total
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(*[st.integers(0, 9)] * 4), min_size=1, max_size=7))
+def test_hypervolume_4d_matches_inclusion_exclusion(points):
+    pts = np.array(points, float)
+    ref = np.full(4, 10.0)
+    assert hypervolume(pts, ref) == pytest.approx(_inclusion_exclusion(pts, ref))
+
+
+def test_pareto_front_of_runs_maximises_mpl_and_minimises_the_rest():
+    #                  MPL, Wh/unit, error, risk
+    runs = np.array([[60.0, 2.0, 0.05, 0.1],    # best MPL
+                     [40.0, 1.0, 0.05, 0.1],    # best energy
+                     [50.0, 2.5, 0.10, 0.2],    # dominated by run 0
+                     [30.0, 3.0, 0.01, 0.1]])   # best error
+    front = pareto_front(runs, {"energy_wh_per_unit": 4.0})
+    assert front.indices == (0, 1, 3)
+    assert front.reference_point == {"mpl_units_per_hour": 0.0, "energy_wh_per_unit": 4.0,
+                                      "error_rate": 1.0, "risk_score": 1.0}
+    assert front.hypervolume == pytest.approx(
+        _inclusion_exclusion(np.array([[-60, 2, .05, .1], [-40, 1, .05, .1], [-30, 3, .01, .1]]),
+                             np.array([0, 4, 1, 1.0])))
+    assert front.to_dict()["criteria"] == {c: ("max" if c == "mpl_units_per_hour" else "min")
+                                           for c in PARETO_CRITERIA}
+
+
+def test_default_reference_point_bounds_every_finite_run():
+    runs = np.array([[10.0, 2.0, 0.1, 0.0], [20.0, np.inf, 0.2, 3.0]])
+    ref = default_reference_point(runs)
+    assert ref == {"mpl_units_per_hour": 0.0, "energy_wh_per_unit": pytest.approx(2.2),
+                   "error_rate": 1.0, "risk_score": 3.0}
+
+
+def test_unknown_reference_criterion_is_a_config_error():
+    with pytest.raises(ConfigError, match="reference_point.speed"):
+        pareto_front(np.ones((1, 4)), {"speed": 1.0})
