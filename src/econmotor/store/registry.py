@@ -1,0 +1,499 @@
+"""The run registry: tasks, robots, datapacks, runs, episodes and reports in one database.
+
+SQLite file by default (``./.econmotor/registry.sqlite``, created on first use),
+PostgreSQL (or any SQLAlchemy URL) by ``Registry(url)``. The CLI reads the URL from
+``--db-url`` or the ``ECONMOTOR_DB_URL`` environment variable; library code takes it
+as an argument. Usage from library code::
+
+    from econmotor.store import Registry
+
+    reg = Registry()                                   # or Registry("postgresql+psycopg://...")
+    reg.record_task(spec)                              # a TaskSpec from econmotor.tasks
+    reg.record_datapacks(configs)                      # DatapackConfig list; ids become reusable
+    with reg.track_run("train", spec.task_id, "dishwashing", objective=obj,
+                       datapack_ids=["dr_v1"], seed=0, num_envs=1, max_steps=2000) as run_id:
+        result = backend.train_policy(...)             # failure -> status failed / interrupted
+        reg.finish_run(run_id, result)                 # metrics + episodes, one transaction
+    # or, for a result already in hand (one transaction):
+    run_id = reg.record_run("eval", result, objective=obj, datapack_ids=["dr_v1"], seed=1)
+
+    reg.runs(task_id="dishwashing", status="completed")            # -> [RunRecord]
+    reg.episodes(task_id="dishwashing", backend="dishwashing",
+                 datapacks=["dr_v1"], objective="throughput")      # -> [EpisodeRecord]
+    reg.episode_arrays(["mpl_units_per_hour", "error_rate"], task_id="dishwashing")  # numpy
+
+Filters: ``datapacks`` keeps runs that used every listed id (``[]`` keeps runs that used
+none); ``objective`` matches the objective name. ``episodes`` reads completed runs by
+default. Every write is one transaction. On SQLite the database runs in WAL mode with a
+busy timeout and every transaction begins ``IMMEDIATE``, so several processes can write
+one file at once: writers queue instead of failing or corrupting. A run is recorded as
+``running`` before work starts, so a crash or Ctrl-C leaves it ``failed`` /
+``interrupted`` (via :meth:`track_run`) and never loses what was already committed.
+The schema is versioned (``econmotor_schema``); a database written by another schema
+version is refused with a message saying what to do.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from pathlib import Path
+from typing import Any, Self
+
+import numpy as np
+from sqlalchemy import create_engine, distinct, event, exists, func, inspect, select, text
+from sqlalchemy.engine import Engine, make_url
+from sqlalchemy.exc import SQLAlchemyError
+from sqlalchemy.orm import Session
+
+from econmotor.errors import RegistryError, UnknownNameError
+from econmotor.motor_backend.datapacks import DatapackConfig, parse_datapack
+from econmotor.store.models import (
+    EPISODE_COLUMNS,
+    RUN_KINDS,
+    RUN_STATUSES,
+    Base,
+    DatapackRow,
+    EpisodeRow,
+    ReportRow,
+    RobotRow,
+    RunDatapackRow,
+    RunRow,
+    SchemaVersionRow,
+    TaskRow,
+    utc_now,
+)
+from econmotor.store.records import (
+    EpisodeRecord,
+    ReportRecord,
+    RunRecord,
+    episode_record,
+    run_record,
+)
+
+#: Environment variable the CLI reads for the database URL.
+DB_URL_ENV = "ECONMOTOR_DB_URL"
+_SQLITE_FILE = Path(".econmotor") / "registry.sqlite"
+
+
+def default_db_url(base_dir: str | Path | None = None) -> str:
+    """``sqlite:///<base_dir or cwd>/.econmotor/registry.sqlite`` (absolute path)."""
+    return f"sqlite:///{(Path(base_dir or Path.cwd()) / _SQLITE_FILE).resolve()}"
+
+
+def sqlite_path(url: str) -> Path | None:
+    """The database file of a SQLite URL, ``None`` for other databases or in-memory SQLite."""
+    parsed = make_url(url)
+    if parsed.get_backend_name() != "sqlite" or parsed.database in (None, "", ":memory:"):
+        return None
+    return Path(parsed.database)
+
+
+def registry_exists(url: str) -> bool:
+    """False only for a SQLite file that does not exist yet (other URLs: assumed to exist)."""
+    path = sqlite_path(url)
+    return path is None or path.exists()
+
+
+class Registry:
+    """Record and query runs (see the module docstring for usage).
+
+    Args:
+        url: SQLAlchemy URL; ``None`` means :func:`default_db_url` in the current directory.
+        create: create the SQLite file and the tables when missing; with ``False`` a missing
+            database is a :class:`RegistryError`.
+        busy_timeout_s: how long a SQLite writer waits for another writer before failing.
+    """
+
+    def __init__(self, url: str | None = None, *, create: bool = True, busy_timeout_s: float = 120.0) -> None:
+        self.url = url or default_db_url()
+        try:
+            parsed = make_url(self.url)
+        except SQLAlchemyError as exc:
+            raise RegistryError(f"invalid database URL {self.url!r}: {exc}") from exc
+        self.display_url = parsed.render_as_string(hide_password=True)
+        path = sqlite_path(self.url)
+        if path is not None:
+            if not path.exists() and not create:
+                raise RegistryError(f"no registry at {path}; run `econmotor report` first or pass --db-url")
+            path.parent.mkdir(parents=True, exist_ok=True)
+        self._sqlite = parsed.get_backend_name() == "sqlite"
+        kwargs: dict[str, Any] = {}
+        if self._sqlite:
+            kwargs["connect_args"] = {"timeout": busy_timeout_s}
+        self.engine: Engine = create_engine(self.url, **kwargs)
+        if self._sqlite:
+            _make_sqlite_concurrent(self.engine, busy_timeout_s)
+        self._ensure_schema(create)
+
+    # ------------------------------------------------------------------ schema
+    def _ensure_schema(self, create: bool) -> None:
+        from econmotor.store.models import SCHEMA_VERSION
+
+        try:
+            with self.engine.begin() as conn:
+                if conn.dialect.name == "postgresql":  # serialise concurrent first use
+                    conn.execute(text("SELECT pg_advisory_xact_lock(7270001)"))
+                tables = set(inspect(conn).get_table_names())
+                if SchemaVersionRow.__tablename__ not in tables:
+                    if tables & set(Base.metadata.tables):
+                        raise RegistryError(
+                            f"{self.display_url} holds econmotor tables but no schema version; "
+                            "it was not written by this econmotor: use a new database (--db-url)")
+                    if not create:
+                        raise RegistryError(f"{self.display_url} has no econmotor registry")
+                    Base.metadata.create_all(conn)
+                    conn.execute(SchemaVersionRow.__table__.insert().values(version=SCHEMA_VERSION,
+                                                                            created_at=utc_now()))
+                    return
+                versions = [row[0] for row in conn.execute(select(SchemaVersionRow.version))]
+        except SQLAlchemyError as exc:
+            raise RegistryError(f"cannot open the registry at {self.display_url}: {exc}") from exc
+        if versions != [SCHEMA_VERSION]:
+            raise RegistryError(
+                f"registry {self.display_url} has schema version {versions}, this econmotor uses "
+                f"{SCHEMA_VERSION}; move the database aside (or pass --db-url to a new one) and "
+                "re-run, or use the econmotor version that wrote it")
+
+    @contextlib.contextmanager
+    def _write(self) -> Iterator[Session]:
+        """One transaction; database errors become RegistryError."""
+        try:
+            with Session(self.engine, expire_on_commit=False) as session, session.begin():
+                yield session
+        except SQLAlchemyError as exc:
+            raise RegistryError(f"registry write failed ({self.display_url}): {exc}") from exc
+
+    _read = _write
+
+    def close(self) -> None:
+        self.engine.dispose()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ catalog rows
+    def record_task(self, spec: Any) -> None:
+        """Insert or update a task (a ``econmotor.tasks.TaskSpec``) with its economics."""
+        with self._write() as s:
+            row = s.get(TaskRow, spec.task_id) or TaskRow(task_id=spec.task_id)
+            row.description, row.unit = spec.description, spec.unit
+            row.error_definition = spec.error_definition
+            row.economics = {"values": spec.economics.to_dict(), "parameters": spec.economics.parameters()}
+            row.source, row.updated_at = spec.source, utc_now()
+            s.add(row)
+
+    def record_robot(self, robot_id: str, backend: str, description: str = "",
+                     details: Mapping[str, Any] | None = None) -> None:
+        """Insert or update a robot (e.g. ``"mujoco:Hopper-v5"``)."""
+        with self._write() as s:
+            row = s.get(RobotRow, robot_id) or RobotRow(robot_id=robot_id)
+            row.backend, row.description, row.details = backend, description, dict(details or {})
+            s.add(row)
+
+    def record_datapacks(self, configs: Iterable[DatapackConfig]) -> list[str]:
+        """Insert or update datapacks so later runs can name them by id; returns the ids."""
+        ids = []
+        with self._write() as s:
+            for config in configs:
+                row = s.get(DatapackRow, config.id) or DatapackRow(datapack_id=config.id)
+                row.description, row.config, row.source = config.description, config.to_dict(), config.source
+                s.add(row)
+                ids.append(config.id)
+        return ids
+
+    def known_datapack_ids(self) -> list[str]:
+        with self._read() as s:
+            return sorted(s.scalars(select(DatapackRow.datapack_id)))
+
+    def datapack_configs(self, ids: Sequence[str]) -> list[DatapackConfig]:
+        """Registered datapacks by id, in order; an unknown id lists the known ones."""
+        with self._read() as s:
+            rows = {r.datapack_id: r for r in s.scalars(select(DatapackRow))}
+        out = []
+        for pack_id in ids:
+            if pack_id not in rows:
+                raise UnknownNameError("datapack id", pack_id, rows)
+            out.append(parse_datapack(rows[pack_id].config, f"registry:{pack_id}"))
+        return out
+
+    # ------------------------------------------------------------------ runs
+    def start_run(
+        self,
+        kind: str,
+        task_id: str,
+        backend: str,
+        *,
+        objective: Any = None,
+        datapack_ids: Sequence[str] = (),
+        config: Mapping[str, Any] | None = None,
+        seed: int | None = None,
+        num_envs: int | None = None,
+        max_steps: int | None = None,
+        notes: str = "",
+        parent_run_id: int | None = None,
+        robot_id: str | None = None,
+        policy_path: str | None = None,
+    ) -> int:
+        """Record a run as ``running`` (committed at once) and return its id.
+
+        ``objective`` is an ``EconomicObjectiveSpec`` (or its ``to_dict()``); the task row is
+        created with empty economics if it was not recorded before.
+        """
+        if kind not in RUN_KINDS:
+            raise RegistryError(f"run kind must be one of {RUN_KINDS}, got {kind!r}")
+        obj = objective.to_dict() if hasattr(objective, "to_dict") else dict(objective or {})
+        ids = list(dict.fromkeys(datapack_ids))
+        with self._write() as s:
+            if s.get(TaskRow, task_id) is None:
+                s.add(TaskRow(task_id=task_id))
+            if robot_id is not None and s.get(RobotRow, robot_id) is None:
+                s.add(RobotRow(robot_id=robot_id, backend=backend))
+            s.flush()  # parents first: no relationship() tells the unit of work the order
+            run = RunRow(kind=kind, parent_run_id=parent_run_id, task_id=task_id, backend=backend,
+                         robot_id=robot_id, objective_name=str(obj.get("name", "objective")),
+                         objective=obj, datapack_ids=ids, config=dict(config or {}), seed=seed,
+                         num_envs=num_envs, max_steps=max_steps, notes=notes, status="running",
+                         policy_path=policy_path, created_at=utc_now())
+            s.add(run)
+            s.flush()
+            s.add_all(RunDatapackRow(run_id=run.id, datapack_id=d, position=i) for i, d in enumerate(ids))
+            return run.id
+
+    def finish_run(self, run_id: int, result: Any = None, *, status: str = "completed",
+                   episodes: Sequence[Mapping[str, Any]] | None = None, **fields: Any) -> None:
+        """Store a run's outcome and its episodes in one transaction.
+
+        Args:
+            run_id: from :meth:`start_run`.
+            result: a ``MotorTrainingResult`` / ``MotorEvalResult`` (policy path, metrics,
+                episodes, training curve, config, artifacts are taken from it), or ``None``.
+            status: the final status.
+            episodes: per-episode summaries (default: ``result.episodes``).
+            **fields: run columns to set directly (``raw_metrics``, ``error``, ...).
+        """
+        _check_status(status)
+        values: dict[str, Any] = {}
+        if result is not None:
+            values = {"policy_path": result.policy_id, "raw_metrics": dict(result.raw_metrics),
+                      "econ_metrics": dict(result.econ_metrics),
+                      "training_curve": list(getattr(result, "training_curve", []) or []),
+                      "artifacts": dict(getattr(result, "artifacts", {}) or {})}
+            episodes = result.episodes if episodes is None else episodes
+        values.update(fields)
+        with self._write() as s:
+            run = self._get_run(s, run_id)
+            if result is not None and result.config:
+                run.config = {**run.config, "backend_config": dict(result.config)}
+            for key, value in values.items():
+                setattr(run, key, value)
+            run.status, run.finished_at = status, utc_now()
+            if episodes:
+                s.add_all(_episode_row(run_id, ep, i) for i, ep in enumerate(episodes))
+
+    def mark_run(self, run_id: int, status: str, error: str | None = None) -> None:
+        """Set a run's status (e.g. ``failed`` with the error text); keeps everything else."""
+        _check_status(status)
+        with self._write() as s:
+            run = self._get_run(s, run_id)
+            run.status, run.error, run.finished_at = status, error, utc_now()
+
+    @contextlib.contextmanager
+    def track_run(self, kind: str, task_id: str, backend: str, **kwargs: Any) -> Iterator[int]:
+        """``start_run`` now; if the body raises, mark the run failed (or interrupted on
+        Ctrl-C / SystemExit) with the error text and re-raise. The body calls :meth:`finish_run`."""
+        run_id = self.start_run(kind, task_id, backend, **kwargs)
+        try:
+            yield run_id
+        except (KeyboardInterrupt, SystemExit) as exc:
+            self._mark_if_running(run_id, "interrupted", f"{type(exc).__name__}: {exc}")
+            raise
+        except BaseException as exc:
+            self._mark_if_running(run_id, "failed", f"{type(exc).__name__}: {exc}")
+            raise
+
+    def _mark_if_running(self, run_id: int, status: str, error: str) -> None:
+        if self.run(run_id).status == "running":
+            self.mark_run(run_id, status, error)
+
+    def record_run(self, kind: str, result: Any, *, objective: Any = None, datapack_ids: Sequence[str] = (),
+                   status: str = "completed", **kwargs: Any) -> int:
+        """Record a finished run from a backend result (with its episodes); returns its id.
+
+        ``kwargs`` go to :meth:`start_run` (``seed``, ``num_envs``, ``max_steps``, ``notes``,
+        ``config``, ``parent_run_id``, ``robot_id``).
+        """
+        run_id = self.start_run(kind, result.task_id, result.backend, objective=objective,
+                                datapack_ids=datapack_ids, **kwargs)
+        self.finish_run(run_id, result, status=status)
+        return run_id
+
+    def record_episodes(self, run_id: int, episodes: Sequence[Mapping[str, Any]]) -> int:
+        """Append per-episode summaries to a run (indices continue); returns how many."""
+        with self._write() as s:
+            self._get_run(s, run_id)
+            start = s.scalar(select(func.count()).select_from(EpisodeRow).where(EpisodeRow.run_id == run_id))
+            s.add_all(_episode_row(run_id, ep, start + i) for i, ep in enumerate(episodes))
+        return len(episodes)
+
+    @staticmethod
+    def _get_run(session: Session, run_id: int) -> RunRow:
+        run = session.get(RunRow, run_id)
+        if run is None:
+            raise RegistryError(f"no run with id {run_id} in the registry")
+        return run
+
+    def run(self, run_id: int) -> RunRecord:
+        with self._read() as s:
+            return run_record(self._get_run(s, run_id))
+
+    def runs(self, task_id: str | None = None, backend: str | None = None,
+             datapacks: Sequence[str] | str | None = None, objective: str | None = None,
+             kind: str | None = None, status: str | None = None) -> list[RunRecord]:
+        """Runs matching every given filter, oldest first."""
+        stmt = _filter(select(RunRow), task_id, backend, datapacks, objective, kind, status).order_by(RunRow.id)
+        with self._read() as s:
+            return [run_record(r) for r in s.scalars(stmt)]
+
+    def latest_run(self, **filters: Any) -> RunRecord | None:
+        """The newest run matching :meth:`runs`' filters, or ``None``."""
+        found = self.runs(**filters)
+        return found[-1] if found else None
+
+    def child_runs(self, run_id: int, kind: str | None = "eval") -> list[RunRecord]:
+        """Runs whose parent is ``run_id`` (evaluations of a trained policy), oldest first."""
+        stmt = select(RunRow).where(RunRow.parent_run_id == run_id).order_by(RunRow.id)
+        if kind:
+            stmt = stmt.where(RunRow.kind == kind)
+        with self._read() as s:
+            return [run_record(r) for r in s.scalars(stmt)]
+
+    # ------------------------------------------------------------------ episodes
+    def episodes(self, task_id: str | None = None, backend: str | None = None,
+                 datapacks: Sequence[str] | str | None = None, objective: str | None = None,
+                 kind: str | None = None, status: str | None = "completed",
+                 run_ids: Iterable[int] | None = None) -> list[EpisodeRecord]:
+        """Per-episode summaries of matching runs, ordered by run then episode index."""
+        stmt = _filter(select(EpisodeRow, RunRow).join(RunRow, EpisodeRow.run_id == RunRow.id),
+                       task_id, backend, datapacks, objective, kind, status)
+        if run_ids is not None:
+            stmt = stmt.where(RunRow.id.in_(list(run_ids)))
+        stmt = stmt.order_by(EpisodeRow.run_id, EpisodeRow.episode_index)
+        with self._read() as s:
+            return [episode_record(ep, run) for ep, run in s.execute(stmt)]
+
+    def episode_arrays(self, keys: Sequence[str] = EPISODE_COLUMNS, **filters: Any) -> dict[str, np.ndarray]:
+        """Column arrays (float64, NaN where missing) of :meth:`episodes`' rows plus ``run_id``.
+
+        ``keys`` must be among ``EPISODE_COLUMNS``; filters as in :meth:`episodes`.
+        """
+        bad = [k for k in keys if k not in EPISODE_COLUMNS]
+        if bad:
+            raise UnknownNameError("episode column", bad[0], EPISODE_COLUMNS)
+        cols = [EpisodeRow.run_id] + [getattr(EpisodeRow, k) for k in keys]
+        run_ids = filters.pop("run_ids", None)
+        stmt = _filter(select(*cols).join(RunRow, EpisodeRow.run_id == RunRow.id),
+                       filters.pop("task_id", None), filters.pop("backend", None),
+                       filters.pop("datapacks", None), filters.pop("objective", None),
+                       filters.pop("kind", None), filters.pop("status", "completed"))
+        if filters:
+            raise TypeError(f"unknown filters: {sorted(filters)}")
+        if run_ids is not None:
+            stmt = stmt.where(RunRow.id.in_(list(run_ids)))
+        with self._read() as s:
+            rows = s.execute(stmt.order_by(EpisodeRow.run_id, EpisodeRow.episode_index)).all()
+        data = np.array([[np.nan if v is None else v for v in row] for row in rows], dtype=np.float64)
+        data = data.reshape(len(rows), len(cols))
+        out = {"run_id": data[:, 0].astype(np.int64)}
+        out.update({k: data[:, i + 1] for i, k in enumerate(keys)})
+        return out
+
+    # ------------------------------------------------------------------ reports
+    def record_report(self, task_id: str, document: Mapping[str, Any], files: Mapping[str, str],
+                      train_run_id: int | None = None, eval_run_id: int | None = None) -> int:
+        with self._write() as s:
+            if s.get(TaskRow, task_id) is None:
+                s.add(TaskRow(task_id=task_id))
+                s.flush()
+            row = ReportRow(task_id=task_id, document=dict(document), files=dict(files),
+                            train_run_id=train_run_id, eval_run_id=eval_run_id, created_at=utc_now())
+            s.add(row)
+            s.flush()
+            return row.id
+
+    def reports(self, task_id: str | None = None) -> list[ReportRecord]:
+        stmt = select(ReportRow).order_by(ReportRow.id)
+        if task_id:
+            stmt = stmt.where(ReportRow.task_id == task_id)
+        with self._read() as s:
+            return [ReportRecord(r.id, r.task_id, r.train_run_id, r.eval_run_id, r.document, r.files,
+                                 r.created_at) for r in s.scalars(stmt)]
+
+
+def _check_status(status: str) -> None:
+    if status not in RUN_STATUSES:
+        raise RegistryError(f"run status must be one of {RUN_STATUSES}, got {status!r}")
+
+
+def _filter(stmt: Any, task_id: str | None, backend: str | None, datapacks: Sequence[str] | str | None,
+            objective: str | None, kind: str | None, status: str | None) -> Any:
+    if task_id:
+        stmt = stmt.where(RunRow.task_id == task_id)
+    if backend:
+        stmt = stmt.where(RunRow.backend == backend)
+    if objective:
+        stmt = stmt.where(RunRow.objective_name == objective)
+    if kind:
+        stmt = stmt.where(RunRow.kind == kind)
+    if status:
+        stmt = stmt.where(RunRow.status == status)
+    if datapacks is not None:
+        ids = [datapacks] if isinstance(datapacks, str) else list(dict.fromkeys(datapacks))
+        if not ids:
+            stmt = stmt.where(~exists().where(RunDatapackRow.run_id == RunRow.id))
+        else:
+            having = (select(RunDatapackRow.run_id).where(RunDatapackRow.datapack_id.in_(ids))
+                      .group_by(RunDatapackRow.run_id)
+                      .having(func.count(distinct(RunDatapackRow.datapack_id)) == len(ids)))
+            stmt = stmt.where(RunRow.id.in_(having))
+    return stmt
+
+
+def _episode_row(run_id: int, summary: Mapping[str, Any], index: int) -> EpisodeRow:
+    columns = {}
+    for key in EPISODE_COLUMNS:
+        value = summary.get(key)
+        try:
+            value = float(value) if value is not None else None
+        except (TypeError, ValueError):
+            value = None
+        columns[key] = None if value is None or math.isnan(value) else value
+    return EpisodeRow(run_id=run_id, episode_index=int(summary.get("episode_index", index)),
+                      termination_reason=str(summary.get("termination_reason", "max_steps")),
+                      summary=dict(summary), **columns)
+
+
+def _make_sqlite_concurrent(engine: Engine, busy_timeout_s: float) -> None:
+    """WAL + busy timeout + BEGIN IMMEDIATE: concurrent writers wait for each other.
+
+    Deferred transactions that read then write can fail at once with SQLITE_BUSY
+    (the busy handler is not used when upgrading a read lock); IMMEDIATE avoids that.
+    """
+
+    @event.listens_for(engine, "connect")
+    def _on_connect(dbapi_conn: Any, _record: Any) -> None:
+        dbapi_conn.isolation_level = None  # SQLAlchemy's "begin" event below emits BEGIN
+        cursor = dbapi_conn.cursor()
+        cursor.execute(f"PRAGMA busy_timeout = {int(busy_timeout_s * 1000)}")
+        cursor.execute("PRAGMA journal_mode = WAL")
+        cursor.execute("PRAGMA synchronous = NORMAL")
+        cursor.execute("PRAGMA foreign_keys = ON")
+        cursor.close()
+
+    @event.listens_for(engine, "begin")
+    def _on_begin(conn: Any) -> None:
+        conn.exec_driver_sql("BEGIN IMMEDIATE")
