@@ -23,8 +23,10 @@ Rewards (``reward_mode``):
   normalised so their episode sum is the episode metric of the same key:
   ``mpl_per_hour`` = change of running MPL (sums to episode MPL, units/h);
   ``energy_kwh`` = step kWh; ``error_rate`` = change of the running errors/attempts;
-  ``risk_score`` = catastrophic-step indicator / max_catastrophic_errors (episode value:
-  the share of the catastrophe budget used, 1 = terminated by catastrophe);
+  ``risk_score`` = catastrophic-step indicator / max_catastrophic_errors, plus the rest
+  of the budget on a step that ends the episode in a failure (episode value: the share of
+  the catastrophe budget used, and 1 for any failure termination: catastrophe, SLA
+  violation or zero throughput — so ending a shift early is never a way to save risk);
   ``novelty_score`` = 1/25 when the step's action falls in a 5x5 (speed, care) cell not
   yet visited this episode (episode value: share of cells visited); extra keys
   ``profit_usd`` (step profit) and ``units_completed`` (step good units). Other extra keys
@@ -59,6 +61,7 @@ from econmotor.valuation.reward_builder import (
 
 REWARD_MODES = ("overlay", "legacy", "reward_builder")
 TERMINATION_REASONS = ("catastrophic_error", "sla_violation", "zero_throughput", "max_steps")
+FAILURE_REASONS = TERMINATION_REASONS[:3]
 OVERLAY_TERM_KEYS = ("mpl_per_hour", "energy_kwh", "error_rate", "risk_score", "novelty_score",
                      "profit_usd", "units_completed")
 NOVELTY_GRID = 5
@@ -222,6 +225,8 @@ class DishwashingEnv(gym.Env):
         terminated = reason is not None and reason != "max_steps"
         truncated = reason == "max_steps"
         summary["termination_reason"] = reason
+        if terminated:
+            summary["overlay_terms"]["risk_score"] += 1.0 - self._catastrophe_share()
         reward = self._reward(summary)
         self.episode_return += reward
         self.last_attempts, self.last_error_rate = attempts, errors / attempts
@@ -267,6 +272,9 @@ class DishwashingEnv(gym.Env):
             "catastrophic": catastrophic, "overlay_terms": terms,
         }
 
+    def _catastrophe_share(self) -> float:
+        return self.catastrophic_steps / max(1, self.params.max_catastrophic_errors)
+
     def _termination_reason(self) -> str | None:
         p = self.params
         if self.catastrophic_steps >= p.max_catastrophic_errors:
@@ -295,7 +303,8 @@ class DishwashingEnv(gym.Env):
         ``mpl_episode`` units/h, ``ep_episode`` units/kWh, ``energy_Wh`` Wh,
         ``energy_Wh_per_unit`` Wh/unit (inf with no unit), ``profit`` USD,
         ``wage_parity`` = implied wage / human wage, ``risk_score`` = catastrophic steps /
-        max_catastrophic_errors, ``novelty_score`` = share of (speed, care) cells visited.
+        max_catastrophic_errors (1 after any failure termination), ``novelty_score`` = share
+        of (speed, care) cells visited.
         """
         p = self.params
         hours = self.t * p.time_step_s / 3600.0
@@ -310,7 +319,7 @@ class DishwashingEnv(gym.Env):
             "episode_length_s": self.t * p.time_step_s,
             "energy_wh": self.energy_wh,
             "length_steps": float(self.t),
-            "risk_score": self.catastrophic_steps / max(1, p.max_catastrophic_errors),
+            "risk_score": 1.0 if termination_reason in FAILURE_REASONS else self._catastrophe_share(),
             "novelty_score": len(self.visited_cells) / NOVELTY_GRID**2,
             "return": self.episode_return,
             "termination_reason": termination_reason,

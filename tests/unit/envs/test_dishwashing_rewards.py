@@ -99,3 +99,16 @@ def test_episode_summary_economics_are_consistent():
     assert ep["wage_parity"] == pytest.approx(wage / params.wage_human)
     assert ep["profit"] == pytest.approx(params.price_per_unit * ep["units_completed"]
                                          - params.damage_cost * ep["errors"])
+
+
+def test_risk_score_is_one_after_any_failure_and_a_budget_share_otherwise():
+    env = DishwashingEnv(EconParams.preset("toy"), objective=EconomicObjectiveSpec(mpl_weight=0.0, risk_weight=1.0))
+    seen = set()
+    for seed in range(40):
+        _, rewards, ep = random_episode(env, seed)
+        reason = ep["termination_reason"]
+        seen.add(reason)
+        expected = 1.0 if reason != "max_steps" else ep["catastrophic_steps"] / 3
+        assert ep["risk_score"] == pytest.approx(expected)
+        assert sum(rewards) == pytest.approx(-expected)
+    assert {"sla_violation", "catastrophic_error"} <= seen
