@@ -1,0 +1,162 @@
+"""Shadow mode: both rewards from the same step summary; the flip picks the learner's.
+
+At every step :class:`ShadowRewardWrapper` reads ``info["step_summary"]`` (the
+dishwashing key set: ``d_mpl``, ``error_rate_t``, ``implied_wage_t``,
+``wage_human``, ``mpl_t``, ``Wh``, ``catastrophic``, ...; MuJoCo tasks get it from
+:class:`econmotor.rl.step_summary.MujocoStepSummaryWrapper`) and computes
+
+- legacy: ``alpha*d_mpl - beta*error_rate_t - gamma*|implied_wage_t/wage_human - 1|``
+  via :func:`econmotor.economics.compute_econ_reward`;
+- objective: ``combine_reward(reward_weights, build_reward_terms(step_summary, reward_params))``,
+  every term kept (``reward_weights`` from the episode's objective vector:
+  identity, analytic or EconObjectiveNet).
+
+The learner sees ``legacy`` unless ``use_objective_reward`` (the flip), then the
+constraint shaping (:mod:`econmotor.rl.constraint_shaping`) if any. Nothing else
+changes with the flip: the same summaries, sums and logs. At the end of an episode
+the wrapper builds the record (both sums, learner sum, per-term totals raw and
+weighted, episode J = ``combine_reward(vector, build_reward_terms(episode_summary))``,
+the econ summary, constraint violations and multipliers) and hands it to the
+:class:`~econmotor.rl.shadow_log.ShadowRecorder`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import gymnasium as gym
+
+from econmotor.config.objective_profile import ObjectiveVector, RewardWeights
+from econmotor.config.task_economics import TaskEconomics
+from econmotor.economics.legacy_reward import LegacyRewardWeights, compute_econ_reward
+from econmotor.economics.meter import EconomicMeter
+from econmotor.errors import ConfigError
+from econmotor.motor_backend.base import episode_summary
+from econmotor.rl.conditioning import ObjectiveConditioningWrapper
+from econmotor.rl.constraint_shaping import ConstraintShaper
+from econmotor.rl.shadow_log import ShadowRecorder
+from econmotor.valuation.reward_builder import REWARD_TERM_NAMES, build_reward_terms, combine_reward
+
+WeightsFn = Callable[[ObjectiveVector], RewardWeights]
+ECON_SUMMARY_KEYS = ("mpl_episode", "error_rate_episode", "energy_Wh", "energy_Wh_per_unit", "wage_parity",
+                     "implied_wage_usd_per_hour", "units_completed", "units_attempted", "errors",
+                     "episode_length_s", "termination_reason", "profit", "risk_score", "novelty_score")
+
+
+def legacy_step_reward(step_summary: Mapping[str, Any], weights: LegacyRewardWeights) -> float:
+    """The legacy training-economics reward of one step summary."""
+    return compute_econ_reward(step_summary["d_mpl"], step_summary["error_rate_t"],
+                               step_summary["implied_wage_t"], step_summary["wage_human"], weights)
+
+
+def find_conditioning(env: gym.Env) -> ObjectiveConditioningWrapper | None:
+    """The ObjectiveConditioningWrapper inside ``env``'s wrapper chain, or None."""
+    while env is not None:
+        if isinstance(env, ObjectiveConditioningWrapper):
+            return env
+        env = getattr(env, "env", None)
+    return None
+
+
+class ShadowRewardWrapper(gym.Wrapper):
+    """Compute the legacy and the objective reward every step; hand one to the learner.
+
+    Args:
+        env: an env whose ``info["step_summary"]`` has the dishwashing key set; if an
+            :class:`~econmotor.rl.conditioning.ObjectiveConditioningWrapper` is inside, its
+            per-episode vector is used, else ``objective``.
+        economics: the task economics (episode summaries when the env gives only raw metrics).
+        reward_params: passed to ``build_reward_terms`` (its ``energy_price_usd_per_kwh``,
+            or ``None``, decides whether ``r_energy`` is USD or Wh).
+        weights_for: objective vector -> RewardWeights (identity / analytic / net).
+        objective: the vector when the env is not conditioned (normalised here).
+        use_objective_reward: the flip: the learner sees the objective reward.
+        legacy_weights: alpha, beta, gamma of the legacy reward.
+        constraints: constraint shaping of the learner's reward, or ``None``.
+        recorder: where episode records go (``None``: a memory-only recorder).
+    """
+
+    def __init__(self, env: gym.Env, *, economics: TaskEconomics, reward_params: Any, weights_for: WeightsFn,
+                 objective: ObjectiveVector, use_objective_reward: bool = False,
+                 legacy_weights: LegacyRewardWeights | None = None,
+                 constraints: ConstraintShaper | None = None, recorder: ShadowRecorder | None = None) -> None:
+        super().__init__(env)
+        self.meter = EconomicMeter(economics)
+        self.reward_params, self.weights_for = reward_params, weights_for
+        self.fixed_objective = objective.normalize()
+        self.use_objective_reward = bool(use_objective_reward)
+        self.legacy_weights, self.constraints = legacy_weights or LegacyRewardWeights(), constraints
+        self.recorder = recorder if recorder is not None else ShadowRecorder()
+        self._conditioning = find_conditioning(env)
+        self.episode_index = 0
+        self._start_episode()
+
+    def _start_episode(self) -> None:
+        self.vector = self._conditioning.objective_vector if self._conditioning else self.fixed_objective
+        self.weights = self.weights_for(self.vector)
+        self._w = self.weights.to_list()
+        self.legacy_sum = self.objective_sum = self.learner_sum = 0.0
+        self.term_sums = dict.fromkeys(REWARD_TERM_NAMES, 0.0)
+        self.steps = 0
+
+    def reset(self, **kwargs: Any):
+        obs, info = self.env.reset(**kwargs)
+        self._start_episode()
+        return obs, info
+
+    def step(self, action):
+        obs, _env_reward, terminated, truncated, info = self.env.step(action)
+        summary = info.get("step_summary")
+        if summary is None:
+            raise ConfigError("<env>", "info.step_summary", "shadow mode needs a per-step summary in info; wrap "
+                              "MuJoCo envs in econmotor.rl.step_summary.MujocoStepSummaryWrapper")
+        legacy = legacy_step_reward(summary, self.legacy_weights)
+        terms = build_reward_terms(summary, self.reward_params)
+        objective = combine_reward(self._w, terms)
+        reward = objective if self.use_objective_reward else legacy
+        if self.constraints is not None:
+            reward = self.constraints.step_reward(reward, summary)
+        self.steps += 1
+        self.legacy_sum += legacy
+        self.objective_sum += objective
+        self.learner_sum += reward
+        for name in REWARD_TERM_NAMES:
+            self.term_sums[name] += terms[name]
+        self.recorder.add_step(legacy, objective)
+        info["shadow"] = {"legacy": legacy, "objective": objective, "learner": reward}
+        if terminated or truncated:
+            info["shadow_episode"] = self._end_episode(info, summary)
+        return obs, reward, terminated, truncated, info
+
+    def _episode_summary(self, info: Mapping[str, Any], step_summary: Mapping[str, Any]) -> dict[str, Any]:
+        if "episode_summary" in info:
+            return dict(info["episode_summary"])
+        if "econ_episode" in info:
+            return episode_summary(info["econ_episode"], self.meter, self.episode_index)
+        raise ConfigError("<env>", "info.episode_summary", "no episode summary on the last step "
+                          "(dishwashing: info['episode_summary']; MuJoCo: info['econ_episode'])")
+
+    def _end_episode(self, info: Mapping[str, Any], step_summary: Mapping[str, Any]) -> dict[str, Any]:
+        ep = self._episode_summary(info, step_summary)
+        vector = self.vector.to_list()
+        ep_terms = build_reward_terms(ep, self.reward_params)
+        record: dict[str, Any] = {
+            "episode": self.episode_index,
+            "steps": self.steps,
+            "flipped": self.use_objective_reward,
+            "objective_vector": vector,
+            "reward_weights": self._w,
+            "legacy_sum": self.legacy_sum,
+            "objective_sum": self.objective_sum,
+            "learner_sum": self.learner_sum,
+            "term_totals": dict(self.term_sums),
+            "term_totals_weighted": {k: w * self.term_sums[k] for k, w in zip(REWARD_TERM_NAMES, self._w)},
+            "episode_terms": ep_terms,
+            "episode_J": combine_reward(vector, ep_terms),
+            "econ": {k: ep.get(k) for k in ECON_SUMMARY_KEYS if k in ep},
+        }
+        if self.constraints is not None:
+            record["constraints"] = self.constraints.end_episode(ep)
+        self.episode_index += 1
+        return self.recorder.end_episode(record)
