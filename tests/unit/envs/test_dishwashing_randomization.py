@@ -49,3 +49,17 @@ def test_curriculum_ramps_from_nominal_to_full_range():
     assert min(half) >= 2.5 and max(half) <= 3.0  # nominal 2.0 + 0.5 * ([3, 4] - 2.0)
     full = [rand.sample(base, rng, 100).base_rate for _ in range(200)]
     assert min(full) >= 3.0 and max(full) <= 4.0
+
+
+def test_shipped_dishwashing_datapacks_are_valid():
+    from pathlib import Path
+
+    from econmotor.motor_backend.datapacks import load_datapack_configs
+
+    root = Path(__file__).resolve().parents[3] / "configs" / "datapacks"
+    packs = load_datapack_configs(sorted(root.glob("dishwashing_*.yaml")))
+    assert {p.id for p in packs} >= {"dishwashing_nominal", "dishwashing_varied_crockery"}
+    for pack in packs:
+        rand = parse_econ_randomization(pack.domain_randomization, pack.curriculum, pack.source)
+        for name, (low, high) in rand.ranges.items():
+            assert low <= high and name in EconParams.__dataclass_fields__

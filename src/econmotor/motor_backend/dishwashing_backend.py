@@ -1,0 +1,342 @@
+"""The ``dishwashing`` motor backend: SB3 SAC on the analytic dishwashing workcell.
+
+Training reward is the compiled objective overlay (``DishwashingEnv(reward_mode="overlay")``)
+with each term divided by a reference (``overlay_normalization``):
+
+- ``"human_baseline"`` (default): ``mpl_per_hour / MP_h``, ``error_rate / e_h``,
+  ``energy_kwh / E_ref`` with ``E_ref = MP_h/(1 - e_h) * energy_Wh_per_attempt *
+  shift_h / 1000`` (the kWh a robot working at the human pace uses in one full episode),
+  ``risk_score / 1``. A weight of 1 then means "one human-baseline's worth" of that metric,
+  so an objective vector's weights compare like with like. Without it the MPL term
+  (tens of units/h) dwarfs the error rate (hundredths) and the energy (hundredths of a
+  kWh), and every preset trains the same policy.
+- ``"none"``: raw terms, exactly ``sum_k scale_k * term_k``.
+
+The whole reward is multiplied by ``SACSettings.reward_scale`` for SAC's sake (it does not
+change the optimum). ``policy_id`` is the saved ``policy.zip``; beside it
+``run_config.json`` records everything needed to reproduce the run.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from econmotor.config.econ_params import EconParams
+from econmotor.config.task_economics import TaskEconomics
+from econmotor.envs.dishwashing import DishwashingEnv
+from econmotor.envs.dishwashing_randomization import EconRandomization, parse_econ_randomization
+from econmotor.errors import BackendError, ConfigError
+from econmotor.motor_backend.base import (
+    MotorEvalResult,
+    MotorTrainingResult,
+    ProgressFn,
+    no_progress,
+    summarize_episodes,
+)
+from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
+from econmotor.objectives.economic_objective import EconomicObjectiveSpec
+from econmotor.tasks.catalog import TaskSpec, get_task
+
+BACKEND_NAME = "dishwashing"
+OVERLAY_NORMALIZATIONS = ("human_baseline", "none")
+_TASK_ENTRY_KEYS = ("econ_preset", "econ_overrides", "overlay_normalization")
+
+
+@dataclass(frozen=True)
+class SACSettings:
+    """SAC hyperparameters (SB3 names). Defaults train 2,000 steps in ~10 s on one core.
+
+    ``reward_scale`` multiplies the environment reward before SAC sees it;
+    ``net_arch`` is the hidden layer sizes of actor and critics; ``eval_every_steps`` the
+    spacing of training-curve points.
+    """
+
+    learning_rate: float = 1e-3
+    buffer_size: int = 100_000
+    learning_starts: int = 200
+    batch_size: int = 128
+    tau: float = 0.02
+    gamma: float = 0.99
+    train_freq: int = 1
+    gradient_steps: int = 1
+    ent_coef: str | float = "auto"
+    net_arch: tuple[int, ...] = (64, 64)
+    reward_scale: float = 10.0
+    curve_every_steps: int = 500
+
+
+class SACPolicyHandle:
+    """A deployed SAC policy: ``act(obs)`` -> deterministic (speed, care)."""
+
+    def __init__(self, model: Any, policy_id: str) -> None:
+        self.model, self.policy_id = model, policy_id
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        action, _ = self.model.predict(np.asarray(obs, dtype=np.float32), deterministic=True)
+        return action
+
+
+def term_references(params: EconParams, economics: TaskEconomics, max_steps: int) -> dict[str, float]:
+    """The ``human_baseline`` references (see the module docstring), one per overlay key."""
+    shift_h = max_steps * params.time_step_s / 3600.0
+    attempts_per_h = economics.mp_human_units_per_hour / max(1e-9, 1.0 - economics.error_rate_human)
+    energy_ref_kwh = attempts_per_h * params.energy_Wh_per_attempt * shift_h / 1000.0
+    return {
+        "mpl_per_hour": economics.mp_human_units_per_hour,
+        "error_rate": max(economics.error_rate_human, 1e-6),
+        "energy_kwh": max(energy_ref_kwh, 1e-9),
+        "risk_score": 1.0,
+        "novelty_score": 1.0,
+    }
+
+
+class DishwashingBackend:
+    """Train, evaluate and deploy SAC policies on the dishwashing workcell.
+
+    Args:
+        sac: SAC hyperparameters.
+        overlay_normalization: ``"human_baseline"`` or ``"none"``; a task's catalog entry
+            may set its own (``backends: {dishwashing: {overlay_normalization: none}}``).
+        known_datapacks: datapacks that ``datapack_ids`` may name without passing configs.
+        catalog_files: extra task catalog YAML files.
+        torch_threads: torch CPU threads (1 is fastest for these small networks).
+        default_output_dir: where runs go when ``output_dir`` is not given.
+    """
+
+    name = BACKEND_NAME
+
+    def __init__(
+        self,
+        sac: SACSettings | None = None,
+        overlay_normalization: str = "human_baseline",
+        known_datapacks: Sequence[DatapackConfig] = (),
+        catalog_files: Sequence[str | Path] = (),
+        torch_threads: int = 1,
+        default_output_dir: str | Path = "runs/dishwashing",
+    ) -> None:
+        if overlay_normalization not in OVERLAY_NORMALIZATIONS:
+            raise ConfigError("<dishwashing backend>", "overlay_normalization",
+                              f"unknown {overlay_normalization!r}", OVERLAY_NORMALIZATIONS)
+        self.sac = sac or SACSettings()
+        self.overlay_normalization = overlay_normalization
+        self.datapacks = DatapackProvider(known_datapacks)
+        self.catalog_files = tuple(catalog_files)
+        self.torch_threads = int(torch_threads)
+        self.default_output_dir = Path(default_output_dir)
+
+    # ----------------------------------------------------------- task set-up
+    def _task(self, task_id: str) -> tuple[TaskSpec, EconParams, str]:
+        spec = get_task(task_id, self.catalog_files)
+        entry = spec.backend_entry(BACKEND_NAME)
+        source, key = spec.source, f"tasks.{task_id}.backends.{BACKEND_NAME}"
+        for k in entry:
+            if k not in _TASK_ENTRY_KEYS:
+                raise ConfigError(source, f"{key}.{k}", "unknown key", _TASK_ENTRY_KEYS)
+        preset = entry.get("econ_preset", "toy")
+        params = EconParams.preset(preset).with_overrides(dict(entry.get("econ_overrides") or {}), source)
+        norm = entry.get("overlay_normalization", self.overlay_normalization)
+        if norm not in OVERLAY_NORMALIZATIONS:
+            raise ConfigError(source, f"{key}.overlay_normalization", f"unknown {norm!r}", OVERLAY_NORMALIZATIONS)
+        return spec, params, norm
+
+    def _randomization(self, task_id: str, ids: Sequence[str], configs: Sequence[Any] | None) -> EconRandomization:
+        bundle = self.datapacks.resolve(task_id, list(ids), list(configs or ()))
+        source = ", ".join(bundle.sources.values()) or "<datapacks>"
+        return parse_econ_randomization(bundle.domain_randomization, bundle.curriculum, source)
+
+    def _env_factory(self, spec: TaskSpec, params: EconParams, norm: str, objective: EconomicObjectiveSpec,
+                     randomization: EconRandomization) -> Callable[[], DishwashingEnv]:
+        refs = term_references(params, spec.economics, params.max_steps) if norm == "human_baseline" else {}
+        rand = randomization if randomization.ranges else None
+
+        def make() -> DishwashingEnv:
+            return DishwashingEnv(params, "overlay", objective=objective, randomization=rand, term_references=refs)
+
+        return make
+
+    # ------------------------------------------------------------- training
+    def train_policy(
+        self,
+        task_id: str,
+        objective: EconomicObjectiveSpec,
+        datapack_ids: Sequence[str],
+        num_envs: int,
+        max_steps: int,
+        seed: int,
+        *,
+        datapack_configs: Sequence[Any] | None = None,
+        output_dir: str | Path | None = None,
+        eval_episodes: int = 5,
+        progress: ProgressFn = no_progress,
+    ) -> MotorTrainingResult:
+        """Train SAC for ``max_steps`` environment steps (summed over ``num_envs``), save, evaluate.
+
+        Args:
+            task_id: a catalog task with a ``dishwashing`` entry.
+            objective: compiled into the overlay reward.
+            datapack_ids / datapack_configs: domain randomization and curriculum of EconParams.
+            num_envs: environments stepped together (SB3 ``DummyVecEnv``, in-process).
+            max_steps: total environment steps.
+            seed: seeds SAC, torch and the environments (env ``i`` gets ``seed + i``).
+            output_dir: runs go to ``output_dir/<run name>/``.
+            eval_episodes: deterministic episodes evaluated after training.
+            progress: ``progress(label, done, total)``.
+        """
+        import torch
+        from stable_baselines3 import SAC
+        from stable_baselines3.common.callbacks import CallbackList
+        from stable_baselines3.common.monitor import Monitor
+        from stable_baselines3.common.vec_env import DummyVecEnv
+
+        from econmotor.motor_backend.sb3_callbacks import ProgressFnCallback, TrainingCurveCallback
+
+        if num_envs < 1 or max_steps < 1:
+            raise ConfigError("<train>", "num_envs" if num_envs < 1 else "max_steps", "must be >= 1")
+        spec, params, norm = self._task(task_id)
+        randomization = self._randomization(task_id, datapack_ids, datapack_configs)
+        make = self._env_factory(spec, params, norm, objective, randomization)
+        scale = self.sac.reward_scale
+
+        def build(i: int) -> Callable[[], gym.Env]:
+            def thunk() -> gym.Env:
+                env = gym.wrappers.TransformReward(make(), lambda r: r * scale)
+                return Monitor(env)
+            return thunk
+
+        torch.set_num_threads(self.torch_threads)
+        vec = DummyVecEnv([build(i) for i in range(num_envs)])
+        vec.seed(seed)
+        hp = self.sac
+        model = SAC(
+            "MlpPolicy", vec, seed=seed, device="cpu", verbose=0,
+            learning_rate=hp.learning_rate, buffer_size=min(hp.buffer_size, max(max_steps, 1000)),
+            learning_starts=min(hp.learning_starts, max_steps // 2), batch_size=hp.batch_size, tau=hp.tau,
+            gamma=hp.gamma, train_freq=hp.train_freq, gradient_steps=hp.gradient_steps, ent_coef=hp.ent_coef,
+            policy_kwargs={"net_arch": list(hp.net_arch)},
+        )
+        curve = TrainingCurveCallback(hp.curve_every_steps)
+        started = time.perf_counter()
+        try:
+            model.learn(total_timesteps=max_steps,
+                        callback=CallbackList([ProgressFnCallback(progress, max_steps, f"train {task_id}"), curve]))
+        except (ValueError, RuntimeError) as exc:
+            raise BackendError(f"SAC training on '{task_id}' failed: {exc}") from exc
+        train_s = time.perf_counter() - started
+        vec.close()
+
+        run_dir = _new_run_dir(Path(output_dir) if output_dir else self.default_output_dir,
+                               f"{task_id}__{objective.name}__seed{seed}")
+        policy_path = run_dir / "policy.zip"
+        model.save(policy_path)
+        config = {
+            "backend": BACKEND_NAME, "task_id": task_id, "objective": objective.to_dict(),
+            "datapack_ids": list(datapack_ids),
+            "datapack_configs": [c.to_dict() for c in (datapack_configs or ()) if hasattr(c, "to_dict")],
+            "num_envs": num_envs, "max_steps": max_steps, "seed": seed, "eval_episodes": eval_episodes,
+            "sac": asdict(self.sac), "torch_threads": self.torch_threads, "econ_params": params.to_dict(),
+            "overlay_normalization": norm,
+            "term_references": term_references(params, spec.economics, params.max_steps) if norm != "none" else {},
+            "overlay_keys_ignored": list(make().ignored_overlay_keys),
+            "randomization": randomization.to_dict(), "train_seconds": train_s,
+        }
+        _write_json(run_dir / "run_config.json", config)
+        _write_json(run_dir / "training_curve.json", curve.curve)
+        raw, econ, episodes = self._evaluate(model, spec, params, norm, objective, randomization,
+                                             eval_episodes, seed + 1_000_003, progress)
+        return MotorTrainingResult(
+            policy_id=str(policy_path), task_id=task_id, backend=BACKEND_NAME, raw_metrics=raw,
+            econ_metrics=econ, episodes=episodes, training_curve=curve.curve, config=config,
+            artifacts={"policy": str(policy_path), "run_config": str(run_dir / "run_config.json"),
+                       "training_curve": str(run_dir / "training_curve.json")},
+        )
+
+    # ----------------------------------------------------------- evaluation
+    def _evaluate(self, model: Any, spec: TaskSpec, params: EconParams, norm: str,
+                  objective: EconomicObjectiveSpec, randomization: EconRandomization, num_episodes: int,
+                  seed: int, progress: ProgressFn):
+        # evaluate at the curriculum's final difficulty: the task as it will be met
+        rand = replace(randomization, initial_difficulty=randomization.max_difficulty)
+        env = self._env_factory(spec, params, norm, objective, rand)()
+        handle = SACPolicyHandle(model, "")
+        raw_episodes = []
+        progress("evaluate", 0, num_episodes)
+        for i in range(num_episodes):
+            obs, _ = env.reset(seed=seed + i)
+            done = False
+            while not done:
+                obs, _, term, trunc, info = env.step(handle.act(obs))
+                done = term or trunc
+            raw_episodes.append(info["episode_summary"])
+            progress("evaluate", i + 1, num_episodes)
+        return summarize_episodes(raw_episodes, spec.economics)
+
+    def evaluate_policy(
+        self,
+        policy_id: str,
+        task_id: str,
+        objective: EconomicObjectiveSpec,
+        num_episodes: int,
+        seed: int,
+        *,
+        datapack_configs: Sequence[Any] | None = None,
+        output_dir: str | Path | None = None,
+        progress: ProgressFn = no_progress,
+    ) -> MotorEvalResult:
+        """Run ``num_episodes`` deterministic episodes (seeds ``seed + i``) of a saved policy.
+
+        ``return`` in each episode is the overlay reward of ``objective`` (unscaled by
+        ``reward_scale``); ``output_dir`` is unused (evaluation writes nothing).
+        """
+        if num_episodes < 1:
+            raise ConfigError("<evaluate>", "num_episodes", "must be >= 1")
+        spec, params, norm = self._task(task_id)
+        randomization = self._randomization(task_id, (), datapack_configs)
+        model = self.deploy_policy_handle(policy_id).model
+        raw, econ, episodes = self._evaluate(model, spec, params, norm, objective, randomization,
+                                             num_episodes, seed, progress)
+        config = {"backend": BACKEND_NAME, "task_id": task_id, "objective": objective.to_dict(),
+                  "num_episodes": num_episodes, "seed": seed, "overlay_normalization": norm}
+        return MotorEvalResult(policy_id=policy_id, task_id=task_id, backend=BACKEND_NAME, raw_metrics=raw,
+                               econ_metrics=econ, episodes=episodes, config=config)
+
+    def deploy_policy_handle(self, policy_id: str) -> SACPolicyHandle:
+        """Load a saved ``policy.zip``; a missing or unreadable file is a BackendError."""
+        import torch
+        from stable_baselines3 import SAC
+
+        path = Path(policy_id)
+        if not path.is_file():
+            raise BackendError(f"no saved dishwashing policy at '{policy_id}': pass the policy_id "
+                               "(path of policy.zip) that train_policy returned")
+        torch.set_num_threads(self.torch_threads)
+        try:
+            model = SAC.load(path, device="cpu")
+        except Exception as exc:  # SB3 raises many types for a bad zip
+            raise BackendError(f"cannot load SAC policy '{policy_id}': {exc}") from exc
+        return SACPolicyHandle(model, str(path))
+
+
+def _new_run_dir(root: Path, name: str) -> Path:
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    for n in range(1000):
+        path = root / (f"{name}__{stamp}" + (f"_{n}" if n else ""))
+        try:
+            path.mkdir(parents=True, exist_ok=False)
+            return path
+        except FileExistsError:
+            continue
+    raise BackendError(f"cannot create a run directory under '{root}'")
+
+
+def _write_json(path: Path, data: Any) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(data, indent=2, default=str), encoding="utf-8")
+    tmp.replace(path)

@@ -1,0 +1,104 @@
+"""The dishwashing backend really trains SB3 SAC, saves, evaluates and deploys."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from econmotor.config.objective_profile import ObjectiveVector
+from econmotor.envs import DishwashingEnv
+from econmotor.errors import BackendError, ConfigError, UnknownNameError
+from econmotor.motor_backend import make_motor_backend
+from econmotor.motor_backend.datapacks import parse_datapack
+from econmotor.objectives import objective_from_vector
+
+THROUGHPUT = objective_from_vector(ObjectiveVector.from_preset("throughput"), "throughput")
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    out = tmp_path_factory.mktemp("runs")
+    calls = []
+    pack = parse_datapack({"id": "dw_rates", "domain_randomization": {"base_rate_range": [1.8, 2.2]},
+                           "curriculum": {"initial_difficulty": 0.0, "max_difficulty": 1.0, "ramp_steps": 1000}})
+    backend = make_motor_backend("dishwashing")
+    result = backend.train_policy("dishwashing", THROUGHPUT, ["dw_rates"], 2, 2000, 7, datapack_configs=[pack],
+                                  output_dir=out, eval_episodes=3,
+                                  progress=lambda label, done, total: calls.append((label, done, total)))
+    return backend, result, out, calls
+
+
+@pytest.mark.slow
+def test_train_writes_policy_config_and_curve(trained):
+    _, result, out, calls = trained
+    policy = Path(result.policy_id)
+    assert policy.is_file() and policy.suffix == ".zip" and policy.parent.parent == out
+    config = json.loads((policy.parent / "run_config.json").read_text())
+    assert config["seed"] == 7 and config["num_envs"] == 2 and config["max_steps"] == 2000
+    assert config["objective"]["name"] == "throughput" and config["datapack_ids"] == ["dw_rates"]
+    assert config["randomization"]["ranges"] == {"base_rate": [1.8, 2.2]}
+    assert result.training_curve and result.training_curve[-1]["timesteps"] >= 2000
+    assert json.loads((policy.parent / "training_curve.json").read_text()) == result.training_curve
+    train_calls = [c for c in calls if c[0].startswith("train")]
+    assert train_calls[0][1] == 0 and train_calls[-1][1] == train_calls[-1][2] == 2000
+    assert ("evaluate", 3, 3) in calls
+
+
+@pytest.mark.slow
+def test_train_returns_raw_and_econ_metrics_of_evaluation_episodes(trained):
+    _, result, _, _ = trained
+    assert len(result.episodes) == 3 and result.raw_metrics["num_episodes"] == 3
+    raw, econ = result.raw_metrics, result.econ_metrics
+    assert raw["units_completed"] == sum(ep["units_completed"] for ep in result.episodes)
+    assert econ["mpl_units_per_hour"] == pytest.approx(raw["units_completed"] / (raw["episode_length_s"] / 3600))
+    assert 0 <= econ["error_rate"] <= 0.5 and econ["energy_wh"] > 0
+    for ep in result.episodes:
+        assert ep["termination_reason"] in ("catastrophic_error", "sla_violation", "zero_throughput", "max_steps")
+        assert {"mpl_episode", "error_rate_episode", "energy_Wh", "wage_parity"} <= set(ep)
+
+
+@pytest.mark.slow
+def test_evaluate_is_deterministic_and_the_handle_acts(trained):
+    backend, result, _, _ = trained
+    first = backend.evaluate_policy(result.policy_id, "dishwashing", THROUGHPUT, 2, 123)
+    again = backend.evaluate_policy(result.policy_id, "dishwashing", THROUGHPUT, 2, 123)
+    assert first.raw_metrics == again.raw_metrics and first.raw_metrics["num_episodes"] == 2
+    handle = backend.deploy_policy_handle(result.policy_id)
+    env = DishwashingEnv()
+    obs, _ = env.reset(seed=0)
+    action = handle.act(obs)
+    assert action.shape == (2,) and np.all((action >= 0) & (action <= 1))
+    batch = handle.act(np.stack([obs, obs]))
+    assert batch.shape == (2, 2) and np.allclose(batch[0], action)
+
+
+def test_bad_inputs_name_what_to_fix(tmp_path):
+    backend = make_motor_backend("dishwashing")
+    bad_pack = parse_datapack({"id": "bad", "domain_randomization": {"friction_range": [0.5, 1.0]}}, "bad.yaml")
+    with pytest.raises(ConfigError, match="base_rate_range"):
+        backend.train_policy("dishwashing", THROUGHPUT, [], 1, 10, 0, datapack_configs=[bad_pack],
+                             output_dir=tmp_path)
+    with pytest.raises(UnknownNameError, match="dishwashing"):
+        backend.train_policy("dishwashin", THROUGHPUT, [], 1, 10, 0, output_dir=tmp_path)
+    with pytest.raises(BackendError, match="policy.zip"):
+        backend.deploy_policy_handle(str(tmp_path / "missing.zip"))
+
+
+@pytest.mark.parametrize("name,weights", [
+    ("example_objective", {"mpl_per_hour": 1.0, "energy_kwh": -0.2, "error_rate": -0.5, "risk_score": -0.3,
+                           "stability_margin": -0.1}),
+    ("throughput", {"mpl_per_hour": 2.0, "error_rate": -1.0, "energy_kwh": -0.5, "risk_score": -1.0}),
+    ("energy_saver", {"mpl_per_hour": 1.0, "error_rate": -1.0, "energy_kwh": -3.0, "risk_score": -1.0}),
+    ("safety", {"mpl_per_hour": 0.5, "error_rate": -2.0, "energy_kwh": -1.0, "risk_score": -3.0}),
+])
+def test_shipped_objectives_compile_to_the_documented_overlays(name, weights):
+    from econmotor.objectives import compile_economic_overlay, load_objective_spec
+
+    root = Path(__file__).resolve().parents[2] / "configs" / "objectives"
+    spec = load_objective_spec(root / f"{name}.yaml")
+    assert spec.name == name and compile_economic_overlay(spec).to_dict() == weights
+    assert DishwashingEnv(objective=spec).ignored_overlay_keys == (("stability_margin",) if "stability_margin"
+                                                                    in weights else ())
