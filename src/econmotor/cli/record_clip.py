@@ -1,0 +1,31 @@
+"""``econmotor datapacks record-clip``: record a motion clip from a trained policy's rollout."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from econmotor.cli._app import console, datapacks_app, set_cpu_threads
+from econmotor.motor_backend.datapacks import DatapackConfig, MotionClipRef, save_datapack_config
+
+
+@datapacks_app.command("record-clip")
+def record_clip_command(
+    policy: str = typer.Option(..., "--policy", help="A mujoco run directory (policy id)."),
+    out: Path = typer.Option(..., "--out", help="Clip file to write (.npz with qpos [T, nq] and fps)."),
+    steps: int = typer.Option(500, "--steps", help="Control steps to record (stops early on a fall)."),
+    seed: int = typer.Option(0, "--seed"),
+    datapack_out: Path = typer.Option(None, "--datapack-out", help="Also write a datapack YAML using the clip."),
+    datapack_id: str = typer.Option(None, "--datapack-id", help="Id of that datapack (default: the clip's name)."),
+) -> None:
+    """Roll a trained policy out deterministically and save its poses as a reference clip."""
+    set_cpu_threads()
+    from econmotor.motor_backend.mujoco_backend import MujocoBackend
+
+    path = MujocoBackend().record_clip(policy, out, num_steps=steps, seed=seed)
+    console.print(f"clip written: {path}")
+    if datapack_out is not None:
+        pack = DatapackConfig(id=datapack_id or path.stem, description=f"motion clip recorded from {policy}",
+                              motion_clips=(MotionClipRef(str(path.resolve()), 1.0),))
+        console.print(f"datapack written: {save_datapack_config(pack, datapack_out)}")

@@ -1,0 +1,62 @@
+"""Deterministic rollouts of a trained policy and the raw metrics of each episode."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from econmotor.motor_backend.base import ProgressFn, no_progress
+from econmotor.motor_backend.mujoco.training import algorithm_class, obs_normalizer, POLICY_FILE
+
+ActFn = Callable[[np.ndarray], np.ndarray]
+
+
+def torch_act_fn(model: Any, normalizer: tuple[np.ndarray, np.ndarray, float, float] | None) -> ActFn:
+    """``obs -> model.predict(normalise(obs), deterministic=True)`` (VecNormalize's formula)."""
+
+    def act(obs: np.ndarray) -> np.ndarray:
+        x = np.asarray(obs, dtype=np.float64)
+        if normalizer is not None:
+            mean, var, eps, clip = normalizer
+            x = np.clip((x - mean) / np.sqrt(var + eps), -clip, clip)
+        action, _ = model.predict(x.astype(np.float32), deterministic=True)
+        return action
+
+    return act
+
+
+def load_policy(run_dir: str | Path, algorithm: str) -> tuple[Any, ActFn]:
+    """Load ``policy.zip`` (+ observation statistics) of a run: ``(model, act)``."""
+    model = algorithm_class(algorithm).load(str(Path(run_dir) / POLICY_FILE), device="cpu")
+    return model, torch_act_fn(model, obs_normalizer(run_dir))
+
+
+def flatten_episode(info: dict[str, Any]) -> dict[str, Any]:
+    """An episode's raw metrics from its last step's info, overlay sums flattened in."""
+    raw = dict(info["econ_episode"])
+    raw["overlay_return"] = float(info.get("overlay_return", 0.0))
+    raw["total_return"] = raw["return"] + raw["overlay_return"]
+    for key, sums in (info.get("overlay_terms") or {}).items():
+        raw[f"overlay_{key}_raw"] = sums["raw"]
+        raw[f"overlay_{key}_weighted"] = sums["weighted"]
+    return raw
+
+
+def rollout_episodes(env: gym.Env, act: ActFn, num_episodes: int, seed: int,
+                     progress: ProgressFn = no_progress, label: str = "evaluate") -> list[dict[str, Any]]:
+    """Run ``num_episodes`` episodes (episode i reset with ``seed + i``); one raw-metrics dict each."""
+    episodes = []
+    progress(label, 0, num_episodes)
+    for i in range(num_episodes):
+        obs, _ = env.reset(seed=seed + i)
+        while True:
+            obs, _, terminated, truncated, info = env.step(act(obs))
+            if terminated or truncated:
+                break
+        episodes.append(flatten_episode(info))
+        progress(label, i + 1, num_episodes)
+    return episodes

@@ -1,0 +1,122 @@
+"""TrainingRun: one SB3 training run in a run directory, fresh or resumed from a checkpoint.
+
+``train()`` writes ``run_config.json`` first (so an interrupted run can be resumed and
+its policy read by any process), trains with progress, curve, checkpoint, curriculum and
+TensorBoard callbacks, and saves the final policy atomically.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import mujoco
+
+from econmotor.errors import ConfigError
+from econmotor.motor_backend.base import ProgressFn, no_progress
+from econmotor.motor_backend.mujoco.env_factory import EnvRecipe, make_vec_env
+from econmotor.motor_backend.mujoco.settings import merge_hyperparameters
+from econmotor.motor_backend.mujoco.training import (
+    CurriculumCallback,
+    EconEpisodeLogCallback,
+    build_model,
+    checkpoint_callback,
+    checkpoint_vecnormalize,
+    latest_checkpoint,
+    load_checkpoint,
+    save_final,
+    wrap_normalize,
+)
+from econmotor.motor_backend.sb3_callbacks import ProgressFnCallback, TrainingCurveCallback
+
+RUN_CONFIG_FILE = "run_config.json"
+
+
+def read_run_config(run_dir: str | Path) -> dict[str, Any]:
+    """The ``run_config.json`` of a run directory (a ConfigError if it is not one)."""
+    path = Path(run_dir) / RUN_CONFIG_FILE
+    if not path.is_file():
+        raise ConfigError(str(run_dir), None, f"not a mujoco run directory (no {RUN_CONFIG_FILE})")
+    return json.loads(path.read_text(encoding="utf-8"))
+
+
+def env_layout(venv: Any) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Observation and action layout of the (first) env, for the ONNX metadata."""
+    base = venv.envs[0].unwrapped if hasattr(venv, "envs") else None
+    obs_dim, act = int(venv.observation_space.shape[0]), venv.action_space
+    obs = {"obs_dim": obs_dim, "dtype": "float32", "normalized_in_graph": True}
+    action = {"action_dim": int(act.shape[0]), "low": act.low.tolist(), "high": act.high.tolist()}
+    if base is not None:
+        model = base.model
+        obs["joints"] = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(model.njnt)]
+        obs["note"] = "Gymnasium observation of the env id: qpos without the root's horizontal position, then qvel"
+        action["actuators"] = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in range(model.nu)]
+    return obs, action
+
+
+@dataclass
+class TrainingRun:
+    """One training run (fields are the run's configuration)."""
+
+    run_dir: Path
+    recipe: EnvRecipe
+    described: dict[str, Any]
+    algorithm: str
+    hyperparameters: dict[str, Any] | None
+    num_envs: int
+    max_steps: int
+    seed: int
+    vec_env: str = "dummy"
+    checkpoint_every_steps: int = 20_000
+    config: dict[str, Any] = field(default_factory=dict)
+
+    def _hyperparameters(self) -> dict[str, Any]:
+        hp = merge_hyperparameters(self.recipe.settings.algo_hyperparameters(self.algorithm), self.hyperparameters)
+        if self.algorithm == "sac":  # a replay buffer larger than the run only costs memory and checkpoints
+            hp["buffer_size"] = int(min(hp.get("buffer_size", 1_000_000), max(self.max_steps, 1000)))
+        return hp
+
+    def train(self, resume: bool = False, progress: ProgressFn = no_progress) -> tuple[Any, list[dict[str, float]]]:
+        """Train to ``max_steps`` total environment steps; returns (model, training curve)."""
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        ckpt = latest_checkpoint(self.run_dir) if resume else None
+        if resume:
+            previous = read_run_config(self.run_dir)
+            if previous.get("task_id") != self.described["task_id"]:
+                raise ConfigError(str(self.run_dir / RUN_CONFIG_FILE), "task_id",
+                                  f"cannot resume a '{previous.get('task_id')}' run as '{self.described['task_id']}'")
+            self.algorithm = previous["algorithm"]
+        hp = self._hyperparameters()
+        venv = make_vec_env(self.recipe, self.num_envs, self.seed, self.vec_env)
+        stats = checkpoint_vecnormalize(*ckpt) if ckpt else None
+        venv = wrap_normalize(venv, self.recipe.settings.normalize_obs, stats if stats and stats.is_file() else None)
+        obs_layout, action_layout = env_layout(venv.venv if hasattr(venv, "venv") else venv)
+        self.config = {
+            **self.described, "algorithm": self.algorithm, "hyperparameters": hp, "num_envs": self.num_envs,
+            "max_steps": self.max_steps, "seed": self.seed, "vec_env": self.vec_env,
+            "checkpoint_every_steps": self.checkpoint_every_steps, "obs_layout": obs_layout,
+            "action_layout": action_layout, "resumed_from_steps": ckpt[1] if ckpt else 0,
+        }
+        tmp = self.run_dir / (RUN_CONFIG_FILE + ".tmp")
+        tmp.write_text(json.dumps(self.config, indent=2, default=str), encoding="utf-8")
+        tmp.replace(self.run_dir / RUN_CONFIG_FILE)
+        tb_dir = str(self.run_dir / "tb")
+        if ckpt:
+            model = load_checkpoint(self.algorithm, ckpt[0], ckpt[1], venv)
+            model.tensorboard_log = tb_dir
+        else:
+            model = build_model(self.algorithm, venv, hp, self.seed, tb_dir)
+        curve = TrainingCurveCallback(every_steps=max(1000, self.max_steps // 50))
+        callbacks = [ProgressFnCallback(progress, self.max_steps), curve, EconEpisodeLogCallback(),
+                     checkpoint_callback(self.run_dir, self.checkpoint_every_steps, self.num_envs,
+                                         save_replay_buffer=self.algorithm == "sac")]
+        if self.recipe.curriculum.ramp_steps > 0:
+            callbacks.append(CurriculumCallback(self.recipe.curriculum))
+        remaining = self.max_steps - model.num_timesteps
+        if remaining > 0:
+            model.learn(remaining, callback=callbacks, reset_num_timesteps=ckpt is None, tb_log_name="run")
+        save_final(model, self.run_dir)
+        venv.close()
+        return model, curve.curve

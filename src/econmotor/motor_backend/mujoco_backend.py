@@ -1,0 +1,210 @@
+"""MujocoBackend: the embedded default motor backend (factory name ``mujoco``).
+
+Gymnasium MuJoCo tasks (Hopper-v5, Walker2d-v5, Ant-v5, Humanoid-v5, ... as listed in the
+task catalog's ``backends.mujoco`` entries, see ``tasks/mujoco.yaml``) trained with
+Stable-Baselines3 PPO or SAC on the CPU. The reward is the task's own reward plus the
+compiled economic overlay (``mujoco/overlay.py``); the physics is metered into the raw
+metrics :class:`~econmotor.economics.EconomicMeter` reads (``mujoco/metering.py``);
+datapacks add domain randomization, a curriculum and motion clips (``mujoco/randomization.py``,
+``mujoco/clips.py``); policies deploy to ONNX (``mujoco/export.py``).
+
+``policy_id`` is the run directory (layout in ``mujoco/training.py``).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+
+from econmotor.errors import BackendError, ConfigError
+from econmotor.motor_backend.base import (
+    MotorEvalResult,
+    MotorTrainingResult,
+    ProgressFn,
+    no_progress,
+    summarize_episodes,
+)
+from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
+from econmotor.motor_backend.mujoco.clips import load_bundle_clips, record_clip
+from econmotor.motor_backend.mujoco.env_factory import EnvRecipe, make_env
+from econmotor.motor_backend.mujoco.evaluation import load_policy, rollout_episodes, torch_act_fn
+from econmotor.motor_backend.mujoco.export import OnnxPolicyHandle, export_onnx
+from econmotor.motor_backend.mujoco.randomization import parse_randomization
+from econmotor.motor_backend.mujoco.run import RUN_CONFIG_FILE, TrainingRun, read_run_config
+from econmotor.motor_backend.mujoco.settings import MujocoTaskSettings, parse_mujoco_settings
+from econmotor.motor_backend.mujoco.training import obs_normalizer
+from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
+from econmotor.tasks import load_catalog
+from econmotor.tasks.catalog import TaskSpec
+
+ONNX_FILE = "policy.onnx"
+
+
+class MujocoBackend:
+    """Train, evaluate and deploy SB3 policies on Gymnasium MuJoCo tasks.
+
+    Args:
+        task_files: extra task catalog YAML files (besides the shipped ones).
+        datapack_provider: registered datapacks that ids may refer to.
+        vec_env: ``"dummy"`` (in-process, the default: fastest on 2 cores) or ``"subproc"``.
+        keep_task_reward: add the overlay to the task's reward (True) or replace it (False).
+        runs_dir: where runs go when ``output_dir`` is not given.
+    """
+
+    name = "mujoco"
+
+    def __init__(self, task_files: Sequence[str | Path] = (), datapack_provider: DatapackProvider | None = None,
+                 vec_env: str = "dummy", keep_task_reward: bool = True, runs_dir: str | Path = "runs/mujoco") -> None:
+        if vec_env not in ("dummy", "subproc"):
+            raise ConfigError("<mujoco backend>", "vec_env", f"unknown vector env '{vec_env}'", ["dummy", "subproc"])
+        self.catalog = load_catalog(task_files)
+        self.provider = datapack_provider or DatapackProvider()
+        self.vec_env = vec_env
+        self.keep_task_reward = keep_task_reward
+        self.runs_dir = Path(runs_dir)
+
+    # --- configuration -------------------------------------------------------------------
+    def task(self, task_id: str) -> tuple[TaskSpec, MujocoTaskSettings]:
+        """The catalog entry and its validated mujoco settings; unknown ids list the known ones."""
+        spec = self.catalog.get(task_id)
+        return spec, parse_mujoco_settings(spec)
+
+    def recipe(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str] = (),
+               datapack_configs: Sequence[DatapackConfig] | None = None) -> tuple[EnvRecipe, dict[str, Any]]:
+        """The env recipe for a task, objective and datapacks, and a JSON-able description of it."""
+        spec, settings = self.task(task_id)
+        configs = list(datapack_configs or ())
+        for pack in configs:  # validate each pack alone first, so errors name the right file
+            parse_randomization(pack.domain_randomization, pack.curriculum, f"{pack.source} (datapack '{pack.id}')")
+        bundle = self.provider.resolve(task_id, datapack_ids, configs)
+        randomization, curriculum = parse_randomization(bundle.domain_randomization, bundle.curriculum,
+                                                        ", ".join(bundle.sources.values()) or "<datapacks>")
+        clips: tuple = ()
+        if bundle.motion_clips:
+            probe = gym.make(settings.env_id, **settings.env_kwargs)
+            nq = probe.unwrapped.model.nq
+            probe.close()
+            clips = tuple(load_bundle_clips(bundle, nq))
+        scales = dict(compile_economic_overlay(objective))
+        if clips and "pose_tracking" not in scales:
+            scales["pose_tracking"] = settings.pose_tracking_scale
+        recipe = EnvRecipe(settings, scales, self.keep_task_reward, randomization, curriculum, clips)
+        described = {
+            "task_id": task_id, "objective": objective.to_dict(), "overlay": scales,
+            "datapack_ids": list(bundle.datapack_ids),
+            "datapacks": [p.to_dict() for p in configs],
+            "economics": {r["name"]: r["value"] for r in spec.economics.parameters()},
+            "settings": settings.to_dict(), "keep_task_reward": self.keep_task_reward,
+        }
+        return recipe, described
+
+    # --- the MotorBackend protocol ---------------------------------------------------------
+    def train_policy(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str],
+                     num_envs: int, max_steps: int, seed: int, *,
+                     datapack_configs: Sequence[DatapackConfig] | None = None,
+                     output_dir: str | Path | None = None, eval_episodes: int = 5,
+                     progress: ProgressFn = no_progress, resume: bool = False, algorithm: str | None = None,
+                     hyperparameters: dict[str, Any] | None = None,
+                     checkpoint_every_steps: int | None = None) -> MotorTrainingResult:
+        """Train a policy and evaluate it on ``eval_episodes`` deterministic episodes.
+
+        ``num_envs <= 0`` uses the catalog's default; ``resume=True`` continues the run in
+        ``output_dir`` from its newest checkpoint up to ``max_steps`` total environment steps.
+        """
+        recipe, described = self.recipe(task_id, objective, datapack_ids, datapack_configs)
+        settings = recipe.settings
+        if output_dir is None:
+            if resume:
+                raise ConfigError("<train>", "output_dir", "resume needs the run directory to continue")
+            output_dir = self.runs_dir / f"{task_id}_{time.strftime('%Y%m%d-%H%M%S')}_s{seed}"
+        run = TrainingRun(
+            run_dir=Path(output_dir), recipe=recipe, described=described,
+            algorithm=algorithm or settings.algorithm, hyperparameters=hyperparameters,
+            num_envs=num_envs if num_envs > 0 else settings.num_envs, max_steps=int(max_steps), seed=int(seed),
+            vec_env=self.vec_env, checkpoint_every_steps=checkpoint_every_steps or settings.checkpoint_every_steps,
+        )
+        model, curve = run.train(resume=resume, progress=progress)
+        artifacts = {"policy": str(run.run_dir / "policy.zip"), "tensorboard": str(run.run_dir / "tb"),
+                     "run_config": str(run.run_dir / RUN_CONFIG_FILE)}
+        normalizer = obs_normalizer(run.run_dir)
+        artifacts["onnx"] = str(export_onnx(model, normalizer, run.run_dir / ONNX_FILE,
+                                            self._onnx_metadata(run.config)))
+        raw, econ, episodes = {}, {}, []
+        if eval_episodes > 0:
+            env = make_env(self._eval_recipe(recipe), seed=seed + 10_000)
+            raw_eps = rollout_episodes(env, torch_act_fn(model, normalizer), eval_episodes, seed + 10_000, progress)
+            env.close()
+            raw, econ, episodes = summarize_episodes(raw_eps, self.catalog.get(task_id).economics)
+        return MotorTrainingResult(policy_id=str(run.run_dir), task_id=task_id, backend=self.name,
+                                   raw_metrics=raw, econ_metrics=econ, episodes=episodes,
+                                   training_curve=curve, config=run.config, artifacts=artifacts)
+
+    def evaluate_policy(self, policy_id: str, task_id: str, objective: EconomicObjectiveSpec, num_episodes: int,
+                        seed: int, *, datapack_configs: Sequence[DatapackConfig] | None = None,
+                        output_dir: str | Path | None = None, progress: ProgressFn = no_progress,
+                        datapack_ids: Sequence[str] = ()) -> MotorEvalResult:
+        """Run ``num_episodes`` deterministic episodes (episode i seeded ``seed + i``).
+
+        Datapacks given here (e.g. randomization) apply at full difficulty; without them the
+        nominal task is evaluated.
+        """
+        config = read_run_config(policy_id)
+        if config.get("task_id") != task_id:
+            raise ConfigError(str(Path(policy_id) / RUN_CONFIG_FILE), "task_id",
+                              f"policy was trained on '{config.get('task_id')}', not '{task_id}'")
+        recipe, described = self.recipe(task_id, objective, datapack_ids, datapack_configs)
+        _, act = load_policy(policy_id, config["algorithm"])
+        env = make_env(self._eval_recipe(recipe), seed=seed)
+        raw_eps = rollout_episodes(env, act, num_episodes, seed, progress)
+        env.close()
+        raw, econ, episodes = summarize_episodes(raw_eps, self.catalog.get(task_id).economics)
+        eval_config = {**described, "policy_id": str(policy_id), "num_episodes": num_episodes, "seed": seed,
+                       "algorithm": config["algorithm"], "deterministic": True}
+        if output_dir is not None:
+            out = Path(output_dir)
+            out.mkdir(parents=True, exist_ok=True)
+            (out / "evaluation.json").write_text(json.dumps(
+                {"raw_metrics": raw, "econ_metrics": econ, "episodes": episodes, "config": eval_config},
+                indent=2, default=str), encoding="utf-8")
+        return MotorEvalResult(policy_id=str(policy_id), task_id=task_id, backend=self.name, raw_metrics=raw,
+                               econ_metrics=econ, episodes=episodes, config=eval_config)
+
+    def deploy_policy_handle(self, policy_id: str) -> OnnxPolicyHandle:
+        """An onnxruntime handle on the run's ``policy.onnx`` (exported now if missing)."""
+        path = Path(policy_id) / ONNX_FILE
+        if not path.is_file():
+            config = read_run_config(policy_id)
+            model, _ = load_policy(policy_id, config["algorithm"])
+            export_onnx(model, obs_normalizer(policy_id), path, self._onnx_metadata(config))
+        return OnnxPolicyHandle(path)
+
+    # --- extras ------------------------------------------------------------------------------
+    def record_clip(self, policy_id: str, path: str | Path, num_steps: int = 500, seed: int = 0) -> Path:
+        """Roll the policy out deterministically and save the visited poses as a motion clip npz."""
+        config = read_run_config(policy_id)
+        _, settings = self.task(config["task_id"])
+        _, act = load_policy(policy_id, config["algorithm"])
+        env = gym.make(settings.env_id, **settings.env_kwargs)
+        try:
+            return record_clip(env, act, num_steps, seed, path)
+        finally:
+            env.close()
+
+    @staticmethod
+    def _eval_recipe(recipe: EnvRecipe) -> EnvRecipe:
+        """Evaluation uses the datapacks at full difficulty and the env's default initial state."""
+        from dataclasses import replace
+
+        return replace(recipe, difficulty=recipe.curriculum.max_difficulty, reference_init=False)
+
+    @staticmethod
+    def _onnx_metadata(config: dict[str, Any]) -> dict[str, Any]:
+        if "task_id" not in config:
+            raise BackendError("run config has no task_id; cannot describe the ONNX policy")
+        return {key: config.get(key) for key in ("task_id", "overlay", "objective", "datapack_ids", "economics",
+                                                   "algorithm", "obs_layout", "action_layout", "seed")}
