@@ -215,7 +215,7 @@ class EconObjectiveNet(nn.Module):
             loss = torch.mean((pred - y) ** 2) + l2 * torch.mean(g**2)
             loss.backward()
             optimiser.step()
-            losses.append(float(loss))
+            losses.append(float(loss.detach()))
         self.eval()
         return losses
 

@@ -1,0 +1,78 @@
+"""``econmotor shadow``: objective-conditioned SAC with shadow mode and the flip switch."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+from rich.table import Table
+
+from econmotor.cli._app import app, console, progress_bars, set_cpu_threads
+from econmotor.config.objective_profile import ObjectiveVector
+from econmotor.errors import ConfigError
+from econmotor.valuation import load_constraint_set
+
+
+@app.command("shadow")
+def shadow_command(
+    env: str = typer.Option("dishwashing", "--env", help="dishwashing, dishwashing_realistic or a MuJoCo task id."),
+    objective_preset: str = typer.Option(None, "--objective-preset",
+                                         help="throughput, safety, energy_saver, balanced, ..."),
+    objective_vector: tuple[float, float, float, float, float] = typer.Option(
+        None, "--objective-vector", help="5 weights: mpl error energy safety novelty."),
+    total_steps: int = typer.Option(20_000, "--total-steps", help="SAC environment steps."),
+    use_objective_reward: bool = typer.Option(
+        False, "--use-objective-reward", help="The flip: the learner sees the RewardBuilder reward, not legacy."),
+    constraints: Path = typer.Option(None, "--constraints", help="Constraint-set YAML."),
+    constraint_mode: str = typer.Option("penalty", "--constraint-mode", help="penalty | lagrangian."),
+    objective_sampling: str = typer.Option("fixed", "--objective-sampling", help="fixed | dirichlet (per episode)."),
+    reward_weights: str = typer.Option("identity", "--reward-weights", help="identity | analytic | net."),
+    seed: int = typer.Option(0, "--seed"),
+    save_dir: Path = typer.Option(Path("runs/shadow"), "--save-dir", help="Run directory."),
+    max_episode_steps: int = typer.Option(None, "--max-episode-steps", help="Episode length override."),
+    lagrange_lr: float = typer.Option(1.0, "--lagrange-lr", help="Dual learning rate (lagrangian)."),
+    learning_starts: int = typer.Option(1000, "--learning-starts", help="SAC random steps before updates."),
+    eval_episodes: int = typer.Option(5, "--eval-episodes", help="Deterministic episodes per objective."),
+) -> None:
+    """Train SAC on the legacy reward while logging the RewardBuilder reward beside it (or flipped)."""
+    set_cpu_threads()
+    from econmotor.rl.train_sac_objective import ShadowConfig, train_sac_objective
+
+    if objective_preset and objective_vector:
+        raise ConfigError("--objective-vector", None, "give --objective-preset or --objective-vector, not both")
+    if objective_vector:
+        vector, label = ObjectiveVector.from_list(list(objective_vector), source="--objective-vector"), "custom"
+    elif objective_preset:
+        vector, label = ObjectiveVector.from_preset(objective_preset), objective_preset
+    else:
+        vector, label = ObjectiveVector(), "default"
+    config = ShadowConfig(
+        env=env, objective=tuple(vector.to_list()), objective_label=label, total_steps=total_steps,
+        use_objective_reward=use_objective_reward,
+        constraints=load_constraint_set(constraints) if constraints else None, constraint_mode=constraint_mode,
+        objective_sampling=objective_sampling, reward_weights=reward_weights, seed=seed, save_dir=str(save_dir),
+        max_episode_steps=max_episode_steps, lagrange_lr=lagrange_lr, learning_starts=learning_starts,
+        eval_episodes=eval_episodes)
+    with progress_bars() as progress:
+        result = train_sac_objective(config, progress)
+    s = result.summary
+    console.print(f"[bold]shadow run[/] {env}, objective {label} {vector.normalize().to_list()}, "
+                  f"learner reward: {'objective' if use_objective_reward else 'legacy'}, {result.steps_per_s:.0f} steps/s")
+    console.print(f"correlation legacy vs objective: step Pearson {_fmt(s.get('step_pearson'))}, "
+                  f"Spearman {_fmt(s.get('step_spearman'))}; episode Pearson {_fmt(s.get('episode_pearson'))}, "
+                  f"Spearman {_fmt(s.get('episode_spearman'))} over {s.get('episodes')} episodes")
+    table = Table(title="evaluation (deterministic)")
+    for col in ("objective", "J", "MPL units/h", "error rate", "Wh/unit", "wage parity"):
+        table.add_column(col)
+    for name, row in result.evaluation.items():
+        table.add_row(name, _fmt(row["J"]), _fmt(row["mpl_units_per_hour"]), _fmt(row["error_rate"], 4),
+                      _fmt(row["energy_Wh_per_unit"], 4), _fmt(row["wage_parity"]))
+    console.print(table)
+    if result.multipliers:
+        console.print(f"Lagrange multipliers (last): {result.multipliers[-1]}")
+    console.print(f"saved under {result.save_dir}: shadow_episodes.jsonl, shadow_summary.json, shadow_plot.png, "
+                  f"run.json, sac_model.zip")
+
+
+def _fmt(value: float | None, digits: int = 3) -> str:
+    return "-" if value is None else f"{value:.{digits}g}"

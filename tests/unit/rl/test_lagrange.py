@@ -1,0 +1,73 @@
+"""Lagrange multipliers: rise while violated, fall back when met, never below 0."""
+
+from __future__ import annotations
+
+import pytest
+
+from econmotor.errors import ConfigError
+from econmotor.rl.constraint_shaping import ConstraintShaper
+from econmotor.rl.lagrange import LagrangeMultipliers, signed_costs
+from econmotor.valuation import ConstraintSet
+
+
+def test_multiplier_rises_while_violated_and_falls_back_to_zero_when_met():
+    lag = LagrangeMultipliers(("max_error_rate",), lr=2.0)
+    values = []
+    for _ in range(5):  # error rate 0.10 against a 0.05 cap
+        lag.record({"max_error_rate": 0.05})
+        values.append(lag.update()["max_error_rate"])
+    assert values == pytest.approx([0.1, 0.2, 0.3, 0.4, 0.5])
+    for _ in range(10):  # now 0.02 against 0.05: slack of 0.03
+        lag.record({"max_error_rate": -0.03})
+        values.append(lag.update()["max_error_rate"])
+    assert values[5] == pytest.approx(0.44)
+    assert all(b <= a for a, b in zip(values[4:], values[5:], strict=False))
+    assert values[-1] == 0.0
+    assert len(lag.history) == 15
+
+
+def test_update_uses_the_mean_over_recorded_episodes_and_respects_the_cap():
+    lag = LagrangeMultipliers(("min_wage_parity", "max_error_rate"), lr=1.0, upper=0.5)
+    lag.record({"min_wage_parity": 0.2, "max_error_rate": 1.0})
+    lag.record({"min_wage_parity": -0.1, "max_error_rate": 1.0})
+    out = lag.update()
+    assert out["min_wage_parity"] == pytest.approx(0.05)
+    assert out["max_error_rate"] == 0.5
+    assert lag.penalty({"min_wage_parity": 2.0, "max_error_rate": -1.0}) == pytest.approx(0.1 - 0.5)
+
+
+def test_signed_costs_are_positive_when_violated_for_minimums_and_maximums():
+    cs = ConstraintSet(min_wage_parity=0.9, max_error_rate=0.05, max_energy_Wh=10.0, energy_basis="per_episode")
+    costs = signed_costs(cs, {"wage_parity": 0.7, "error_rate": 0.02, "energy_Wh": 12.0})
+    assert costs == pytest.approx({"min_wage_parity": 0.2, "max_error_rate": -0.03, "max_energy_Wh": 2.0})
+
+
+def test_bad_settings_are_config_errors():
+    with pytest.raises(ConfigError, match="lr"):
+        LagrangeMultipliers(("max_error_rate",), lr=-1.0)
+    lag = LagrangeMultipliers(("max_error_rate",))
+    with pytest.raises(ConfigError, match="no multiplier"):
+        lag.record({"max_energy_Wh": 1.0})
+    with pytest.raises(ConfigError, match="no active constraint"):
+        ConstraintShaper(ConstraintSet(), "penalty")
+    with pytest.raises(ConfigError, match="lagrangian"):
+        ConstraintShaper(ConstraintSet(max_error_rate=0.1), "dual")
+
+
+def test_shaper_penalty_is_the_spec_formula_on_the_step_and_splits_episode_budgets():
+    step = {"error_rate_t": 0.25, "wage_parity_t": 0.5, "Wh": 0.2, "units": 2}
+    shaper = ConstraintShaper(ConstraintSet(max_error_rate=0.05, min_wage_parity=0.9), "penalty")
+    assert shaper.step_reward(1.0, step) == pytest.approx(1.0 - 10 * (0.20 + 0.40))
+    budget = ConstraintShaper(ConstraintSet(max_energy_Wh=12.0, energy_basis="per_episode"), "penalty",
+                              steps_per_episode=240)
+    assert budget.step_reward(0.0, step) == pytest.approx(-10 * (0.2 - 12.0 / 240))
+
+
+def test_shaper_lagrangian_updates_on_episode_summaries_and_shapes_steps():
+    shaper = ConstraintShaper(ConstraintSet(max_error_rate=0.05), "lagrangian", lagrange_lr=10.0)
+    step = {"error_rate_t": 0.15, "units": 3}
+    assert shaper.step_reward(1.0, step) == 1.0  # multiplier starts at 0
+    report = shaper.end_episode({"error_rate_episode": 0.10})
+    assert report["satisfied"] is False
+    assert report["multipliers"]["max_error_rate"] == pytest.approx(0.5)
+    assert shaper.step_reward(1.0, step) == pytest.approx(1.0 - 0.5 * 0.10)

@@ -1,0 +1,129 @@
+"""Shadow mode on the real dishwashing env: both rewards by hand, and what the flip changes."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from econmotor.config.econ_params import EconParams
+from econmotor.config.objective_profile import ObjectiveVector
+from econmotor.envs.dishwashing import DishwashingEnv
+from econmotor.networks.econ_objective_net import identity_reward_weights
+from econmotor.rl.conditioning import ObjectiveConditioningWrapper
+from econmotor.rl.constraint_shaping import ConstraintShaper
+from econmotor.rl.shadow import ShadowRewardWrapper
+from econmotor.rl.shadow_log import EPISODES_FILE, PLOT_FILE, SUMMARY_FILE, ShadowRecorder
+from econmotor.tasks import get_task
+from econmotor.valuation import ConstraintSet
+
+THROUGHPUT = ObjectiveVector.from_preset("throughput")
+
+
+def make_env(flip=False, constraints=None, recorder=None, conditioned=False):
+    base = DishwashingEnv(EconParams.preset("toy"), reward_mode="legacy")
+    env = ObjectiveConditioningWrapper(base, THROUGHPUT, "fixed") if conditioned else base
+    return ShadowRewardWrapper(env, economics=get_task("dishwashing").economics, reward_params=base.params,
+                               weights_for=identity_reward_weights, objective=THROUGHPUT,
+                               use_objective_reward=flip, constraints=constraints, recorder=recorder)
+
+
+def actions(n, seed=5):
+    return np.random.default_rng(seed).uniform(0, 1, size=(n, 2)).astype(np.float32)
+
+
+def rollout(env, acts, seed=11):
+    obs0, _ = env.reset(seed=seed)
+    steps = []
+    for a in acts:
+        obs, reward, terminated, truncated, info = env.step(a)
+        steps.append({"obs": obs, "reward": reward, "info": info})
+        if terminated or truncated:
+            break
+    return obs0, steps
+
+
+def test_both_rewards_equal_hand_computed_values_on_recorded_steps():
+    _, steps = rollout(make_env(), actions(40))
+    assert len(steps) >= 5
+    w = np.array([2, 1, 0.5, 1, 0]) / 4.5
+    dt_h = 60.0 / 3600.0
+    units_total, mpl_prev = 0, 0.0
+    for t, step in enumerate(steps, start=1):
+        s = step["info"]["step_summary"]
+        units_total += s["units"]
+        mpl_run = units_total / (t * dt_h)
+        err = s["errors"] / s["attempts"]
+        mpl_step = s["units"] / dt_h
+        wage = 0.30 * mpl_step - 1.0 * err * mpl_step  # p*MP - c_d*e*MP, toy prices
+        legacy = (mpl_run - mpl_prev) - 1.0 * err - 0.1 * abs(wage / 18.0 - 1.0)
+        wh = s["attempts"] * 0.05  # no electricity price in 'toy': r_energy = -Wh
+        catastrophic = 1.0 if s["errors"] == s["attempts"] else 0.0
+        objective = w[0] * mpl_run - w[1] * err - w[2] * wh - w[3] * catastrophic
+        assert step["info"]["shadow"]["legacy"] == pytest.approx(legacy, rel=1e-9, abs=1e-9)
+        assert step["info"]["shadow"]["objective"] == pytest.approx(objective, rel=1e-9, abs=1e-9)
+        assert step["reward"] == step["info"]["shadow"]["legacy"]
+        mpl_prev = mpl_run
+
+
+def test_episode_record_sums_terms_and_episode_j_by_hand():
+    _, steps = rollout(make_env(), actions(300))
+    last = steps[-1]["info"]
+    record, ep = last["shadow_episode"], last["episode_summary"]
+    assert record["steps"] == len(steps)
+    assert record["legacy_sum"] == pytest.approx(sum(s["info"]["shadow"]["legacy"] for s in steps))
+    assert record["objective_sum"] == pytest.approx(sum(s["info"]["shadow"]["objective"] for s in steps))
+    assert record["term_totals"]["r_error"] == pytest.approx(
+        -sum(s["info"]["step_summary"]["error_rate_t"] for s in steps))
+    w = np.array([2, 1, 0.5, 1, 0]) / 4.5
+    catastrophic = 1.0 if ep["termination_reason"] == "catastrophic_error" else 0.0
+    j = w[0] * ep["mpl_episode"] - w[1] * ep["error_rate_episode"] - w[2] * ep["energy_Wh"] - w[3] * catastrophic
+    assert record["episode_J"] == pytest.approx(j)
+    assert record["econ"]["termination_reason"] == ep["termination_reason"]
+
+
+def test_the_flip_changes_only_which_reward_the_learner_sees():
+    acts = actions(300)
+    obs_a, shadow = rollout(make_env(flip=False, conditioned=True), acts)
+    obs_b, flipped = rollout(make_env(flip=True, conditioned=True), acts)
+    assert np.array_equal(obs_a, obs_b) and len(shadow) == len(flipped)
+    for a, b in zip(shadow, flipped, strict=True):
+        assert np.array_equal(a["obs"], b["obs"])
+        assert a["info"]["shadow"]["legacy"] == b["info"]["shadow"]["legacy"]
+        assert a["info"]["shadow"]["objective"] == b["info"]["shadow"]["objective"]
+        assert a["info"]["step_summary"] == b["info"]["step_summary"]
+        assert a["reward"] == a["info"]["shadow"]["legacy"]
+        assert b["reward"] == b["info"]["shadow"]["objective"]
+    rec_a, rec_b = shadow[-1]["info"]["shadow_episode"], flipped[-1]["info"]["shadow_episode"]
+    differing = {k for k in rec_a if rec_a[k] != rec_b[k]}
+    assert differing == {"flipped", "learner_sum"}
+    assert rec_b["learner_sum"] == pytest.approx(rec_b["objective_sum"])
+
+
+def test_constraint_penalty_changes_the_learner_reward_not_the_shadow_rewards():
+    shaper = ConstraintShaper(ConstraintSet(max_error_rate=0.02), "penalty")
+    acts = actions(60)
+    _, plain = rollout(make_env(), acts)
+    _, penalised = rollout(make_env(constraints=shaper), acts)
+    for a, b in zip(plain, penalised, strict=True):
+        assert a["info"]["shadow"] == {**b["info"]["shadow"], "learner": a["info"]["shadow"]["learner"]}
+        excess = max(0.0, b["info"]["step_summary"]["error_rate_t"] - 0.02)
+        assert b["reward"] == pytest.approx(a["reward"] - 10.0 * excess)
+    assert "violations" in penalised[-1]["info"]["shadow_episode"]["constraints"]
+
+
+def test_recorder_writes_jsonl_summary_and_plot(tmp_path):
+    recorder = ShadowRecorder(tmp_path, window=50)
+    env = make_env(recorder=recorder)
+    for episode in range(3):
+        rollout(env, actions(300, seed=episode), seed=episode)
+    summary = recorder.finish()
+    lines = (tmp_path / EPISODES_FILE).read_text().splitlines()
+    assert len(lines) == 3 == summary["episodes"]
+    first = json.loads(lines[0])
+    assert set(first["correlation"]) >= {"step_pearson", "step_spearman_window", "episode_pearson",
+                                          "episode_spearman"}
+    assert json.loads((tmp_path / SUMMARY_FILE).read_text())["steps"] == summary["steps"] > 0
+    assert -1.0 <= summary["step_pearson"] <= 1.0
+    assert (tmp_path / PLOT_FILE).stat().st_size > 1000
