@@ -19,7 +19,11 @@ import time
 import numpy as np
 
 from econmotor.analysis.episode_table import METRIC_COLUMNS, EpisodeTable, RunInfo
-from econmotor.analysis.objective_surface import Objective, preset_objectives, solve_objective_surface
+from econmotor.analysis.objective_surface import (
+    Objective,
+    preset_objectives,
+    solve_objective_surface,
+)
 from econmotor.valuation import ConstraintSet, build_reward_terms, combine_reward
 from econmotor.valuation.reward_builder import REWARD_TERM_NAMES
 

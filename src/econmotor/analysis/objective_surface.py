@@ -187,3 +187,27 @@ def solve_objective_surface(table: EpisodeTable, objectives: Sequence[Objective]
     fallback = np.argmax(np.nan_to_num(penalised, nan=-np.inf), axis=0)
     return ObjectiveSurface(table, tuple(objectives), tuple(sets), run_metrics, utility, valid,
                             valid_fraction, violation, best, fallback)
+
+
+def parse_vector_objective(text: str, source: str = "--vector") -> Objective:
+    """``"1,0.2,0.1,0.05,0"`` (``[mpl, error, energy, safety, novelty]``) -> an Objective."""
+    try:
+        values = [float(v) for v in text.replace(" ", ",").split(",") if v]
+    except ValueError:
+        raise ConfigError(source, None, f"expected 5 comma-separated numbers, got {text!r}") from None
+    vector = ObjectiveVector.from_list(values, source)
+    return Objective("w[" + ",".join(f"{v:g}" for v in vector.to_list()) + "]", tuple(vector.to_list()), "vector")
+
+
+def objectives_from_options(presets: Sequence[str] = (), vectors: Sequence[str] = (), grid_divisions: int = 0,
+                            include_novelty: bool = False) -> list[Objective]:
+    """Presets (comma lists allowed), explicit vectors and a simplex grid.
+
+    Without presets or vectors all six presets are used (and the grid, if any, is added to them).
+    """
+    names = [n.strip() for p in presets for n in p.split(",") if n.strip()]
+    out = preset_objectives(names) if names or not vectors else []
+    out += [parse_vector_objective(v) for v in vectors]
+    if grid_divisions:
+        out += simplex_grid(grid_divisions, include_novelty)
+    return out

@@ -83,6 +83,8 @@ def surface_document(surface: ObjectiveSurface, front: ParetoFront | None = None
     for r, run in enumerate(surface.table.runs):
         runs.append({**run.to_dict(), "episodes": int(surface.table.episode_counts()[r]),
                      "metrics": {k: finite_or_none(v[r]) for k, v in surface.run_metrics.items()},
+                     "utility": {o.name: finite_or_none(surface.utility[r, k])
+                                 for k, o in enumerate(surface.objectives)},
                      "valid": {s.name: bool(surface.valid[r, c]) for c, s in enumerate(surface.constraint_sets)},
                      "valid_fraction": {s.name: float(surface.valid_fraction[r, c])
                                         for c, s in enumerate(surface.constraint_sets)},

@@ -1,0 +1,250 @@
+"""Training sweeps: a grid of objective x datapacks x seed, every cell recorded in the registry.
+
+A *cell* trains one policy with ``backend.train_policy`` (which also evaluates it) and
+is recorded as a ``train`` run with its evaluation episodes. Each cell has a
+deterministic key::
+
+    cell_key = sha256(canonical JSON of {task_id, backend, objective weights, datapack ids and
+                      their validated YAML content, seed, num_envs, max_steps, eval_episodes})[:20]
+
+stored in the run's config (``config["cell_key"]``). A sweep first reads the keys of
+completed runs of the task and backend and skips those cells, so an interrupted sweep
+resumes where it stopped; a failed cell is recorded ``failed`` and retried next time.
+
+Execution: sequential in this process by default. With Ray, each cell is a Ray task
+declaring ``num_cpus`` / ``num_gpus`` so a cluster schedules it; the driver records
+runs as results come back (so a SQLite registry on the driver works with a remote
+cluster). Policies land under ``output_dir/<cell_key>/`` on the node that trained them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from econmotor.analysis.objective_surface import Objective
+from econmotor.config.objective_profile import ObjectiveVector
+from econmotor.errors import BackendError, ConfigError
+from econmotor.motor_backend.base import MotorTrainingResult, ProgressFn, no_progress
+from econmotor.motor_backend.datapacks import DatapackConfig
+from econmotor.objectives.economic_objective import EconomicObjectiveSpec
+from econmotor.objectives.loader import objective_from_vector
+
+
+@dataclass(frozen=True)
+class SweepCell:
+    """One training job of the grid."""
+
+    task_id: str
+    backend: str
+    objective: Objective
+    datapacks: tuple[DatapackConfig, ...]
+    seed: int
+    num_envs: int = 1
+    max_steps: int = 2_000
+    eval_episodes: int = 5
+
+    @property
+    def datapack_ids(self) -> tuple[str, ...]:
+        return tuple(p.id for p in self.datapacks)
+
+    @property
+    def key(self) -> str:
+        """Deterministic id of the cell (module docstring); equal inputs give equal keys."""
+        payload = {"task_id": self.task_id, "backend": self.backend, "objective": list(self.objective.weights),
+                   "datapacks": [p.to_dict() for p in self.datapacks], "seed": self.seed,
+                   "num_envs": self.num_envs, "max_steps": self.max_steps, "eval_episodes": self.eval_episodes}
+        text = json.dumps(payload, sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+    def objective_spec(self) -> EconomicObjectiveSpec:
+        return objective_from_vector(ObjectiveVector.from_list(list(self.objective.weights)), self.objective.name)
+
+    def run_config(self) -> dict[str, Any]:
+        """What the registry stores in the run's config."""
+        return {"cell_key": self.key, "sweep": True, "objective_weights": list(self.objective.weights),
+                "objective_kind": self.objective.kind, "eval_episodes": self.eval_episodes}
+
+
+def plan_sweep(task_id: str, backend: str, objectives: Sequence[Objective],
+               datapack_groups: Sequence[Sequence[DatapackConfig]], seeds: Sequence[int], *,
+               num_envs: int = 1, max_steps: int = 2_000, eval_episodes: int = 5) -> list[SweepCell]:
+    """The grid ``objectives x datapack_groups x seeds`` (objective outermost, seed innermost).
+
+    A datapack group is the list of datapacks one cell trains with (often a single pack);
+    ``[[]]`` sweeps without datapacks.
+    """
+    if not objectives or not seeds or not datapack_groups:
+        raise ConfigError("<sweep>", None, "a sweep needs at least one objective, datapack group and seed")
+    if num_envs < 1 or max_steps < 1 or eval_episodes < 1:
+        raise ConfigError("<sweep>", "num_envs/max_steps/eval_episodes", "must all be >= 1")
+    cells = [SweepCell(task_id, backend, o, tuple(g), int(s), num_envs, max_steps, eval_episodes)
+             for o in objectives for g in datapack_groups for s in seeds]
+    keys = [c.key for c in cells]
+    if len(set(keys)) != len(keys):
+        raise ConfigError("<sweep>", None, "the grid repeats a cell (same objective weights, datapacks and seed)")
+    return cells
+
+
+def train_cell(cell: SweepCell, output_dir: str, cpu_threads: int = 1,
+               progress: ProgressFn = no_progress) -> MotorTrainingResult:
+    """Train and evaluate one cell (runs in this process or as a Ray task)."""
+    os.environ.setdefault("OMP_NUM_THREADS", str(cpu_threads))
+    try:
+        import torch
+
+        torch.set_num_threads(max(1, cpu_threads))
+    except ImportError:
+        pass
+    from econmotor.motor_backend.factory import make_motor_backend
+
+    backend = make_motor_backend(cell.backend)
+    return backend.train_policy(cell.task_id, cell.objective_spec(), list(cell.datapack_ids), cell.num_envs,
+                                cell.max_steps, cell.seed, datapack_configs=list(cell.datapacks),
+                                output_dir=str(Path(output_dir) / cell.key), eval_episodes=cell.eval_episodes,
+                                progress=progress)
+
+
+@dataclass(frozen=True)
+class CellOutcome:
+    """What happened to one cell: ``completed``, ``skipped`` (done before) or ``failed``."""
+
+    cell: SweepCell
+    status: str
+    run_id: int | None = None
+    error: str | None = None
+
+
+@dataclass(frozen=True)
+class RaySettings:
+    """How to run cells on Ray.
+
+    Attributes:
+        address: a cluster address (``"auto"``, ``"ray://host:10001"``); ``None`` starts a local Ray
+            (or uses one already initialised in this process).
+        num_cpus: CPUs of a local Ray (ignored with ``address``).
+        cpus_per_cell, gpus_per_cell: the resources each cell's task declares.
+    """
+
+    address: str | None = None
+    num_cpus: int | None = None
+    cpus_per_cell: float = 1.0
+    gpus_per_cell: float = 0.0
+    init_kwargs: dict[str, Any] = field(default_factory=dict)
+
+
+def completed_cell_keys(registry: Any, task_id: str, backend: str) -> set[str]:
+    """Cell keys of this task and backend's completed train runs."""
+    runs = registry.runs(task_id=task_id, backend=backend, kind="train", status="completed")
+    return {r.config["cell_key"] for r in runs if r.config.get("cell_key")}
+
+
+def run_sweep(registry: Any, cells: Sequence[SweepCell], output_dir: str | Path, *,
+              ray: RaySettings | None = None, progress: ProgressFn = no_progress) -> list[CellOutcome]:
+    """Train every cell not completed before and record it (run + episodes) in ``registry``.
+
+    Each pending cell is recorded ``running`` before it starts; a cell that raises is
+    recorded ``failed`` with its error and the sweep goes on; Ctrl-C marks the cells in
+    flight ``interrupted``. Returns one outcome per cell, in grid order.
+    """
+    output_dir = str(Path(output_dir).resolve())
+    done_before: dict[tuple[str, str], set[str]] = {}
+    outcomes: dict[str, CellOutcome] = {}
+    pending: list[SweepCell] = []
+    for cell in cells:
+        keys = done_before.setdefault((cell.task_id, cell.backend),
+                                      completed_cell_keys(registry, cell.task_id, cell.backend))
+        if cell.key in keys:
+            outcomes[cell.key] = CellOutcome(cell, "skipped")
+        else:
+            pending.append(cell)
+    total = len(cells)
+    progress("sweep cells", len(outcomes), total)
+    for pack in {p.id: p for cell in pending for p in cell.datapacks}.values():
+        registry.record_datapacks([pack])
+    tick = lambda: progress("sweep cells", len(outcomes), total)
+    if ray is None:
+        _run_here(registry, pending, output_dir, outcomes, tick, progress)
+    else:
+        _run_on_ray(registry, pending, output_dir, outcomes, tick, ray)
+    return [outcomes[c.key] for c in cells]
+
+
+def _start(registry: Any, cell: SweepCell) -> int:
+    return registry.start_run("train", cell.task_id, cell.backend, objective=cell.objective_spec(),
+                              datapack_ids=cell.datapack_ids, config=cell.run_config(), seed=cell.seed,
+                              num_envs=cell.num_envs, max_steps=cell.max_steps, notes="econmotor sweep")
+
+
+def _finish(registry: Any, cell: SweepCell, run_id: int, result: Any, error: BaseException | None,
+            outcomes: dict[str, CellOutcome]) -> None:
+    if error is None:
+        registry.finish_run(run_id, result)
+        outcomes[cell.key] = CellOutcome(cell, "completed", run_id)
+    else:
+        text = f"{type(error).__name__}: {error}"
+        registry.mark_run(run_id, "failed", text)
+        outcomes[cell.key] = CellOutcome(cell, "failed", run_id, text)
+
+
+def _run_here(registry: Any, cells: Sequence[SweepCell], output_dir: str, outcomes: dict[str, CellOutcome],
+              tick: Any, progress: ProgressFn) -> None:
+    for cell in cells:
+        run_id = _start(registry, cell)
+        try:
+            result = train_cell(cell, output_dir, progress=progress)
+        except (KeyboardInterrupt, SystemExit) as exc:
+            registry.mark_run(run_id, "interrupted", f"{type(exc).__name__}: {exc}")
+            raise
+        except Exception as exc:  # noqa: BLE001 - a failed cell is recorded; the sweep goes on
+            _finish(registry, cell, run_id, None, exc, outcomes)
+        else:
+            _finish(registry, cell, run_id, result, None, outcomes)
+        tick()
+
+
+def _run_on_ray(registry: Any, cells: Sequence[SweepCell], output_dir: str, outcomes: dict[str, CellOutcome],
+                tick: Any, settings: RaySettings) -> None:
+    try:
+        import ray
+    except ImportError as exc:
+        raise BackendError("Ray is not installed: pip install 'econmotor[ray]' (or run without --ray)") from exc
+    started_here = not ray.is_initialized()
+    if started_here:
+        kwargs: dict[str, Any] = {"include_dashboard": False, "configure_logging": False,
+                                  "log_to_driver": False, **settings.init_kwargs}
+        if settings.address:
+            kwargs["address"] = settings.address
+        elif settings.num_cpus:
+            kwargs["num_cpus"] = settings.num_cpus
+        ray.init(**kwargs)
+    threads = max(1, int(settings.cpus_per_cell))
+    remote = ray.remote(num_cpus=settings.cpus_per_cell, num_gpus=settings.gpus_per_cell,
+                        max_retries=0)(train_cell)
+    in_flight: dict[Any, tuple[SweepCell, int]] = {}
+    try:
+        for cell in cells:
+            in_flight[remote.remote(cell, output_dir, threads)] = (cell, _start(registry, cell))
+        while in_flight:
+            (ref,), _ = ray.wait(list(in_flight), num_returns=1)
+            cell, run_id = in_flight.pop(ref)
+            try:
+                result = ray.get(ref)
+            except Exception as exc:  # noqa: BLE001 - RayTaskError wraps the cell's exception
+                _finish(registry, cell, run_id, None, getattr(exc, "cause", None) or exc, outcomes)
+            else:
+                _finish(registry, cell, run_id, result, None, outcomes)
+            tick()
+    except (KeyboardInterrupt, SystemExit) as exc:
+        for ref, (_cell, run_id) in in_flight.items():
+            ray.cancel(ref, force=True)
+            registry.mark_run(run_id, "interrupted", f"{type(exc).__name__}: {exc}")
+        raise
+    finally:
+        if started_here:
+            ray.shutdown()

@@ -1,0 +1,126 @@
+"""``econmotor solve``: the objective surface over recorded episodes.
+
+Reads episodes from the registry (filters: task, backend, datapacks, objective) or
+from JSONL exports, scores every run under every objective and constraint set, and
+writes ``objective_surface.json``, ``objective_surface.md`` and ``pareto_front.png``.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import typer
+from rich.table import Table
+
+from econmotor.analysis.episode_table import EpisodeTable, read_episodes_jsonl, write_episodes_jsonl
+from econmotor.analysis.objective_surface import objectives_from_options, solve_objective_surface
+from econmotor.analysis.surface_report import surface_cells, write_surface_outputs
+from econmotor.cli._app import app, console, err_console
+from econmotor.errors import ConfigError
+from econmotor.valuation import ConstraintSet, load_constraint_sets
+
+REFERENCE_KEYS = {"mpl": "mpl_units_per_hour", "energy": "energy_wh_per_unit", "error": "error_rate",
+                  "risk": "risk_score"}
+
+
+def open_registry(db_url: str | None, create: bool = True):
+    """The registry at ``--db-url``, else ``$ECONMOTOR_DB_URL``, else ``./.econmotor/registry.sqlite``."""
+    from econmotor.store import DB_URL_ENV, Registry
+
+    return Registry(db_url or os.environ.get(DB_URL_ENV) or None, create=create)
+
+
+def split_ids(values: list[str]) -> list[str]:
+    """``["a,b", "c"]`` -> ``["a", "b", "c"]``."""
+    return [v.strip() for value in values for v in value.split(",") if v.strip()]
+
+
+def parse_reference(values: list[str]) -> dict[str, float]:
+    """``["energy=3", "mpl=0"]`` -> criterion -> bound."""
+    out = {}
+    for item in values:
+        key, _, value = item.partition("=")
+        name = REFERENCE_KEYS.get(key.strip(), key.strip())
+        if name not in REFERENCE_KEYS.values() or not value:
+            raise ConfigError("--reference-point", key, f"expected KEY=VALUE, got {item!r}", REFERENCE_KEYS)
+        try:
+            out[name] = float(value)
+        except ValueError:
+            raise ConfigError("--reference-point", key, f"not a number: {value!r}") from None
+    return out
+
+
+@app.command("solve")
+def solve_command(
+    episodes_jsonl: list[Path] = typer.Option([], "--episodes-jsonl", help="Read episodes from JSONL exports "
+                                              "instead of the registry (repeatable)."),
+    db_url: str = typer.Option(None, "--db-url", help="Registry URL (default $ECONMOTOR_DB_URL or "
+                               "./.econmotor/registry.sqlite)."),
+    task_id: str = typer.Option(None, "--task-id", help="Only runs of this task."),
+    motor_backend: str = typer.Option(None, "--motor-backend", help="Only runs of this backend."),
+    datapacks: list[str] = typer.Option([], "--datapacks", help="Only runs that used all these datapack ids."),
+    objective: str = typer.Option(None, "--objective", help="Only runs trained under this objective name."),
+    run_kind: str = typer.Option(None, "--run-kind", help="Only 'train' or 'eval' runs (default both)."),
+    constraints: Path = typer.Option(None, "--constraints", help="Constraint-sets YAML "
+                                     "(e.g. configs/constraints/default.yaml); default: unconstrained."),
+    preset: list[str] = typer.Option([], "--preset", help="Objective presets (comma list or repeated); "
+                                     "all six when no objective is given."),
+    vector: list[str] = typer.Option([], "--vector", help="Objective vector 'mpl,error,energy,safety,novelty'."),
+    grid: int = typer.Option(0, "--grid", help="Add every simplex weight vector with step 1/GRID."),
+    include_novelty: bool = typer.Option(False, "--include-novelty", help="Let the grid weight novelty too."),
+    reference_point: list[str] = typer.Option([], "--reference-point", help="Hypervolume bound, e.g. "
+                                              "energy=5 (keys: mpl, energy, error, risk)."),
+    output_dir: Path = typer.Option(Path("runs/objective_surface"), "--output-dir", help="Where outputs go."),
+    export_jsonl: Path = typer.Option(None, "--export-jsonl", help="Also write the episodes read as JSONL."),
+) -> None:
+    """Which objective should a customer buy under which constraints? Re-score recorded episodes."""
+    sets = load_constraint_sets(constraints) if constraints else [ConstraintSet(name="unconstrained")]
+    objectives = objectives_from_options(preset, vector, grid, include_novelty)
+    reference = parse_reference(reference_point)
+    if episodes_jsonl:
+        tables = [read_episodes_jsonl(p) for p in episodes_jsonl]
+        table = tables[0] if len(tables) == 1 else EpisodeTable.from_records(
+            [rec for t in tables for rec in t.records()], ",".join(map(str, episodes_jsonl)))
+        source = {"episodes_jsonl": [str(p) for p in episodes_jsonl]}
+    else:
+        from econmotor.analysis.sources import episodes_from_registry
+
+        with open_registry(db_url, create=False) as registry:
+            table = episodes_from_registry(registry, task_id=task_id, backend=motor_backend,
+                                           datapacks=split_ids(datapacks) or None, objective=objective,
+                                           kind=run_kind)
+            source = {"registry": registry.display_url, "task_id": task_id, "backend": motor_backend,
+                      "datapacks": split_ids(datapacks), "objective": objective, "run_kind": run_kind}
+    if export_jsonl:
+        err_console.print(f"episodes written to {write_episodes_jsonl(table, export_jsonl)}")
+    surface = solve_objective_surface(table, objectives, sets)
+    files = write_surface_outputs(surface, output_dir, reference,
+                                  {**source, "constraints": str(constraints) if constraints else None})
+    _print_summary(surface, files)
+
+
+def _print_summary(surface, files) -> None:
+    import json
+
+    document = json.loads(files["json"].read_text())
+    shown = [o.name for o in surface.objectives if o.kind != "grid"][:12]
+    table = Table(title=f"objective surface: {surface.table.num_episodes} episodes, {surface.table.num_runs} runs")
+    for col in ("objective", "constraint set", "best valid run", "datapacks", "utility J", "episodes meeting"):
+        table.add_column(col)
+    for cell in surface_cells(surface):
+        if cell.objective not in shown:
+            continue
+        if cell.valid:
+            table.add_row(cell.objective, cell.constraint_set, cell.best_run_id, ", ".join(cell.datapacks) or "-",
+                          f"{cell.utility:.4g}" if cell.utility is not None else "-", f"{cell.valid_fraction:.0%}")
+        else:
+            table.add_row(cell.objective, cell.constraint_set, "[red]no run meets this set[/]", "-", "-", "-")
+    console.print(table)
+    for name in document["constraint_sets_no_run_meets"]:
+        console.print(f"[yellow]no run meets constraint set '{name}'[/]")
+    front = document["pareto_front"]
+    console.print(f"Pareto front: {len(front['run_ids'])} run(s), hypervolume {front['hypervolume']:.6g} "
+                  f"(reference {front['reference_point']})")
+    for kind, path in files.items():
+        console.print(f"{kind}: {path}")

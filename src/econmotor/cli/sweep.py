@@ -1,0 +1,97 @@
+"""``econmotor sweep``: train objective x datapacks x seeds and record every cell in the registry."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+from rich.table import Table
+
+from econmotor.analysis.objective_surface import objectives_from_options
+from econmotor.analysis.sweep import RaySettings, plan_sweep, run_sweep
+from econmotor.cli._app import app, console, progress_bars, set_cpu_threads
+from econmotor.cli.solve import open_registry, split_ids
+from econmotor.errors import ConfigError
+from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_configs
+from econmotor.tasks import load_catalog
+
+
+def datapack_groups(values: list[str], registry) -> list[list[DatapackConfig]]:
+    """Each comma-separated entry is one grid value; ``a.yaml+b`` trains with both packs.
+
+    An entry is a datapack YAML path or an id registered in the registry.
+    """
+    groups = []
+    for entry in split_ids(values):
+        group = []
+        for item in entry.split("+"):
+            path = Path(item)
+            if path.suffix in (".yaml", ".yml") or path.exists():
+                group += load_datapack_configs([path])
+            else:
+                group += registry.datapack_configs([item])
+        groups.append(group)
+    return groups or [[]]
+
+
+def parse_seeds(text: str) -> list[int]:
+    """``"0,1,2"`` or ``"0-4"`` -> seeds."""
+    seeds: list[int] = []
+    try:
+        for part in text.split(","):
+            low, _, high = part.strip().partition("-")
+            seeds += list(range(int(low), int(high) + 1)) if high else [int(low)]
+    except ValueError:
+        raise ConfigError("--seeds", None, f"expected e.g. '0,1,2' or '0-4', got {text!r}") from None
+    return list(dict.fromkeys(seeds))
+
+
+@app.command("sweep")
+def sweep_command(
+    task_id: str = typer.Option(..., "--task-id", help="Task id from the catalog (econmotor tasks)."),
+    motor_backend: str = typer.Option("dishwashing", "--motor-backend", help="Backend that trains each cell."),
+    preset: list[str] = typer.Option([], "--preset", help="Objective presets (comma list or repeated)."),
+    vector: list[str] = typer.Option([], "--vector", help="Objective vector 'mpl,error,energy,safety,novelty'."),
+    grid: int = typer.Option(0, "--grid", help="Add every simplex weight vector with step 1/GRID."),
+    datapacks: list[str] = typer.Option([], "--datapacks", help="Grid values: YAML paths or registered ids, "
+                                        "comma separated; 'a.yaml+b.yaml' is one value using both."),
+    seeds: str = typer.Option("0", "--seeds", help="Seeds, e.g. '0,1,2' or '0-4'."),
+    num_envs: int = typer.Option(1, "--num-envs"),
+    max_steps: int = typer.Option(2000, "--max-steps", help="Environment steps per cell."),
+    eval_episodes: int = typer.Option(5, "--eval-episodes", help="Evaluation episodes recorded per cell."),
+    output_dir: Path = typer.Option(Path("runs/sweep"), "--output-dir", help="Policies land in OUTPUT_DIR/<cell key>."),
+    db_url: str = typer.Option(None, "--db-url", help="Registry URL (default $ECONMOTOR_DB_URL or "
+                               "./.econmotor/registry.sqlite)."),
+    use_ray: bool = typer.Option(False, "--ray", help="Run each cell as a Ray task (local Ray unless --ray-address)."),
+    ray_address: str = typer.Option(None, "--ray-address", help="Ray cluster address (implies --ray)."),
+    ray_num_cpus: int = typer.Option(None, "--ray-num-cpus", help="CPUs of a local Ray."),
+    cpus_per_cell: float = typer.Option(1.0, "--cpus-per-cell", help="CPUs each Ray task declares."),
+    gpus_per_cell: float = typer.Option(0.0, "--gpus-per-cell", help="GPUs each Ray task declares."),
+) -> None:
+    """Train a grid of objective x datapacks x seeds; completed cells are skipped on re-runs."""
+    set_cpu_threads()
+    load_catalog().get(task_id).backend_entry(motor_backend)
+    objectives = objectives_from_options(preset, vector, grid)
+    with open_registry(db_url) as registry:
+        cells = plan_sweep(task_id, motor_backend, objectives, datapack_groups(datapacks, registry),
+                           parse_seeds(seeds), num_envs=num_envs, max_steps=max_steps,
+                           eval_episodes=eval_episodes)
+        ray = RaySettings(ray_address, ray_num_cpus, cpus_per_cell, gpus_per_cell) \
+            if use_ray or ray_address else None
+        console.print(f"sweep: {len(cells)} cells on {motor_backend} "
+                      f"({'Ray' if ray else 'sequential'}); registry {registry.display_url}")
+        with progress_bars() as progress:
+            outcomes = run_sweep(registry, cells, output_dir, ray=ray, progress=progress)
+    table = Table(title="sweep cells")
+    for col in ("objective", "datapacks", "seed", "status", "run", "cell key"):
+        table.add_column(col)
+    for o in outcomes:
+        status = {"failed": f"[red]failed: {o.error}[/]", "skipped": "skipped (done before)"}.get(o.status, o.status)
+        table.add_row(o.cell.objective.name, "+".join(o.cell.datapack_ids) or "-", str(o.cell.seed), status,
+                      str(o.run_id or "-"), o.cell.key)
+    console.print(table)
+    failed = sum(o.status == "failed" for o in outcomes)
+    console.print(f"then: econmotor solve --task-id {task_id} --motor-backend {motor_backend}"
+                  + (f" --db-url {db_url}" if db_url else ""))
+    if failed:
+        raise typer.Exit(1)
