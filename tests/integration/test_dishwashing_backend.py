@@ -102,3 +102,19 @@ def test_shipped_objectives_compile_to_the_documented_overlays(name, weights):
     assert spec.name == name and compile_economic_overlay(spec).to_dict() == weights
     assert DishwashingEnv(objective=spec).ignored_overlay_keys == (("stability_margin",) if "stability_margin"
                                                                     in weights else ())
+
+
+def test_human_baseline_training_objective_prices_energy_per_hour_worked():
+    from econmotor.config.econ_params import EconParams
+    from econmotor.config.task_economics import TaskEconomics
+    from econmotor.motor_backend.dishwashing_backend import term_references, training_objective
+
+    energy_saver = objective_from_vector(ObjectiveVector.from_preset("energy_saver"), "energy_saver")
+    trained_on = training_objective(energy_saver, "human_baseline")
+    assert trained_on.energy_weight == 0 and trained_on.extra_weights["energy_kwh_per_hour"] == -3.0
+    assert trained_on.mpl_weight == 1.0 and trained_on.risk_weight == 1.0
+    assert training_objective(energy_saver, "none") is energy_saver
+    refs = term_references(EconParams.preset("toy"), TaskEconomics())
+    # human pace: 60 good units/h at 5% errors = 63.16 attempts/h at 0.05 Wh each
+    assert refs["mpl_per_hour"] == 60.0 and refs["error_rate"] == 0.05
+    assert refs["energy_kwh_per_hour"] == pytest.approx(60 / 0.95 * 0.05 / 1000)

@@ -29,7 +29,9 @@ Rewards (``reward_mode``):
   violation or zero throughput — so ending a shift early is never a way to save risk);
   ``novelty_score`` = 1/25 when the step's action falls in a 5x5 (speed, care) cell not
   yet visited this episode (episode value: share of cells visited); extra keys
-  ``profit_usd`` (step profit) and ``units_completed`` (step good units). Other extra keys
+  ``energy_kwh_per_hour`` (change of the running kWh per hour worked, summing to the
+  episode's kWh/h), ``profit_usd`` (step profit) and ``units_completed`` (step good
+  units). Other extra keys
   of an objective have no meaning here: they contribute 0 and are listed in
   :attr:`DishwashingEnv.ignored_overlay_keys`.
 - ``"legacy"``: :func:`econmotor.economics.compute_econ_reward` on the step summary
@@ -63,7 +65,7 @@ REWARD_MODES = ("overlay", "legacy", "reward_builder")
 TERMINATION_REASONS = ("catastrophic_error", "sla_violation", "zero_throughput", "max_steps")
 FAILURE_REASONS = TERMINATION_REASONS[:3]
 OVERLAY_TERM_KEYS = ("mpl_per_hour", "energy_kwh", "error_rate", "risk_score", "novelty_score",
-                     "profit_usd", "units_completed")
+                     "energy_kwh_per_hour", "profit_usd", "units_completed")
 NOVELTY_GRID = 5
 OBS_NAMES = ("time_frac", "units_per_step", "attempts_per_step", "error_rate_running",
              "last_attempts", "last_error_rate", "catastrophe_budget_used", "sla_pressure",
@@ -167,6 +169,7 @@ class DishwashingEnv(gym.Env):
         self.episode_return = 0.0
         self.mpl_running = 0.0
         self.error_rate_running = 0.0
+        self.kwh_per_hour_running = 0.0
         self.last_attempts = 0
         self.last_error_rate = 0.0
         self.visited_cells: set[tuple[int, int]] = set()
@@ -239,8 +242,9 @@ class DishwashingEnv(gym.Env):
                       wh: float, catastrophic: bool) -> dict[str, Any]:
         p = self.params
         dt_h = p.time_step_s / 3600.0
-        mpl_prev, err_prev = self.mpl_running, self.error_rate_running
+        mpl_prev, err_prev, kwh_h_prev = self.mpl_running, self.error_rate_running, self.kwh_per_hour_running
         self.mpl_running = labour.mpl_units_per_hour(self.units, self.t * dt_h)
+        self.kwh_per_hour_running = self.energy_wh / 1000.0 / (self.t * dt_h)
         self.error_rate_running = labour.error_rate(self.errors, self.attempts)
         err_step = errors / attempts
         mpl_step = units / dt_h
@@ -257,6 +261,7 @@ class DishwashingEnv(gym.Env):
             "error_rate": self.error_rate_running - err_prev,
             "risk_score": float(catastrophic) / max(1, p.max_catastrophic_errors),
             "novelty_score": float(novel) / NOVELTY_GRID**2,
+            "energy_kwh_per_hour": self.kwh_per_hour_running - kwh_h_prev,
             "profit_usd": profit,
             "units_completed": float(units),
         }
@@ -267,7 +272,7 @@ class DishwashingEnv(gym.Env):
             "error_rate_t": err_step, "error_rate_running": self.error_rate_running,
             "implied_wage_t": wage, "wage_human": p.wage_human,
             "wage_parity_t": labour.wage_parity(wage, p.wage_human),
-            "ep_t": labour.energy_productivity(self.mpl_running, self.energy_wh / 1000.0 / (self.t * dt_h)),
+            "ep_t": labour.energy_productivity(self.mpl_running, self.kwh_per_hour_running),
             "profit": profit, "profit_cumulative": self.profit_usd,
             "catastrophic": catastrophic, "overlay_terms": terms,
         }
@@ -329,6 +334,7 @@ class DishwashingEnv(gym.Env):
             "error_rate_episode": err,
             "energy_Wh": self.energy_wh,
             "energy_kwh": self.energy_wh / 1000.0,
+            "energy_kwh_per_hour": kwh_per_h,
             "energy_Wh_per_unit": self.energy_wh / self.units if self.units else float("inf"),
             "profit": self.profit_usd,
             "implied_wage_usd_per_hour": wage,

@@ -3,14 +3,19 @@
 Training reward is the compiled objective overlay (``DishwashingEnv(reward_mode="overlay")``)
 with each term divided by a reference (``overlay_normalization``):
 
-- ``"human_baseline"`` (default): ``mpl_per_hour / MP_h``, ``error_rate / e_h``,
-  ``energy_kwh / E_ref`` with ``E_ref = MP_h/(1 - e_h) * energy_Wh_per_attempt *
-  shift_h / 1000`` (the kWh a robot working at the human pace uses in one full episode),
-  ``risk_score / 1``. A weight of 1 then means "one human-baseline's worth" of that metric,
-  so an objective vector's weights compare like with like. Without it the MPL term
-  (tens of units/h) dwarfs the error rate (hundredths) and the energy (hundredths of a
-  kWh), and every preset trains the same policy.
-- ``"none"``: raw terms, exactly ``sum_k scale_k * term_k``.
+- ``"human_baseline"`` (default): every metric is a rate over the time worked, divided by
+  what a robot working at the human pace would score: ``mpl_per_hour / MP_h``,
+  ``error_rate / e_h``, energy as ``energy_kwh_per_hour / E_h`` with
+  ``E_h = MP_h/(1 - e_h) * energy_Wh_per_attempt / 1000`` kWh/h, ``risk_score / 1``.
+  The objective's ``energy_weight`` is moved from ``energy_kwh`` (kWh per episode) to
+  ``energy_kwh_per_hour`` (:func:`training_objective`): episode kWh grows with episode
+  length while MPL and error rate do not, so with it the cheapest way to save energy is to
+  end the shift early (e.g. by violating the SLA), which is not what anyone asking for an
+  energy saver means. A weight of 1 then means "one human baseline's worth" of that
+  metric, so a preset's weights compare like with like; without normalisation the MPL
+  term (tens of units/h) dwarfs the error rate (hundredths) and the energy (thousandths
+  of a kWh), and every preset trains the same policy.
+- ``"none"``: the objective as given, raw terms, exactly ``sum_k scale_k * term_k``.
 
 The whole reward is multiplied by ``SACSettings.reward_scale`` for SAC's sake (it does not
 change the optimum). ``policy_id`` is the saved ``policy.zip``; beside it
@@ -84,18 +89,34 @@ class SACPolicyHandle:
         return action
 
 
-def term_references(params: EconParams, economics: TaskEconomics, max_steps: int) -> dict[str, float]:
-    """The ``human_baseline`` references (see the module docstring), one per overlay key."""
-    shift_h = max_steps * params.time_step_s / 3600.0
+def term_references(params: EconParams, economics: TaskEconomics) -> dict[str, float]:
+    """The ``human_baseline`` references (see the module docstring), one per overlay key.
+
+    ``energy_kwh`` (used only with an objective that keeps it, e.g. one that already weights
+    ``energy_kwh_per_hour``) is referenced to one full episode at the human pace.
+    """
     attempts_per_h = economics.mp_human_units_per_hour / max(1e-9, 1.0 - economics.error_rate_human)
-    energy_ref_kwh = attempts_per_h * params.energy_Wh_per_attempt * shift_h / 1000.0
+    kwh_per_h = max(attempts_per_h * params.energy_Wh_per_attempt / 1000.0, 1e-12)
     return {
         "mpl_per_hour": economics.mp_human_units_per_hour,
         "error_rate": max(economics.error_rate_human, 1e-6),
-        "energy_kwh": max(energy_ref_kwh, 1e-9),
+        "energy_kwh_per_hour": kwh_per_h,
+        "energy_kwh": kwh_per_h * params.max_steps * params.time_step_s / 3600.0,
         "risk_score": 1.0,
         "novelty_score": 1.0,
     }
+
+
+def training_objective(objective: EconomicObjectiveSpec, normalization: str) -> EconomicObjectiveSpec:
+    """The objective the env is trained on: under ``human_baseline`` energy is per hour worked.
+
+    ``energy_weight`` becomes ``extra_weights["energy_kwh_per_hour"] = -|energy_weight|``
+    (see the module docstring); everything else is unchanged. ``"none"`` returns it as given.
+    """
+    if normalization == "none" or objective.energy_weight == 0 or "energy_kwh_per_hour" in objective.extra_weights:
+        return objective
+    extras = {**objective.extra_weights, "energy_kwh_per_hour": -abs(objective.energy_weight)}
+    return replace(objective, energy_weight=0.0, extra_weights=extras)
 
 
 class DishwashingBackend:
@@ -154,11 +175,12 @@ class DishwashingBackend:
 
     def _env_factory(self, spec: TaskSpec, params: EconParams, norm: str, objective: EconomicObjectiveSpec,
                      randomization: EconRandomization) -> Callable[[], DishwashingEnv]:
-        refs = term_references(params, spec.economics, params.max_steps) if norm == "human_baseline" else {}
+        refs = term_references(params, spec.economics) if norm == "human_baseline" else {}
         rand = randomization if randomization.ranges else None
+        trained_on = training_objective(objective, norm)
 
         def make() -> DishwashingEnv:
-            return DishwashingEnv(params, "overlay", objective=objective, randomization=rand, term_references=refs)
+            return DishwashingEnv(params, "overlay", objective=trained_on, randomization=rand, term_references=refs)
 
         return make
 
@@ -243,7 +265,8 @@ class DishwashingBackend:
             "num_envs": num_envs, "max_steps": max_steps, "seed": seed, "eval_episodes": eval_episodes,
             "sac": asdict(self.sac), "torch_threads": self.torch_threads, "econ_params": params.to_dict(),
             "overlay_normalization": norm,
-            "term_references": term_references(params, spec.economics, params.max_steps) if norm != "none" else {},
+            "term_references": term_references(params, spec.economics) if norm != "none" else {},
+            "training_objective": training_objective(objective, norm).to_dict(),
             "overlay_keys_ignored": list(make().ignored_overlay_keys),
             "randomization": randomization.to_dict(), "train_seconds": train_s,
         }
@@ -292,8 +315,8 @@ class DishwashingBackend:
     ) -> MotorEvalResult:
         """Run ``num_episodes`` deterministic episodes (seeds ``seed + i``) of a saved policy.
 
-        ``return`` in each episode is the overlay reward of ``objective`` (unscaled by
-        ``reward_scale``); ``output_dir`` is unused (evaluation writes nothing).
+        ``return`` in each episode is the reward the policy is trained on (normalised as the
+        backend says, without ``reward_scale``); ``output_dir`` is unused (evaluation writes nothing).
         """
         if num_episodes < 1:
             raise ConfigError("<evaluate>", "num_episodes", "must be >= 1")
