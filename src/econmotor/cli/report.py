@@ -1,0 +1,206 @@
+"""``econmotor report``: train (or reuse) a policy, price the task, write the reports.
+
+Flags follow the spec's CLI (motor_backends.md): ``--task-id``, ``--motor-backend``,
+``--objective-config``, ``--datapacks``, ``--objective-name``, ``--notes``,
+``--num-envs``, ``--max-steps``, ``--eval-episodes``; plus ``--seed``, ``--output-dir``,
+``--output-json``, ``--db-url`` (else ``ECONMOTOR_DB_URL``, else ./.econmotor/registry.sqlite),
+``--tasks-file``, ``--spread-share`` and ``--run-id``. ``--datapacks`` takes YAML paths
+or registered ids, comma separated, repeated, or space separated (values after the
+flag that are not options are datapacks too).
+
+Every input is validated before any training starts (and before anything is written).
+"""
+
+from __future__ import annotations
+
+import inspect
+import os
+import re
+import signal
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import typer
+from rich.table import Table
+
+from econmotor.cli._app import app, console, err_console, progress_bars, set_cpu_threads
+from econmotor.config.objective_profile import ObjectiveVector
+from econmotor.economics.pricing import PricingPolicy
+from econmotor.errors import ConfigError, UnknownNameError
+from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_configs
+from econmotor.motor_backend.factory import known_backends, make_motor_backend
+from econmotor.objectives import load_objective_spec, objective_from_vector
+from econmotor.objectives.economic_objective import EconomicObjectiveSpec
+from econmotor.report.pipeline import (
+    ReportOutcome,
+    TrainRequest,
+    pick_runs,
+    report_after_training,
+    report_from_registry,
+    train_and_record,
+    with_objective_name,
+)
+from econmotor.report.render import STAT_COLUMNS, headline, table_rows
+from econmotor.store.registry import DB_URL_ENV, Registry, default_db_url, registry_exists
+from econmotor.tasks import load_catalog
+from econmotor.valuation import default_objective_vector
+
+NO_BACKEND = "none"
+#: backend -> (num_envs, max_steps) when the flags are not given; num_envs 0 = the task's catalog default.
+BACKEND_DEFAULTS: dict[str, tuple[int, int]] = {"dishwashing": (1, 5_000), "mujoco": (0, 100_000),
+                                                "holosoma": (0, 50_000)}
+
+
+def split_datapack_values(values: list[str]) -> list[str]:
+    """``["a.yaml,b", "c d"]`` -> ``["a.yaml", "b", "c", "d"]`` (commas and spaces separate)."""
+    return [tok for value in values for tok in re.split(r"[,\s]+", value) if tok]
+
+
+def _looks_like_path(token: str) -> bool:
+    return token.endswith((".yaml", ".yml")) or "/" in token or os.sep in token or Path(token).exists()
+
+
+def resolve_datapacks(tokens: list[str], db_url: str) -> list[DatapackConfig]:
+    """YAML paths are loaded; other tokens are ids registered in the registry (read only)."""
+    configs: list[DatapackConfig] = []
+    ids = [t for t in tokens if not _looks_like_path(t)]
+    registered: dict[str, DatapackConfig] = {}
+    if ids and registry_exists(db_url):
+        with Registry(db_url, create=False) as reg:
+            known = reg.known_datapack_ids()
+            registered = {c.id: c for c in reg.datapack_configs([i for i in ids if i in known])}
+    for token in tokens:
+        if _looks_like_path(token):
+            configs.extend(load_datapack_configs([token]))  # a missing file is a ConfigError
+        elif token in registered:
+            configs.append(registered[token])
+        else:
+            raise UnknownNameError("datapack id", token, registered or ["(no datapacks registered yet)"])
+    seen: set[str] = set()
+    return [c for c in configs if not (c.id in seen or seen.add(c.id))]
+
+
+def resolve_objective(path: Path | None, name: str | None) -> EconomicObjectiveSpec:
+    """The objective file, or the RewardBuilder default vector [1, 0.2, 0.1, 0.05, 0] named 'default'."""
+    objective = load_objective_spec(path) if path is not None else \
+        objective_from_vector(ObjectiveVector.from_list(default_objective_vector()), "default")
+    return with_objective_name(objective, name)
+
+
+def _make_backend(name: str, tasks_files: list[Path]):
+    """Construct the backend, passing user task files under whichever name it accepts."""
+    kwargs = {}
+    if tasks_files:
+        from econmotor.motor_backend.factory import _REGISTRY
+
+        module, _, attr = _REGISTRY[name].partition(":")
+        import importlib
+
+        params = inspect.signature(getattr(importlib.import_module(module), attr)).parameters
+        for key in ("task_files", "catalog_files", "tasks_files"):
+            if key in params:
+                kwargs[key] = list(tasks_files)
+    return make_motor_backend(name, **kwargs)
+
+
+@contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM (e.g. a job scheduler stopping us) is recorded like Ctrl-C: run status interrupted."""
+    def raise_interrupt(signum, frame):
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    previous = signal.signal(signal.SIGTERM, raise_interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def show_outcome(outcome: ReportOutcome) -> None:
+    """The rich table, the headline and where the files are."""
+    doc = outcome.document
+    table = Table(title=f"{doc['task']['task_id']} on {doc['backend']}: objective {doc['objective']['name']}, "
+                        f"spread share {doc['pricing']['spread_share']:g}")
+    table.add_column("metric", no_wrap=True)
+    for col in STAT_COLUMNS:
+        table.add_column(col, justify="right")
+    table.add_column("unit")
+    for row in table_rows(doc):
+        table.add_row(*row)
+    console.print(table)
+    console.print(headline(doc), highlight=False)
+    for kind, path in outcome.files.items():
+        console.print(f"{kind:>8}: {path}", highlight=False, soft_wrap=True)
+    console.print(f"HTML report: {outcome.files['html']}", style="bold green", highlight=False, soft_wrap=True)
+
+
+@app.command("report", context_settings={"allow_interspersed_args": True})
+def report_command(
+    task_id: str = typer.Option(..., "--task-id", help="Task id from the catalog (`econmotor tasks`)."),
+    motor_backend: str = typer.Option("mujoco", "--motor-backend",
+                                      help="mujoco | dishwashing | holosoma | none (report from recorded runs)."),
+    objective_config: Path = typer.Option(None, "--objective-config", help="Objective YAML (3 forms)."),
+    datapacks: list[str] = typer.Option([], "--datapacks", help="Datapack YAML paths or registered ids; "
+                                        "comma separated, repeated, or space separated."),
+    more_datapacks: list[str] = typer.Argument(None, help="More datapacks (space-separated --datapacks values).",
+                                               show_default=False),
+    objective_name: str = typer.Option(None, "--objective-name", help="Name recorded for the objective."),
+    notes: str = typer.Option("", "--notes", help="Free text recorded with the runs and the report."),
+    num_envs: int = typer.Option(None, "--num-envs", min=0, help="Environments (default: the backend's)."),
+    max_steps: int = typer.Option(None, "--max-steps", min=1, help="Training environment steps "
+                                  "(default: dishwashing 5,000, mujoco 100,000, holosoma 50,000)."),
+    eval_episodes: int = typer.Option(0, "--eval-episodes", min=0,
+                                      help="Add an evaluation run of N episodes after training and price it."),
+    seed: int = typer.Option(0, "--seed", help="Seed of training (evaluation uses seed + 1000)."),
+    output_dir: Path = typer.Option(None, "--output-dir", help="Report directory (default reports/<task>)."),
+    output_json: Path = typer.Option(None, "--output-json", help="Also choose where the JSON document goes."),
+    db_url: str = typer.Option(None, "--db-url", help=f"Registry URL (default ${DB_URL_ENV} or "
+                               "sqlite:///./.econmotor/registry.sqlite)."),
+    tasks_file: list[Path] = typer.Option([], "--tasks-file", help="Extra task catalog YAML files."),
+    spread_share: float = typer.Option(0.5, "--spread-share", help="Seller's share of the spread, 0..1."),
+    run_id: int = typer.Option(None, "--run-id", help="With --motor-backend none: the recorded run to price."),
+) -> None:
+    """Train (or reuse) a policy for a task, price its labour, write JSON, Markdown and HTML reports."""
+    set_cpu_threads()
+    # ---- validate everything first: nothing is trained or written on bad input
+    policy = PricingPolicy(spread_share)
+    url = db_url or os.environ.get(DB_URL_ENV) or default_db_url()
+    task = load_catalog(tasks_file).get(task_id)
+    backends = [*known_backends(), NO_BACKEND]
+    if motor_backend not in backends:
+        raise UnknownNameError("motor backend", motor_backend, backends)
+    if motor_backend != NO_BACKEND:
+        task.backend_entry(motor_backend)
+    if run_id is not None and motor_backend != NO_BACKEND:
+        raise ConfigError("--run-id", None, "--run-id reports a recorded run: use it with --motor-backend none")
+    objective = resolve_objective(objective_config, objective_name)
+    packs = resolve_datapacks(split_datapack_values([*datapacks, *(more_datapacks or [])]), url)
+    out_dir = output_dir or Path("reports") / task_id
+
+    if motor_backend == NO_BACKEND:
+        if not registry_exists(url):
+            raise ConfigError("--db-url", None, f"no registry at {url}; train a run first")
+        with Registry(url, create=False) as reg:
+            train, priced = pick_runs(reg, task_id, run_id, objective_name if objective_name else None,
+                                      [p.id for p in packs] or None)
+            show_outcome(report_from_registry(reg, task, priced, train, out_dir, output_json, policy,
+                                              notes or None))
+        return
+
+    default_envs, default_steps = BACKEND_DEFAULTS.get(motor_backend, (1, 10_000))
+    backend = _make_backend(motor_backend, tasks_file)
+    request = TrainRequest(task=task, backend_name=motor_backend, objective=objective, datapacks=tuple(packs),
+                           num_envs=default_envs if num_envs is None else num_envs,
+                           max_steps=max_steps or default_steps, seed=seed, eval_episodes=eval_episodes,
+                           notes=notes, train_eval_episodes=5)
+    with Registry(url) as reg, _sigterm_as_interrupt():
+        try:
+            with progress_bars() as progress:
+                train_id, eval_id = train_and_record(request, backend, reg, progress)
+        except KeyboardInterrupt:
+            latest = reg.latest_run(task_id=task_id)
+            err_console.print(f"[yellow]interrupted[/]: run #{latest.id if latest else '?'} is recorded as "
+                              f"{latest.status if latest else 'interrupted'} in {reg.display_url}")
+            raise typer.Exit(130) from None
+        show_outcome(report_after_training(reg, request, train_id, eval_id, out_dir, output_json, policy))

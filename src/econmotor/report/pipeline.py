@@ -1,0 +1,203 @@
+"""The task pricing report as library calls: train (or reuse) -> evaluate -> record -> price -> render.
+
+:func:`train_and_record` trains a policy through a motor backend and records the
+training run (and an optional evaluation run) in the registry; :func:`report_from_registry`
+builds and writes the report from recorded runs only. The CLI (``econmotor report``)
+validates the inputs, then calls one or both. Nothing here prints; long work reports
+through ``progress(label, done, total)``.
+
+Failure rules: the run is recorded as ``running`` before the backend starts, then
+``completed``, ``failed`` or ``interrupted``; if anything fails after training, the
+trained run stays in the registry and the error says how to report from it
+(``econmotor report --motor-backend none --run-id N``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from econmotor.economics.pricing import PricingPolicy, price_evaluation
+from econmotor.errors import BackendError, RegistryError
+from econmotor.motor_backend.base import ProgressFn, no_progress
+from econmotor.motor_backend.datapacks import DatapackConfig
+from econmotor.objectives.economic_objective import EconomicObjectiveSpec
+from econmotor.report.document import ReportContext, build_document
+from econmotor.report.render import report_paths, write_report
+from econmotor.store.records import RunRecord
+from econmotor.store.registry import Registry
+
+
+@dataclass(frozen=True)
+class TrainRequest:
+    """A validated request to train and evaluate one policy.
+
+    Attributes:
+        task: the ``TaskSpec`` (from the catalog, with any user task files applied).
+        backend_name: factory name of the motor backend.
+        objective: the economic objective to train under.
+        datapacks: datapack configs, in order (ids are their ``id``).
+        num_envs / max_steps / seed: passed to ``train_policy``.
+        train_eval_episodes: episodes the backend evaluates right after training.
+        eval_episodes: episodes of an extra evaluation run (0: none).
+        notes: free text recorded with the runs.
+        runs_dir: where the backend writes policies (``<runs_dir>/<task>-run<id>``).
+    """
+
+    task: Any
+    backend_name: str
+    objective: EconomicObjectiveSpec
+    datapacks: tuple[DatapackConfig, ...] = ()
+    num_envs: int = 1
+    max_steps: int = 5000
+    seed: int = 0
+    train_eval_episodes: int = 5
+    eval_episodes: int = 0
+    notes: str = ""
+    runs_dir: Path = Path("runs")
+
+    @property
+    def datapack_ids(self) -> list[str]:
+        return [p.id for p in self.datapacks]
+
+
+@dataclass(frozen=True)
+class ReportOutcome:
+    """What a report produced: the document, its files and the registry ids involved."""
+
+    document: dict[str, Any]
+    files: dict[str, str]
+    report_id: int
+    train_run: RunRecord | None
+    eval_run: RunRecord | None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def how_to_report_from(run_id: int, task_id: str, registry: Registry) -> str:
+    """The command that reports from a recorded run."""
+    return (f"econmotor report --motor-backend none --task-id {task_id} --run-id {run_id} "
+            f"--db-url '{registry.display_url}'")
+
+
+def train_and_record(request: TrainRequest, backend: Any, registry: Registry,
+                     progress: ProgressFn = no_progress) -> tuple[int, int | None]:
+    """Train (and optionally evaluate) through ``backend``, recording each run; returns run ids.
+
+    Raises the backend's error after marking the run ``failed`` (or ``interrupted``). An
+    error in the evaluation run leaves the training run ``completed`` and raises a
+    :class:`BackendError` that says how to report from it.
+    """
+    task_id = request.task.task_id
+    registry.record_task(request.task)
+    if request.datapacks:
+        registry.record_datapacks(request.datapacks)
+    entry = dict(request.task.backends.get(request.backend_name) or {})
+    robot = entry.get("env_id") or entry.get("robot") or task_id
+    robot_id = f"{request.backend_name}:{robot}"
+    registry.record_robot(robot_id, request.backend_name, request.task.description, entry)
+    common = {"objective": request.objective, "datapack_ids": request.datapack_ids, "notes": request.notes,
+              "robot_id": robot_id}
+    config = {"datapacks": [p.to_dict() for p in request.datapacks], "task_backend_entry": entry,
+              "train_eval_episodes": request.train_eval_episodes}
+    with registry.track_run("train", task_id, request.backend_name, seed=request.seed, num_envs=request.num_envs,
+                            max_steps=request.max_steps, config=config, **common) as train_id:
+        result = backend.train_policy(
+            task_id, request.objective, request.datapack_ids, request.num_envs, request.max_steps, request.seed,
+            datapack_configs=list(request.datapacks), output_dir=request.runs_dir / f"{task_id}-run{train_id}",
+            eval_episodes=request.train_eval_episodes, progress=progress)
+        registry.finish_run(train_id, result)
+    if request.eval_episodes <= 0:
+        return train_id, None
+    eval_seed = request.seed + 1_000
+    try:
+        with registry.track_run("eval", task_id, request.backend_name, seed=eval_seed, parent_run_id=train_id,
+                                config={"num_episodes": request.eval_episodes}, policy_path=result.policy_id,
+                                **common) as eval_id:
+            evaluation = backend.evaluate_policy(
+                result.policy_id, task_id, request.objective, request.eval_episodes, eval_seed,
+                datapack_configs=list(request.datapacks), output_dir=request.runs_dir / f"{task_id}-run{eval_id}",
+                progress=progress)
+            registry.finish_run(eval_id, evaluation)
+    except (KeyboardInterrupt, SystemExit):
+        raise
+    except Exception as exc:
+        raise BackendError(f"evaluation failed after training: {exc}. The trained run #{train_id} is in the "
+                           f"registry; report from it with: {how_to_report_from(train_id, task_id, registry)}") from exc
+    return train_id, eval_id
+
+
+def pick_runs(registry: Registry, task_id: str, run_id: int | None = None, objective: str | None = None,
+              datapacks: list[str] | None = None, backend: str | None = None) -> tuple[RunRecord | None, RunRecord]:
+    """(training run, run to price) for a report from recorded runs.
+
+    With ``run_id``: that run (a training run is priced by its newest completed evaluation
+    run if it has one). Without: the newest completed run of the task matching the filters.
+    """
+    if run_id is not None:
+        chosen = registry.run(run_id)
+        if chosen.task_id != task_id:
+            raise RegistryError(f"run #{run_id} is a run of task '{chosen.task_id}', not '{task_id}'")
+        if chosen.status != "completed":
+            raise RegistryError(f"run #{run_id} is {chosen.status} ({chosen.error or 'no error recorded'}); "
+                                "only completed runs can be priced")
+    else:
+        chosen = registry.latest_run(task_id=task_id, status="completed", objective=objective,
+                                     datapacks=datapacks, backend=backend)
+        if chosen is None:
+            raise RegistryError(
+                f"no completed run of task '{task_id}' in the registry {registry.display_url}"
+                + (" matching the given objective/datapacks" if objective or datapacks else "")
+                + "; train one first (e.g. --motor-backend dishwashing or mujoco)")
+    if chosen.kind == "eval":
+        train = registry.run(chosen.parent_run_id) if chosen.parent_run_id is not None else None
+        return train, chosen
+    evals = [r for r in registry.child_runs(chosen.id) if r.status == "completed"]
+    return chosen, (evals[-1] if evals else chosen)
+
+
+def report_from_registry(registry: Registry, task: Any, priced: RunRecord, train: RunRecord | None,
+                         output_dir: str | Path, json_path: str | Path | None = None,
+                         policy: PricingPolicy | None = None, notes: str | None = None) -> ReportOutcome:
+    """Price the episodes of ``priced`` with ``task``'s economics, record and write the report."""
+    episodes = [e.summary for e in registry.episodes(run_ids=[priced.id], status=None)]
+    if not episodes or not priced.econ_metrics:
+        raise RegistryError(f"run #{priced.id} has no evaluation episodes to price; evaluate its policy "
+                            "with --eval-episodes N, or pick another run with --run-id")
+    pricing = price_evaluation(task.economics, priced.econ_metrics, episodes, policy or PricingPolicy())
+    objective = EconomicObjectiveSpec(**{k: v for k, v in priced.objective.items()
+                                         if k in EconomicObjectiveSpec.__dataclass_fields__}) \
+        if priced.objective else EconomicObjectiveSpec()
+    ctx = ReportContext(
+        task=task, backend=priced.backend, objective=objective, datapack_ids=priced.datapack_ids,
+        pricing=pricing, raw_metrics=priced.raw_metrics, econ_metrics=priced.econ_metrics, episodes=episodes,
+        train_run=train, eval_run=priced if priced.kind == "eval" else None,
+        training_curve=(train or priced).training_curve,
+        notes=notes if notes is not None else (train or priced).notes, db_url=registry.display_url)
+    document = build_document(ctx)
+    name = f"{task.task_id}_run{priced.id}"
+    report_id = registry.record_report(task.task_id, document, report_paths(output_dir, name, json_path),
+                                       train.id if train else None, priced.id if priced.kind == "eval" else None)
+    document = {**document, "registry": {**document["registry"], "report_id": report_id}}
+    files = write_report(document, output_dir, name, json_path)
+    return ReportOutcome(document, files, report_id, train, ctx.eval_run)
+
+
+def report_after_training(registry: Registry, request: TrainRequest, train_id: int, eval_id: int | None,
+                          output_dir: str | Path, json_path: str | Path | None, policy: PricingPolicy) -> ReportOutcome:
+    """:func:`report_from_registry` for runs just recorded; failures say how to retry from the registry."""
+    try:
+        train = registry.run(train_id)
+        priced = registry.run(eval_id) if eval_id is not None else train
+        return report_from_registry(registry, request.task, priced, train, output_dir, json_path, policy)
+    except (KeyboardInterrupt, SystemExit):
+        raise
+    except Exception as exc:
+        kind = RegistryError if isinstance(exc, RegistryError) else BackendError
+        raise kind(f"the report failed after training: {exc}. The trained run #{train_id} is in the registry; "
+                   f"report from it with: {how_to_report_from(train_id, request.task.task_id, registry)}") from exc
+
+
+def with_objective_name(objective: EconomicObjectiveSpec, name: str | None) -> EconomicObjectiveSpec:
+    """The objective renamed (``--objective-name``), or unchanged when ``name`` is empty."""
+    return replace(objective, name=name) if name else objective

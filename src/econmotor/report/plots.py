@@ -1,0 +1,126 @@
+"""Report plots as PNG bytes (matplotlib's object API on the Agg canvas: no display, no pyplot state).
+
+Each function reads the report document (:mod:`econmotor.report.document`) and
+returns PNG bytes, or ``None`` when there is nothing to draw:
+
+- ``episode_distributions``: per-episode MPL (units/h), energy (Wh) and errors;
+- ``training_curve``: mean episode return over training timesteps;
+- ``unit_costs``: human unit cost vs the robot's unit cost (p10/p50/p90 over episodes)
+  and the recommended price.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from collections.abc import Callable
+from typing import Any
+
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+_BLUE, _ORANGE, _GREEN, _GREY = "#1f77b4", "#ff7f0e", "#2ca02c", "#7f7f7f"
+
+
+def _png(fig: Figure) -> bytes:
+    FigureCanvasAgg(fig)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
+    return buf.getvalue()
+
+
+def _finite(values: list[Any]) -> list[float]:
+    return [float(v) for v in values if v is not None and math.isfinite(float(v))]
+
+
+def episode_distributions(doc: dict[str, Any]) -> bytes | None:
+    """Histograms of MPL, energy and errors per evaluation episode."""
+    episodes = doc.get("episodes") or []
+    if not episodes:
+        return None
+    unit = doc["task"]["unit"]
+    panels = [("mpl_units_per_hour", f"MPL ({unit}s per hour)", _BLUE),
+              ("energy_wh", "energy per episode (Wh)", _ORANGE),
+              ("errors", "errors per episode", "#d62728")]
+    fig = Figure(figsize=(11, 3.2))
+    for i, (key, label, color) in enumerate(panels):
+        ax = fig.add_subplot(1, 3, i + 1)
+        values = _finite([ep.get(key) for ep in episodes])
+        if values:
+            bins = min(20, max(3, len(set(values))))
+            ax.hist(values, bins=bins, color=color, alpha=0.85, edgecolor="white")
+            mean = sum(values) / len(values)
+            ax.axvline(mean, color="black", linestyle="--", linewidth=1, label=f"mean {mean:.3g}")
+            ax.legend(fontsize=8)
+        ax.set_xlabel(label)
+        ax.set_ylabel("episodes")
+    fig.suptitle(f"{len(episodes)} evaluation episodes")
+    fig.tight_layout()
+    return _png(fig)
+
+
+def training_curve(doc: dict[str, Any]) -> bytes | None:
+    """Mean episode return against environment timesteps during training."""
+    curve = [p for p in doc.get("training_curve") or [] if p.get("mean_return") is not None]
+    if not curve:
+        return None
+    fig = Figure(figsize=(7, 3.2))
+    ax = fig.add_subplot(1, 1, 1)
+    ax.plot([p["timesteps"] for p in curve], [p["mean_return"] for p in curve], marker="o", markersize=3,
+            color=_BLUE)
+    ax.set_xlabel("environment timesteps")
+    ax.set_ylabel("mean episode return")
+    ax.set_title("training curve")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return _png(fig)
+
+
+def unit_costs(doc: dict[str, Any]) -> bytes | None:
+    """Bars: human unit cost, robot unit cost (with p10-p90 over episodes), recommended price."""
+    pricing = doc.get("pricing") or {}
+    agg, dists = pricing.get("aggregate") or {}, pricing.get("distributions") or {}
+    human = agg.get("human_unit_cost_usd")
+    if human is None:
+        return None
+    bars = [("human", human, None, _GREY)]
+    for key, label, color in (("robot_unit_cost_usd", "robot cost", _BLUE),
+                              ("recommended_price_usd_per_unit", "recommended price", _GREEN)):
+        value, dist = agg.get(key), dists.get(key, {})
+        band = (dist.get("p10"), dist.get("p90"))
+        bars.append((label, value, band if None not in band else None, color))
+    fig = Figure(figsize=(6, 3.4))
+    ax = fig.add_subplot(1, 1, 1)
+    drawn = [b for b in bars if b[1] is not None]
+    for i, (label, value, band, color) in enumerate(drawn):
+        ax.bar(i, value, color=color, width=0.6)
+        if band is not None:
+            ax.errorbar(i, value, yerr=[[max(value - band[0], 0)], [max(band[1] - value, 0)]], color="black",
+                        capsize=6, linewidth=1)
+        ax.text(i, value, f"{value:.3g}", ha="center", va="bottom", fontsize=9)
+    missing = [b[0] for b in bars if b[1] is None]
+    if missing:
+        ax.text(0.98, 0.95, f"not finite: {', '.join(missing)} (robot completed no unit)", ha="right",
+                va="top", transform=ax.transAxes, fontsize=8, color="#d62728")
+    ax.set_xticks(range(len(drawn)), [b[0] for b in drawn])
+    ax.set_ylabel(f"USD per {doc['task']['unit']}")
+    ax.set_title("human vs robot unit cost (bars: p10-p90 over episodes)")
+    fig.tight_layout()
+    return _png(fig)
+
+
+PLOTS: dict[str, Callable[[dict[str, Any]], bytes | None]] = {
+    "unit_costs": unit_costs,
+    "episode_distributions": episode_distributions,
+    "training_curve": training_curve,
+}
+
+
+def render_plots(doc: dict[str, Any]) -> dict[str, bytes]:
+    """Every plot that has data: name -> PNG bytes."""
+    out = {}
+    for name, make in PLOTS.items():
+        png = make(doc)
+        if png is not None:
+            out[name] = png
+    return out
