@@ -15,8 +15,9 @@ floor, the others ceilings)::
 computed *exactly* by slicing objectives (HSO, While et al. 2006): sort the
 points by the last coordinate; between consecutive values the slab's volume is
 its depth times the (d-1)-dimensional hypervolume of the points already
-passed; recurse down to a 2-D sweep. Cost O(n^(d-1) log n): milliseconds for
-fronts of a few hundred runs in 4-D. Points not strictly better than the
+passed; recurse down to a 2-D sweep. Cost O(n^(d-1) log n): in 4-D, measured
+0.04 s for 50 mutually non-dominated runs, 0.2 s for 100, 0.8 s for 200, 4 s for 400
+(fronts of recorded runs are usually far smaller). Points not strictly better than the
 reference in every coordinate contribute nothing and are dropped first.
 The default reference (:func:`default_reference_point`) is MPL 0 units/h,
 error rate 1, risk 1 (or the worst observed risk if larger), and 1.1 x the
@@ -86,7 +87,9 @@ def _hso(pts: np.ndarray, ref: np.ndarray) -> float:
     for i in range(len(pts)):
         if depths[i] > 0:
             passed = pts[: i + 1, :-1]
-            volume += depths[i] * _hso(passed[pareto_mask(passed)], ref[:-1])
+            if d > 3:  # the 2-D sweep is exact with dominated points; higher levels prune them
+                passed = passed[pareto_mask(passed)]
+            volume += depths[i] * _hso(passed, ref[:-1])
     return volume
 
 
