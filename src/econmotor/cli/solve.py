@@ -101,26 +101,28 @@ def solve_command(
 
 
 def _print_summary(surface, files) -> None:
+    """Objectives x constraint sets, each cell 'best valid run (J)'; grid objectives only in the files."""
     import json
 
     document = json.loads(files["json"].read_text())
     shown = [o.name for o in surface.objectives if o.kind != "grid"][:12]
-    table = Table(title=f"objective surface: {surface.table.num_episodes} episodes, {surface.table.num_runs} runs")
-    for col in ("objective", "constraint set", "best valid run", "datapacks", "utility J", "episodes meeting"):
-        table.add_column(col)
+    table = Table(title=f"best valid run (utility J): {surface.table.num_episodes} episodes, "
+                        f"{surface.table.num_runs} runs")
+    table.add_column("objective")
+    for cset in surface.constraint_sets:
+        table.add_column(cset.name)
+    rows: dict[str, list[str]] = {name: [] for name in shown}
     for cell in surface_cells(surface):
-        if cell.objective not in shown:
-            continue
-        if cell.valid:
-            table.add_row(cell.objective, cell.constraint_set, cell.best_run_id, ", ".join(cell.datapacks) or "-",
-                          f"{cell.utility:.4g}" if cell.utility is not None else "-", f"{cell.valid_fraction:.0%}")
-        else:
-            table.add_row(cell.objective, cell.constraint_set, "[red]no run meets this set[/]", "-", "-", "-")
+        if cell.objective in rows:
+            rows[cell.objective].append(f"{cell.best_run_id} ({cell.utility:.4g})" if cell.valid
+                                        else "[red]none[/]")
+    for name, cells in rows.items():
+        table.add_row(name, *cells)
     console.print(table)
     for name in document["constraint_sets_no_run_meets"]:
         console.print(f"[yellow]no run meets constraint set '{name}'[/]")
     front = document["pareto_front"]
-    console.print(f"Pareto front: {len(front['run_ids'])} run(s), hypervolume {front['hypervolume']:.6g} "
-                  f"(reference {front['reference_point']})")
+    console.print(f"Pareto front: {len(front['run_ids'])} run(s) {', '.join(front['run_ids'])}; hypervolume "
+                  f"{front['hypervolume']:.6g} (reference {front['reference_point']})")
     for kind, path in files.items():
         console.print(f"{kind}: {path}")

@@ -27,7 +27,7 @@ def test_solve_from_jsonl_with_vectors_grid_and_reference(tmp_path):
     assert main(["solve", "--episodes-jsonl", str(path), "--constraints", str(sets), "--vector", "1,0,0,0,0",
                  "--grid", "2", "--reference-point", "energy=2", "--output-dir", str(out)]) == 0
     doc = json.loads((out / "objective_surface.json").read_text())
-    assert [o["name"] for o in doc["objectives"]][0] == "w[1,0,0,0,0]" and len(doc["objectives"]) == 11
+    assert doc["objectives"][0]["name"] == "w[1,0,0,0,0]" and len(doc["objectives"]) == 11
     cells = {(c["objective"], c["constraint_set"]): c for c in doc["cells"]}
     assert cells[("w[1,0,0,0,0]", "careful")]["best_run_id"] == "b"
     assert doc["constraint_sets_no_run_meets"] == ["nobody"]
