@@ -122,12 +122,11 @@ def show_outcome(outcome: ReportOutcome) -> None:
     doc = outcome.document
     table = Table(title=f"{doc['task']['task_id']} on {doc['backend']}: objective {doc['objective']['name']}, "
                         f"spread share {doc['pricing']['spread_share']:g}")
-    table.add_column("metric", no_wrap=True)
+    table.add_column("metric (unit)", ratio=1)
     for col in STAT_COLUMNS:
-        table.add_column(col, justify="right")
-    table.add_column("unit")
-    for row in table_rows(doc):
-        table.add_row(*row)
+        table.add_column(col, justify="right", no_wrap=True)
+    for label, *values, unit in table_rows(doc):
+        table.add_row(f"{label} ({unit})", *values)
     console.print(table)
     console.print(headline(doc), highlight=False)
     for kind, path in outcome.files.items():
@@ -194,13 +193,11 @@ def report_command(
                            num_envs=default_envs if num_envs is None else num_envs,
                            max_steps=max_steps or default_steps, seed=seed, eval_episodes=eval_episodes,
                            notes=notes, train_eval_episodes=5)
-    with Registry(url) as reg, _sigterm_as_interrupt():
-        try:
-            with progress_bars() as progress:
-                train_id, eval_id = train_and_record(request, backend, reg, progress)
-        except KeyboardInterrupt:
-            latest = reg.latest_run(task_id=task_id)
-            err_console.print(f"[yellow]interrupted[/]: run #{latest.id if latest else '?'} is recorded as "
-                              f"{latest.status if latest else 'interrupted'} in {reg.display_url}")
-            raise typer.Exit(130) from None
+    try:
+        with _sigterm_as_interrupt(), progress_bars() as progress:
+            reg, train_id, eval_id = train_and_record(request, backend, lambda: Registry(url), progress)
+    except KeyboardInterrupt:
+        err_console.print(f"[yellow]interrupted[/]: the training run is recorded as interrupted in {url}")
+        raise typer.Exit(130) from None
+    with reg:
         show_outcome(report_after_training(reg, request, train_id, eval_id, out_dir, output_json, policy))

@@ -14,12 +14,16 @@ trained run stays in the registry and the error says how to report from it
 
 from __future__ import annotations
 
+import os
+import sys
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from econmotor.economics.pricing import PricingPolicy, price_evaluation
-from econmotor.errors import BackendError, RegistryError
+from econmotor.errors import BackendError, ConfigError, RegistryError, UnknownNameError
 from econmotor.motor_backend.base import ProgressFn, no_progress
 from econmotor.motor_backend.datapacks import DatapackConfig
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
@@ -42,7 +46,7 @@ class TrainRequest:
         train_eval_episodes: episodes the backend evaluates right after training.
         eval_episodes: episodes of an extra evaluation run (0: none).
         notes: free text recorded with the runs.
-        runs_dir: where the backend writes policies (``<runs_dir>/<task>-run<id>``).
+        runs_dir: where the backend writes policies (``<runs_dir>/<task>-<time>-s<seed>-<pid>``).
     """
 
     task: Any
@@ -80,43 +84,90 @@ def how_to_report_from(run_id: int, task_id: str, registry: Registry) -> str:
             f"--db-url '{registry.display_url}'")
 
 
-def train_and_record(request: TrainRequest, backend: Any, registry: Registry,
-                     progress: ProgressFn = no_progress) -> tuple[int, int | None]:
-    """Train (and optionally evaluate) through ``backend``, recording each run; returns run ids.
+class _TrainRun:
+    """Records the training run when training really starts (the backend's first progress
+    report, or its return): input errors the backend finds first leave no trace."""
 
-    Raises the backend's error after marking the run ``failed`` (or ``interrupted``). An
-    error in the evaluation run leaves the training run ``completed`` and raises a
-    :class:`BackendError` that says how to report from it.
+    def __init__(self, request: TrainRequest, open_registry: Callable[[], Registry]) -> None:
+        self.request, self._open = request, open_registry
+        self.registry: Registry | None = None
+        self.run_id: int | None = None
+        entry = dict(request.task.backends.get(request.backend_name) or {})
+        self.entry = entry
+        self.robot_id = f"{request.backend_name}:{entry.get('env_id') or entry.get('robot') or request.task.task_id}"
+
+    def common(self) -> dict[str, Any]:
+        r = self.request
+        return {"objective": r.objective, "datapack_ids": r.datapack_ids, "notes": r.notes, "robot_id": self.robot_id}
+
+    def start(self) -> int:
+        if self.run_id is not None:
+            return self.run_id
+        r = self.request
+        self.registry = reg = self.registry or self._open()
+        reg.record_task(r.task)
+        if r.datapacks:
+            reg.record_datapacks(r.datapacks)
+        reg.record_robot(self.robot_id, r.backend_name, r.task.description, self.entry)
+        config = {"datapacks": [p.to_dict() for p in r.datapacks], "task_backend_entry": self.entry,
+                  "train_eval_episodes": r.train_eval_episodes}
+        self.run_id = reg.start_run("train", r.task.task_id, r.backend_name, seed=r.seed, num_envs=r.num_envs,
+                                    max_steps=r.max_steps, config=config, **self.common())
+        return self.run_id
+
+    def end_with(self, exc: BaseException, status: str) -> None:
+        self.start()
+        self.registry.mark_run(self.run_id, status, f"{type(exc).__name__}: {exc}")
+
+
+def train_and_record(request: TrainRequest, backend: Any, open_registry: Callable[[], Registry],
+                     progress: ProgressFn = no_progress) -> tuple[Registry | None, int, int | None]:
+    """Train (and optionally evaluate) through ``backend``, recording each run.
+
+    Returns ``(registry, train run id, eval run id or None)``. The registry is opened
+    (``open_registry()``) and the run recorded as ``running`` when the backend first
+    reports progress; a ``ConfigError`` / ``UnknownNameError`` raised before that is bad
+    input and records nothing. Any other failure marks the run ``failed`` (or
+    ``interrupted`` on Ctrl-C) and re-raises. An error in the evaluation run leaves the
+    training run ``completed`` and raises a :class:`BackendError` that says how to report from it.
     """
     task_id = request.task.task_id
-    registry.record_task(request.task)
-    if request.datapacks:
-        registry.record_datapacks(request.datapacks)
-    entry = dict(request.task.backends.get(request.backend_name) or {})
-    robot = entry.get("env_id") or entry.get("robot") or task_id
-    robot_id = f"{request.backend_name}:{robot}"
-    registry.record_robot(robot_id, request.backend_name, request.task.description, entry)
-    common = {"objective": request.objective, "datapack_ids": request.datapack_ids, "notes": request.notes,
-              "robot_id": robot_id}
-    config = {"datapacks": [p.to_dict() for p in request.datapacks], "task_backend_entry": entry,
-              "train_eval_episodes": request.train_eval_episodes}
-    with registry.track_run("train", task_id, request.backend_name, seed=request.seed, num_envs=request.num_envs,
-                            max_steps=request.max_steps, config=config, **common) as train_id:
+    run = _TrainRun(request, open_registry)
+
+    def tracked(label: str, done: float, total: float) -> None:
+        run.start()
+        progress(label, done, total)
+
+    out_name = f"{task_id}-{time.strftime('%Y%m%d-%H%M%S')}-s{request.seed}-{os.getpid()}"
+    try:
         result = backend.train_policy(
             task_id, request.objective, request.datapack_ids, request.num_envs, request.max_steps, request.seed,
-            datapack_configs=list(request.datapacks), output_dir=request.runs_dir / f"{task_id}-run{train_id}",
-            eval_episodes=request.train_eval_episodes, progress=progress)
-        registry.finish_run(train_id, result)
+            datapack_configs=list(request.datapacks), output_dir=request.runs_dir / out_name,
+            eval_episodes=request.train_eval_episodes, progress=tracked)
+    except (ConfigError, UnknownNameError):
+        if run.run_id is None:
+            raise
+        run.end_with(sys.exc_info()[1], "failed")
+        raise
+    except (KeyboardInterrupt, SystemExit) as exc:
+        run.end_with(exc, "interrupted")
+        raise
+    except BaseException as exc:
+        run.end_with(exc, "failed")
+        raise
+    train_id = run.start()
+    registry = run.registry
+    registry.finish_run(train_id, result)
     if request.eval_episodes <= 0:
-        return train_id, None
+        return registry, train_id, None
     eval_seed = request.seed + 1_000
     try:
         with registry.track_run("eval", task_id, request.backend_name, seed=eval_seed, parent_run_id=train_id,
                                 config={"num_episodes": request.eval_episodes}, policy_path=result.policy_id,
-                                **common) as eval_id:
+                                **run.common()) as eval_id:
             evaluation = backend.evaluate_policy(
                 result.policy_id, task_id, request.objective, request.eval_episodes, eval_seed,
-                datapack_configs=list(request.datapacks), output_dir=request.runs_dir / f"{task_id}-run{eval_id}",
+                datapack_configs=list(request.datapacks), output_dir=request.runs_dir / f"{out_name}-eval{eval_id}",
                 progress=progress)
             registry.finish_run(eval_id, evaluation)
     except (KeyboardInterrupt, SystemExit):
@@ -124,7 +175,7 @@ def train_and_record(request: TrainRequest, backend: Any, registry: Registry,
     except Exception as exc:
         raise BackendError(f"evaluation failed after training: {exc}. The trained run #{train_id} is in the "
                            f"registry; report from it with: {how_to_report_from(train_id, task_id, registry)}") from exc
-    return train_id, eval_id
+    return registry, train_id, eval_id
 
 
 def pick_runs(registry: Registry, task_id: str, run_id: int | None = None, objective: str | None = None,

@@ -73,10 +73,15 @@ def headline(doc: Mapping[str, Any]) -> str:
     if agg.get("recommended_price_usd_per_unit") is None:
         return f"The robot completed no {unit} in evaluation: it cannot be priced per unit."
     verdict = ("cheaper than a human" if agg["competitive"] else "dearer than a human (not competitive)")
-    return (f"Charge {fmt(agg['recommended_price_usd_per_unit'])} USD per {unit} "
+    text = (f"Charge {fmt(agg['recommended_price_usd_per_unit'])} USD per {unit} "
             f"({fmt(agg['recommended_price_usd_per_robot_hour'])} USD per robot-hour): the robot's unit cost is "
             f"{fmt(agg['robot_unit_cost_usd'])} USD vs {fmt(agg['human_unit_cost_usd'])} USD for a human, "
             f"{verdict}; wage parity {fmt(agg['wage_parity'])}.")
+    if (agg.get("implied_wage_usd_per_hour") or 0.0) < 0:
+        text += (f" Warning: at error rate {fmt(agg['error_rate'])} the damage from errors exceeds the value of "
+                 f"the work (implied wage {fmt(agg['implied_wage_usd_per_hour'])} USD/h); the unit cost "
+                 "counts good units only.")
+    return text
 
 
 def _md_table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> str:
