@@ -20,7 +20,24 @@ venv: $(STAMP)
 demo: $(STAMP)
 	$(VENV)/bin/econmotor demo
 
-test: $(STAMP)
+HVENV := .venv-holosoma
+HPY := $(HVENV)/bin/python
+HSTAMP := $(HVENV)/.econmotor-installed
+
+# Holosoma's isolated interpreter (numpy<2); cached by $(HSTAMP). Order: torch, holosoma, mujoco.
+$(HSTAMP): requirements-holosoma.txt pyproject.toml
+	test -x $(HPY) || $(PYTHON) -m venv $(HVENV)
+	$(HPY) -m pip install -qq --upgrade pip
+	$(HPY) -m pip install -qq $$(grep -E '^torch==' requirements-holosoma.txt)
+	$(HPY) -m pip install -qq $$(grep -E '^holosoma' requirements-holosoma.txt)
+	$(HPY) -m pip install -qq -r requirements-holosoma.txt
+	$(HPY) -m pip freeze --exclude-editable > $(HVENV)/constraints.txt
+	$(HPY) -m pip install -qq -e . -c $(HVENV)/constraints.txt
+	touch $(HSTAMP)
+
+holosoma: $(HSTAMP)
+
+test: $(STAMP) $(HSTAMP)
 	$(PY) -m pytest -q
 
 lint: $(STAMP)

@@ -1,0 +1,12 @@
+"""Holosoma backend internals.
+
+Two interpreters meet here. The main environment (numpy 2) imports
+:mod:`.plan`, :mod:`.datapack_mapping`, :mod:`.econ_formulas`, :mod:`.recording_metrics`
+and :mod:`.jobs` (the subprocess client); none of them imports Holosoma or torch.
+The isolated ``.venv-holosoma`` (numpy 1.x, Holosoma, torch) runs :mod:`.runner`
+(``python -m econmotor.motor_backend.holosoma.runner JOB.json``) and :mod:`.recording`
+(an eval callback), and imports the reward terms in
+:mod:`econmotor.motor_backend.holosoma_reward_terms`. Everything shared between the
+two sides is plain JSON or array-agnostic arithmetic (:mod:`.econ_formulas`), so it
+runs unchanged on numpy 1.x, numpy 2 and torch.
+"""

@@ -1,0 +1,177 @@
+"""Planning a Holosoma run in the main interpreter: presets, simulator, CPU adaptation.
+
+A request ``(task, num_envs, max_steps)`` becomes a :class:`RunPlan`: which Holosoma
+experiment preset, which simulator, how many envs and learning iterations, and the
+messages that announce every adaptation (the CLI prints them).
+
+``max_steps`` means **environment steps** (one control step of one env, 50 Hz for
+G1/T1): PPO runs ``ceil(max_steps / (num_envs * num_steps_per_env))`` iterations, FastSAC
+``ceil(max_steps / num_envs)`` global steps. Simulators:
+
+- ``isaacgym`` / ``isaacsim`` / ``mjwarp`` on a CUDA machine: the request runs as asked.
+- ``mjwarp`` on the CPU: at most :data:`CPU_WARP_MAX_ENVS` envs, steps capped.
+- ``mujoco`` (classic, CPU): exactly 1 env (Holosoma's classic backend is single-env),
+  steps capped at ``cpu_max_env_steps`` so a report finishes in minutes.
+
+``simulator="auto"`` picks the first available of isaacgym, isaacsim (CUDA and the
+package importable), mjwarp (CUDA), else classic mujoco.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from econmotor.errors import ConfigError
+
+SIMULATORS = ("auto", "isaacgym", "isaacsim", "mjwarp", "mujoco")
+ALGOS = ("ppo", "fast_sac")
+PPO_STEPS_PER_ENV = 24
+CPU_WARP_MAX_ENVS = 64
+#: default cap on environment steps when training on the CPU (about 2-3 min for PPO on classic MuJoCo).
+DEFAULT_CPU_MAX_ENV_STEPS = 9_600
+
+#: task id -> Holosoma presets and the physical parameters of the econ overlay.
+#: A task's ``backends.holosoma`` entry in the catalog overrides any of these keys.
+_OVERLAY_PHYSICS: dict[str, Any] = {
+    "progress_mode": "velocity",   # progress = base velocity along the command / unit_length_m
+    "unit_length_m": 10.0,         # metres of commanded travel per unit of work
+    "unit_duration_s": 10.0,       # seconds per unit in "time" mode (tracking a clip)
+    "drivetrain_efficiency": 0.8,  # electrical -> joint mechanical power
+    "max_tilt_rad": 0.8,           # base tilt at which the risk score reaches 1
+    "novelty_rate": 0.01,          # running-statistics rate of the joint-space novelty
+    "overlay_gain": 0.05,          # reward units per metric unit (keeps the overlay near the task terms)
+    "uses_motion_clip": False,
+}
+HOLOSOMA_TASK_PRESETS: dict[str, dict[str, Any]] = {
+    "humanoid_locomotion_g1": {**_OVERLAY_PHYSICS, "experiment": {"ppo": "g1_29dof", "fast_sac": "g1_29dof_fast_sac"}},
+    "humanoid_locomotion_t1": {**_OVERLAY_PHYSICS, "experiment": {"ppo": "t1_29dof", "fast_sac": "t1_29dof_fast_sac"}},
+    "humanoid_wbt_g1": {**_OVERLAY_PHYSICS, "progress_mode": "time", "unit_duration_s": 6.5, "uses_motion_clip": True,
+                        "experiment": {"ppo": "g1_29dof_wbt", "fast_sac": "g1_29dof_wbt_fast_sac"}},
+}
+_SETTING_KEYS = ("experiment", "progress_mode", "unit_length_m", "unit_duration_s", "drivetrain_efficiency",
+                 "max_tilt_rad", "novelty_rate", "overlay_gain", "uses_motion_clip", "algo")
+
+
+@dataclass(frozen=True)
+class Capabilities:
+    """What the Holosoma interpreter can use (from the runner's ``probe`` job)."""
+
+    cuda: bool = False
+    isaacgym: bool = False
+    isaacsim: bool = False
+    mujoco_warp: bool = False
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Capabilities:
+        return cls(**{k: bool(data.get(k, False)) for k in ("cuda", "isaacgym", "isaacsim", "mujoco_warp")})
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """A request adapted to the machine. ``messages`` announce every change."""
+
+    experiment: str
+    algo: str
+    simulator: str
+    device: str
+    num_envs: int
+    iterations: int
+    env_steps: int
+    cpu_sized: bool
+    messages: tuple[str, ...] = ()
+    requested: dict[str, Any] = field(default_factory=dict)
+
+
+def task_settings(task_id: str, entry: Mapping[str, Any], source: str) -> dict[str, Any]:
+    """The task's Holosoma settings: built-in preset overridden by the catalog entry."""
+    unknown = [k for k in entry if k not in _SETTING_KEYS]
+    if unknown:
+        raise ConfigError(source, f"tasks.{task_id}.backends.holosoma.{unknown[0]}", "unknown key", _SETTING_KEYS)
+    base = HOLOSOMA_TASK_PRESETS.get(task_id)
+    if base is None and "experiment" not in entry:
+        raise ConfigError(source, f"tasks.{task_id}.backends.holosoma.experiment",
+                          "no built-in Holosoma preset for this task: name one", sorted(HOLOSOMA_TASK_PRESETS))
+    settings = {**(base or HOLOSOMA_TASK_PRESETS["humanoid_locomotion_g1"]), **dict(entry)}
+    if isinstance(settings["experiment"], str):
+        settings["experiment"] = {"ppo": settings["experiment"]}
+    if settings["progress_mode"] not in ("velocity", "time"):
+        raise ConfigError(source, f"tasks.{task_id}.backends.holosoma.progress_mode",
+                          f"got {settings['progress_mode']!r}", ("velocity", "time"))
+    if not 0.0 < float(settings["drivetrain_efficiency"]) <= 1.0:
+        raise ConfigError(source, f"tasks.{task_id}.backends.holosoma.drivetrain_efficiency", "must be in (0, 1]")
+    return settings
+
+
+def choose_simulator(requested: str, caps: Capabilities) -> tuple[str, str]:
+    """(simulator, device) for ``requested`` (one of :data:`SIMULATORS`) on a machine with ``caps``."""
+    if requested not in SIMULATORS:
+        raise ConfigError("<holosoma backend>", "simulator", f"unknown simulator {requested!r}", SIMULATORS)
+    device = "cuda:0" if caps.cuda else "cpu"
+    if requested == "auto":
+        if caps.cuda and caps.isaacgym:
+            return "isaacgym", device
+        if caps.cuda and caps.isaacsim:
+            return "isaacsim", device
+        if caps.cuda and caps.mujoco_warp:
+            return "mjwarp", device
+        return "mujoco", "cpu"
+    if requested in ("isaacgym", "isaacsim") and not (caps.cuda and getattr(caps, requested)):
+        raise ConfigError("<holosoma backend>", "simulator",
+                          f"{requested} needs a CUDA GPU and the {requested} package in .venv-holosoma "
+                          f"(cuda={caps.cuda}, {requested}={getattr(caps, requested)})", ("mjwarp", "mujoco"))
+    if requested == "mjwarp" and not caps.mujoco_warp:
+        raise ConfigError("<holosoma backend>", "simulator", "mujoco_warp is not installed in .venv-holosoma",
+                          ("mujoco",))
+    return requested, ("cpu" if requested == "mujoco" else device)
+
+
+def plan_training(
+    *,
+    experiment: str,
+    algo: str,
+    simulator: str,
+    device: str,
+    num_envs: int,
+    max_steps: int,
+    cpu_max_env_steps: int,
+) -> RunPlan:
+    """Adapt ``(num_envs, max_steps)`` to the simulator; see the module docstring for the rules."""
+    if algo not in ALGOS:
+        raise ConfigError("<holosoma backend>", "algo", f"unknown algorithm {algo!r}", ALGOS)
+    if num_envs < 1 or max_steps < 1:
+        raise ConfigError("<holosoma backend>", "num_envs/max_steps", "must both be >= 1")
+    messages: list[str] = []
+    envs, steps = num_envs, max_steps
+    on_cpu = device == "cpu"
+    if simulator == "mujoco" and envs != 1:
+        messages.append(f"num_envs {num_envs} -> 1: Holosoma's classic MuJoCo simulator runs exactly one env "
+                        "(use simulator mjwarp or isaacgym on a GPU machine for parallel envs)")
+        envs = 1
+    elif simulator == "mjwarp" and on_cpu and envs > CPU_WARP_MAX_ENVS:
+        messages.append(f"num_envs {num_envs} -> {CPU_WARP_MAX_ENVS}: mjwarp on the CPU (no CUDA device)")
+        envs = CPU_WARP_MAX_ENVS
+    if on_cpu and steps > cpu_max_env_steps:
+        messages.append(f"max_steps {max_steps} -> {cpu_max_env_steps} environment steps: CPU training is capped "
+                        "(raise cpu_max_env_steps, or run on a GPU machine for the full budget)")
+        steps = cpu_max_env_steps
+    if on_cpu:
+        messages.append(f"CPU-sized {algo} settings: "
+                        + ("24 steps/env per iteration, 4 minibatches" if algo == "ppo"
+                           else "batch 256, torch.compile and bf16 autocast off"))
+    per_iteration = envs * (PPO_STEPS_PER_ENV if algo == "ppo" else 1)
+    iterations = max(1, math.ceil(steps / per_iteration))
+    return RunPlan(
+        experiment=experiment,
+        algo=algo,
+        simulator=simulator,
+        device=device,
+        num_envs=envs,
+        iterations=iterations,
+        env_steps=iterations * per_iteration,
+        cpu_sized=on_cpu,
+        messages=tuple(messages),
+        requested={"num_envs": num_envs, "max_steps": max_steps},
+    )

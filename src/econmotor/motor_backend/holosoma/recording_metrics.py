@@ -1,0 +1,105 @@
+"""Per-episode raw metrics from a Holosoma evaluation recording (numpy only).
+
+The recording (:mod:`.recording`) holds one row per control step of env 0. Episodes
+are split where ``reset`` is set (a fall or a time-out); the first ``num_episodes``
+episodes are kept (a last, unfinished one counts when fewer finished). Per episode,
+with ``dt`` the control step (s) and the same formulas as the training reward terms
+(:mod:`.econ_formulas`):
+
+- ``units_completed = sum_t progress_t * dt`` (progress in units/s: velocity along the
+  command / ``unit_length_m``, or 1 / ``unit_duration_s`` while tracking a clip);
+- ``errors`` = falls (a reset that is not a time-out);
+- ``energy_wh = sum_t P_elec,t * dt / 3600`` with P_elec from torque x joint velocity
+  averaged over the physics sub-steps / drivetrain efficiency;
+- ``risk_score`` = mean tilt risk; ``novelty_score`` = mean joint-space novelty;
+- ``episode_length_s = steps * dt``; ``return`` = sum of Holosoma's step rewards.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from econmotor.errors import BackendError
+from econmotor.motor_backend.holosoma.econ_formulas import (
+    commanded_progress_m_per_s,
+    electrical_power_w,
+    novelty_step,
+    tilt_risk,
+)
+
+REQUIRED_CHANNELS = ("dof_pos", "torques_substep", "dof_vel_substep", "root_quat_xyzw", "reset", "time_out",
+                     "reward", "base_lin_vel")
+
+
+def step_series(data: Any, settings: dict[str, Any]) -> dict[str, np.ndarray]:
+    """Per-step progress (units/s), power (W), fall flag, risk and novelty of a recording."""
+    steps = len(data["dof_pos"])
+    if settings["progress_mode"] == "time":
+        progress = np.full(steps, 1.0 / float(settings["unit_duration_s"]))
+    else:
+        command = data["commanded_velocity"] if "commanded_velocity" in data else np.zeros((steps, 3))
+        progress = commanded_progress_m_per_s(data["base_lin_vel"][:, :2], command[:, :2]) / float(
+            settings["unit_length_m"])
+    power = electrical_power_w(data["torques_substep"], data["dof_vel_substep"],
+                               float(settings["drivetrain_efficiency"])).mean(-1)
+    risk = tilt_risk(data["root_quat_xyzw"], math.cos(float(settings["max_tilt_rad"])))
+    q = data["dof_pos"].astype(np.float64)
+    mean, var = q[0].copy(), np.ones_like(q[0])
+    novelty = np.empty(steps)
+    for t in range(steps):
+        novelty[t], mean, var = novelty_step(q[t], mean, var, float(settings["novelty_rate"]))
+    fell = data["reset"].astype(bool) & ~data["time_out"].astype(bool)
+    return {"progress": progress, "power": power, "fell": fell, "risk": risk, "novelty": novelty,
+            "reward": data["reward"].astype(np.float64), "reset": data["reset"].astype(bool),
+            "time_out": data["time_out"].astype(bool)}
+
+
+def episode_bounds(reset: np.ndarray, num_episodes: int) -> list[tuple[int, int]]:
+    """[start, stop) index pairs of the first ``num_episodes`` episodes (split after each reset)."""
+    bounds, start = [], 0
+    for end in np.nonzero(reset)[0]:
+        bounds.append((start, int(end) + 1))
+        start = int(end) + 1
+    if start < len(reset):
+        bounds.append((start, len(reset)))
+    return bounds[:num_episodes]
+
+
+def episodes_from_recording(path: str | Path, settings: dict[str, Any], num_episodes: int) -> list[dict[str, Any]]:
+    """Raw metrics of each evaluation episode in the recording (see the module docstring)."""
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            missing = [c for c in REQUIRED_CHANNELS if c not in npz.files]
+            if missing:
+                raise BackendError(f"Holosoma recording {path} lacks channels {missing}")
+            data = {k: npz[k] for k in npz.files}
+    except (OSError, ValueError) as exc:
+        raise BackendError(f"cannot read Holosoma recording {path}: {exc}") from exc
+    meta = json.loads(str(data["_metadata_json"]))
+    dt = float(meta["dt"])
+    series = step_series(data, settings)
+    episodes = []
+    for start, stop in episode_bounds(series["reset"], num_episodes):
+        window = slice(start, stop)
+        last = stop - 1
+        reason = "fall" if series["fell"][last] else ("time_out" if series["time_out"][last] else "max_steps")
+        units = float(np.sum(series["progress"][window]) * dt)
+        episodes.append({
+            "units_completed": units,
+            "errors": float(np.sum(series["fell"][window])),
+            "episode_length_s": (stop - start) * dt,
+            "length_steps": float(stop - start),
+            "energy_wh": float(np.sum(series["power"][window]) * dt / 3600.0),
+            "mean_power_w": float(np.mean(series["power"][window])),
+            "distance_m": units * float(settings["unit_length_m"]) if settings["progress_mode"] != "time" else 0.0,
+            "risk_score": float(np.mean(series["risk"][window])),
+            "novelty_score": float(np.mean(series["novelty"][window])),
+            "return": float(np.sum(series["reward"][window])),
+            "termination_reason": reason,
+        })
+    return episodes

@@ -1,0 +1,132 @@
+"""The economic overlay as Holosoma reward terms (runs inside ``.venv-holosoma``).
+
+Each overlay key of a :class:`~econmotor.objectives.CompiledRewardOverlay` becomes one
+Holosoma reward term::
+
+    RewardTermCfg(func="econmotor.motor_backend.holosoma_reward_terms:EconOverlayTerm",
+                  params={"key": "energy_kwh", ...physical parameters...},
+                  weight=gain * scale_k, tags=["econ_overlay"])
+
+so Holosoma's reward manager adds ``raw_k * gain * scale_k * dt`` per env per step, logs
+``Episode/rew_econ_<key>`` (weighted) and ``RawEpisode/raw_rew_econ_<key>`` (raw), and PPO /
+FastSAC optimise it with the task's own terms. The raw rates come from the simulator
+each step (see :func:`econmotor.motor_backend.holosoma.econ_formulas.overlay_term_rates`):
+
+- progress toward the unit of work: base velocity along the commanded direction / metres
+  per unit (``progress_mode="velocity"``), or tracked time / seconds per unit (``"time"``,
+  whole-body tracking);
+- electrical power: sum |torque x joint velocity| / drivetrain efficiency, averaged over
+  the physics sub-steps of the control step;
+- falls: terminations that are not time-outs (``reset_buf & ~time_out_buf``);
+- risk: base tilt from the orientation quaternion (0 upright, 1 at ``max_tilt_rad``);
+- novelty: distance of the joint configuration from its running statistics.
+
+All econ terms of one env share one computation per step: the first term the manager
+calls (the "leader") computes every rate, the others read them.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import torch
+from holosoma.managers.observation.terms.locomotion import get_base_lin_vel
+from holosoma.managers.reward.base import RewardTermBase
+
+from econmotor.motor_backend.holosoma.econ_formulas import (
+    OVERLAY_TERM_KEYS,
+    commanded_progress_m_per_s,
+    electrical_power_w,
+    novelty_step,
+    overlay_term_rates,
+    tilt_risk,
+)
+
+SUPPORTED_KEYS = OVERLAY_TERM_KEYS
+TERM_PREFIX = "econ_"
+_STATE_ATTR = "_econmotor_overlay_state"
+
+
+class _OverlayState:
+    """Per-environment-batch state shared by all econ terms of one env object."""
+
+    def __init__(self, leader: int, num_envs: int, num_dof: int, device: Any) -> None:
+        self.leader = leader
+        self.rates: dict[str, torch.Tensor] = {}
+        self.novelty_mean = torch.zeros(num_envs, num_dof, device=device)
+        self.novelty_var = torch.ones(num_envs, num_dof, device=device)
+        self.novelty_initialised = False
+
+
+def _joint_control(env: Any) -> Any:
+    for _name, term in env.action_manager.iter_terms():
+        if hasattr(term, "torques"):
+            return term
+    raise RuntimeError("econ overlay: no action term with torques (needs Holosoma's joint_control)")
+
+
+def _power_w(env: Any, efficiency: float) -> torch.Tensor:
+    term = _joint_control(env)
+    if hasattr(term, "torques_substep") and hasattr(term, "dof_vel_substep"):
+        return electrical_power_w(term.torques_substep, term.dof_vel_substep, efficiency).mean(-1)
+    return electrical_power_w(term.torques, env.simulator.dof_vel, efficiency)
+
+
+def _progress_units_per_s(env: Any, params: dict[str, Any]) -> torch.Tensor:
+    if params["progress_mode"] == "time":
+        return torch.full((env.num_envs,), 1.0 / params["unit_duration_s"], device=env.device)
+    v_xy = get_base_lin_vel(env)[:, :2]
+    c_xy = env.command_manager.commands[:, :2]
+    return commanded_progress_m_per_s(v_xy, c_xy) / params["unit_length_m"]
+
+
+def compute_step_rates(env: Any, state: _OverlayState, params: dict[str, Any]) -> dict[str, torch.Tensor]:
+    """Every overlay rate for every env at this step (see the module docstring)."""
+    fell = (env.reset_buf.bool() & ~env.time_out_buf.bool()).float()
+    q = env.simulator.dof_pos
+    if not state.novelty_initialised:
+        state.novelty_mean[:] = q
+        state.novelty_initialised = True
+    novelty, state.novelty_mean, state.novelty_var = novelty_step(
+        q, state.novelty_mean, state.novelty_var, params["novelty_rate"]
+    )
+    return overlay_term_rates(
+        progress_units_per_s=_progress_units_per_s(env, params),
+        power_w=_power_w(env, params["efficiency"]),
+        fell=fell,
+        risk=tilt_risk(env.base_quat, math.cos(params["max_tilt_rad"])),
+        novelty=novelty,
+        dt_s=float(env.dt),
+        episode_s=float(env.max_episode_length_s),
+    )
+
+
+class EconOverlayTerm(RewardTermBase):
+    """One overlay key as a stateful Holosoma reward term (raw, unweighted value).
+
+    Params (``RewardTermCfg.params``): ``key`` (one of :data:`SUPPORTED_KEYS`),
+    ``unit_length_m`` (metres per unit of work), ``unit_duration_s`` (seconds per unit in
+    ``"time"`` mode), ``progress_mode`` (``"velocity"`` | ``"time"``), ``efficiency``
+    (drivetrain, 0-1), ``max_tilt_rad`` (tilt at which risk is 1), ``novelty_rate``.
+    """
+
+    def __init__(self, cfg: Any, env: Any) -> None:
+        super().__init__(cfg, env)
+        key = cfg.params.get("key")
+        if key not in SUPPORTED_KEYS:
+            raise ValueError(f"econ overlay term: unknown key {key!r}; supported: {', '.join(SUPPORTED_KEYS)}")
+        self.key = key
+        state = getattr(env, _STATE_ATTR, None)
+        if state is None:
+            state = _OverlayState(id(self), env.num_envs, env.simulator.dof_pos.shape[1], env.device)
+            setattr(env, _STATE_ATTR, state)
+        self.state = state
+
+    def reset(self, env_ids: torch.Tensor | None = None) -> None:
+        """Nothing per episode: novelty statistics persist across an env slot's episodes."""
+
+    def __call__(self, env: Any, **params: Any) -> torch.Tensor:
+        if self.state.leader == id(self) or not self.state.rates:
+            self.state.rates = compute_step_rates(env, self.state, params)
+        return self.state.rates[self.key]
