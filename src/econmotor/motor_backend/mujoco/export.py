@@ -15,6 +15,7 @@ datapack ids, economic assumptions, observation / action layout.
 from __future__ import annotations
 
 import json
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -70,8 +71,9 @@ def export_onnx(model: Any, normalizer: tuple[np.ndarray, np.ndarray, float, flo
     obs_dim = int(np.prod(model.observation_space.shape))
     example = torch.zeros(2, obs_dim, dtype=torch.float32)
     tmp = path.with_name(path.stem + ".tmp.onnx")
-    try:
-        with torch.no_grad():
+    try:  # the TorchScript exporter: the dynamo one needs onnxscript and trips on distributions
+        with torch.no_grad(), warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
             torch.onnx.export(actor, (example,), str(tmp), input_names=["obs"], output_names=["action"],
                               dynamo=False, dynamic_axes={"obs": {0: "batch"}, "action": {0: "batch"}},
                               opset_version=17)

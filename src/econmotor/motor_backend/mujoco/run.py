@@ -81,14 +81,14 @@ class TrainingRun:
     def train(self, resume: bool = False, progress: ProgressFn = no_progress) -> tuple[Any, list[dict[str, float]]]:
         """Train to ``max_steps`` total environment steps; returns (model, training curve)."""
         self.run_dir.mkdir(parents=True, exist_ok=True)
-        ckpt = latest_checkpoint(self.run_dir) if resume else None
+        ckpt = latest_checkpoint(self.run_dir, self.recipe.settings.normalize_obs) if resume else None
         if resume:
             previous = read_run_config(self.run_dir)
             if previous.get("task_id") != self.described["task_id"]:
                 raise ConfigError(str(self.run_dir / RUN_CONFIG_FILE), "task_id",
                                   f"cannot resume a '{previous.get('task_id')}' run as '{self.described['task_id']}'")
             self.algorithm = previous["algorithm"]
-        hp = self._hyperparameters()
+        hp = previous["hyperparameters"] if resume else self._hyperparameters()
         venv = make_vec_env(self.recipe, self.num_envs, self.seed, self.vec_env)
         stats = checkpoint_vecnormalize(*ckpt) if ckpt else None
         venv = wrap_normalize(venv, self.recipe.settings.normalize_obs, stats if stats and stats.is_file() else None)

@@ -12,6 +12,7 @@ Run directory (``policy_id``)::
 from __future__ import annotations
 
 import re
+import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -76,17 +77,27 @@ def wrap_normalize(venv: VecEnv, normalize_obs: bool, stats_path: Path | None = 
     return VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0)
 
 
-def latest_checkpoint(run_dir: str | Path) -> tuple[Path, int] | None:
-    """The newest ``checkpoints/ckpt_<N>_steps.zip`` and its N, or None."""
+def latest_checkpoint(run_dir: str | Path, need_vecnormalize: bool = False) -> tuple[Path, int] | None:
+    """The newest complete ``checkpoints/ckpt_<N>_steps.zip`` and its N, or None.
+
+    A run killed while writing leaves a truncated zip (or a zip without its VecNormalize
+    statistics): such checkpoints are skipped in favour of the previous one.
+    """
     found = []
     for path in (Path(run_dir) / "checkpoints").glob(f"{CHECKPOINT_PREFIX}_*_steps.zip"):
         m = _CKPT_RE.search(path.name)
         if m:
             found.append((int(m.group(1)), path))
-    if not found:
-        return None
-    steps, path = max(found)
-    return path, steps
+    for steps, path in sorted(found, reverse=True):
+        if need_vecnormalize and not checkpoint_vecnormalize(path, steps).is_file():
+            continue
+        try:
+            with zipfile.ZipFile(path) as zf:
+                if zf.testzip() is None:
+                    return path, steps
+        except (zipfile.BadZipFile, OSError):
+            continue
+    return None
 
 
 def checkpoint_vecnormalize(ckpt: Path, steps: int) -> Path:

@@ -1,0 +1,105 @@
+"""EconomicMeteringWrapper and EconomicOverlayWrapper on real Gymnasium MuJoCo envs."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from econmotor.errors import ConfigError, UnknownNameError
+from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper
+from econmotor.motor_backend.mujoco.overlay import TERM_METRICS, EconomicOverlayWrapper, episode_metric
+from econmotor.motor_backend.mujoco.settings import parse_mujoco_settings
+from econmotor.motor_backend.mujoco_backend import MujocoBackend
+from econmotor.tasks import load_catalog
+
+
+def run_episode(env, seed, policy=None, max_steps=10_000):
+    obs, _ = env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    rewards, infos = [], []
+    for _ in range(max_steps):
+        action = policy(obs) if policy else rng.uniform(-1, 1, env.action_space.shape)
+        obs, reward, terminated, truncated, info = env.step(action)
+        rewards.append(reward)
+        infos.append(info)
+        if terminated or truncated:
+            return rewards, infos, terminated
+    raise AssertionError("episode did not end")
+
+
+def test_catalog_ships_four_couriers_with_sourced_economics():
+    catalog = load_catalog()
+    expected = {"hopper_courier": "Hopper-v5", "walker_courier": "Walker2d-v5", "ant_courier": "Ant-v5",
+                "humanoid_courier": "Humanoid-v5"}
+    for task_id, env_id in expected.items():
+        spec = catalog.get(task_id)
+        assert parse_mujoco_settings(spec).env_id == env_id
+        assert "leg" in spec.unit and "fall" in spec.error_definition and "error rate" in spec.error_definition
+        for row in spec.economics.parameters():
+            assert row["source"] and row["source"] != "econmotor default", (task_id, row["name"])
+    assert parse_mujoco_settings(catalog.get("hopper_courier")).algorithm == "ppo"
+
+
+def test_unknown_task_lists_known_ones():
+    with pytest.raises(UnknownNameError, match="hopper_courier"):
+        MujocoBackend().task("hoper_courier")
+
+
+def test_meter_reports_energy_from_actuator_forces_and_a_fall_as_one_error():
+    env = EconomicMeteringWrapper(gym.make("Hopper-v5"), leg_distance_m=1.0, drivetrain_efficiency=0.5,
+                                  idle_power_w=10.0, tilt_margin_rad=0.1, fall_tilt_rad=0.2)
+    obs, _ = env.reset(seed=0)
+    data, expected_wh, best_x, x0 = env.unwrapped.data, 0.0, float(env.unwrapped.data.qpos[0]), None
+    x0 = best_x
+    rng = np.random.default_rng(0)
+    while True:
+        obs, _, terminated, truncated, info = env.step(rng.uniform(-1, 1, 3))
+        mech_w = float(np.sum(np.abs(data.qfrc_actuator[3:] * data.qvel[3:])))  # hopper's actuated hinges
+        expected_wh += (mech_w / 0.5 + 10.0) * env.unwrapped.dt / 3600
+        best_x = max(best_x, float(data.qpos[0]))
+        if terminated or truncated:
+            break
+    raw = info["econ_episode"]
+    assert terminated and raw["termination_reason"] == "fall" and raw["errors"] == 1.0
+    assert raw["energy_wh"] == pytest.approx(expected_wh, rel=1e-9)
+    # power must reflect joint torques after the gear (200x actuator_force on Hopper), not idle power alone
+    assert raw["energy_wh"] > 2 * 10.0 * raw["episode_length_s"] / 3600
+    assert raw["units_completed"] == pytest.approx(best_x - x0)
+    assert raw["units_attempted"] == pytest.approx(raw["units_completed"] + 1.0)
+    assert 0.0 < raw["risk_score"] <= 1.0 and 0.0 < raw["novelty_score"] <= 1.0
+
+
+def test_truncated_episode_ends_with_max_steps_and_no_error():
+    env = EconomicMeteringWrapper(gym.make("Hopper-v5", max_episode_steps=20))
+    _, infos, terminated = run_episode(env, 1, policy=lambda obs: np.zeros(3))
+    raw = infos[-1]["econ_episode"]
+    assert not terminated and raw["termination_reason"] == "max_steps" and raw["errors"] == 0.0
+    assert raw["length_steps"] == 20 and raw["episode_length_s"] == pytest.approx(20 * 0.008)
+
+
+@pytest.mark.parametrize("env_id", ["Hopper-v5", "Ant-v5"])
+def test_each_overlay_term_sums_to_its_episode_metric(env_id):
+    scales = {key: 0.5 + i for i, key in enumerate(k for k in TERM_METRICS if k != "pose_tracking")}
+    meter = EconomicMeteringWrapper(gym.make(env_id, max_episode_steps=60), leg_distance_m=0.05)
+    env = EconomicOverlayWrapper(meter, scales, keep_task_reward=True)
+    task_env = EconomicMeteringWrapper(gym.make(env_id, max_episode_steps=60), leg_distance_m=0.05)
+    progressed = []
+    for seed in range(4):
+        rewards, infos, _ = run_episode(env, seed)
+        task_rewards, _, _ = run_episode(task_env, seed)
+        raw, terms = infos[-1]["econ_episode"], infos[-1]["overlay_terms"]
+        for key, scale in scales.items():
+            assert terms[key]["raw"] == pytest.approx(episode_metric(raw, key), rel=1e-9, abs=1e-12), key
+            assert terms[key]["weighted"] == pytest.approx(scale * episode_metric(raw, key), rel=1e-9, abs=1e-12)
+        overlay_return = sum(scale * episode_metric(raw, k) for k, scale in scales.items())
+        assert sum(rewards) == pytest.approx(sum(task_rewards) + overlay_return, rel=1e-9)
+        progressed.append(raw["units_completed"] > 0)
+    assert any(progressed)  # the mpl and error terms were exercised with non-zero units
+
+
+def test_overlay_can_replace_the_task_reward_and_rejects_unknown_terms():
+    meter = EconomicMeteringWrapper(gym.make("Hopper-v5", max_episode_steps=30))
+    env = EconomicOverlayWrapper(meter, {"energy_kwh": -2.0}, keep_task_reward=False)
+    rewards, infos, _ = run_episode(env, 0)
+    assert sum(rewards) == pytest.approx(-2.0 * infos[-1]["econ_episode"]["energy_wh"] / 1000.0)
+    with pytest.raises(ConfigError, match="stability_margin"):
+        EconomicOverlayWrapper(meter, {"stability_margin": -0.1})
