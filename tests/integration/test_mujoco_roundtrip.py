@@ -33,8 +33,10 @@ def test_train_reports_metered_episodes_and_econ_metrics(trained):
     assert {"mpl_units_per_hour", "wage_parity", "robot_unit_cost_usd"} <= set(result.econ_metrics)
     for ep in result.episodes:
         assert ep["termination_reason"] in ("fall", "max_steps") and ep["energy_wh"] > 0
-        assert ep["overlay_error_rate_weighted"] == pytest.approx(-2.0 * ep["error_rate_episode"])
+        assert ep["overlay_error_rate_raw"] == pytest.approx(ep["error_rate_episode"])
+        assert ep["overlay_error_rate_weighted"] == pytest.approx(-2.0 * ep["error_rate_episode"] / 0.002)
     assert result.config["overlay"] == dict(compile_economic_overlay(objective))
+    assert result.config["overlay_references"]["mpl_per_hour"] == 468.0  # human_baseline normalisation
     assert result.training_curve and result.training_curve[-1]["timesteps"] >= 1024
 
 
@@ -75,7 +77,7 @@ def test_recorded_clip_drives_pose_tracking_and_reference_init(trained, tmp_path
     from econmotor.motor_backend.mujoco.env_factory import make_env
 
     env = make_env(recipe, seed=0)
-    obs, _ = env.reset(seed=0)
+    env.reset(seed=0)
     frames = np.load(clip)["qpos"]
     qpos = env.unwrapped.data.qpos
     assert np.min(np.abs(frames[:, 1:] - qpos[1:]).max(axis=1)) < 1e-9  # started in a clip frame (RSI)

@@ -34,6 +34,7 @@ from econmotor.motor_backend.mujoco.clips import load_bundle_clips, record_clip
 from econmotor.motor_backend.mujoco.env_factory import EnvRecipe, make_env
 from econmotor.motor_backend.mujoco.evaluation import load_policy, rollout_episodes, torch_act_fn
 from econmotor.motor_backend.mujoco.export import OnnxPolicyHandle, export_onnx
+from econmotor.motor_backend.mujoco.overlay import human_baseline_references
 from econmotor.motor_backend.mujoco.randomization import parse_randomization
 from econmotor.motor_backend.mujoco.run import RUN_CONFIG_FILE, TrainingRun, read_run_config
 from econmotor.motor_backend.mujoco.settings import MujocoTaskSettings, parse_mujoco_settings
@@ -84,18 +85,20 @@ class MujocoBackend:
         bundle = self.provider.resolve(task_id, datapack_ids, configs)
         randomization, curriculum = parse_randomization(bundle.domain_randomization, bundle.curriculum,
                                                         ", ".join(bundle.sources.values()) or "<datapacks>")
-        clips: tuple = ()
-        if bundle.motion_clips:
-            probe = gym.make(settings.env_id, **settings.env_kwargs)
-            nq = probe.unwrapped.model.nq
-            probe.close()
-            clips = tuple(load_bundle_clips(bundle, nq))
+        probe = gym.make(settings.env_id, **settings.env_kwargs)
+        nq, max_episode_s = probe.unwrapped.model.nq, (probe.spec.max_episode_steps or 1000) * probe.unwrapped.dt
+        probe.close()
+        clips = tuple(load_bundle_clips(bundle, nq)) if bundle.motion_clips else ()
         scales = dict(compile_economic_overlay(objective))
         if clips and "pose_tracking" not in scales:
             scales["pose_tracking"] = settings.pose_tracking_scale
-        recipe = EnvRecipe(settings, scales, self.keep_task_reward, randomization, curriculum, clips)
+        econ = spec.economics
+        refs = human_baseline_references(econ.mp_human_units_per_hour, econ.error_rate_human, settings.idle_power_w,
+                                         max_episode_s) if settings.overlay_normalization == "human_baseline" else {}
+        refs = {k: v for k, v in refs.items() if k in scales}
+        recipe = EnvRecipe(settings, scales, refs, self.keep_task_reward, randomization, curriculum, clips)
         described = {
-            "task_id": task_id, "objective": objective.to_dict(), "overlay": scales,
+            "task_id": task_id, "objective": objective.to_dict(), "overlay": scales, "overlay_references": refs,
             "datapack_ids": list(bundle.datapack_ids),
             "datapacks": [p.to_dict() for p in configs],
             "economics": {r["name"]: r["value"] for r in spec.economics.parameters()},
@@ -206,5 +209,5 @@ class MujocoBackend:
     def _onnx_metadata(config: dict[str, Any]) -> dict[str, Any]:
         if "task_id" not in config:
             raise BackendError("run config has no task_id; cannot describe the ONNX policy")
-        return {key: config.get(key) for key in ("task_id", "overlay", "objective", "datapack_ids", "economics",
+        return {key: config.get(key) for key in ("task_id", "overlay", "overlay_references", "objective", "datapack_ids", "economics",
                                                    "algorithm", "obs_layout", "action_layout", "seed")}

@@ -5,7 +5,12 @@ import numpy as np
 import pytest
 
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.mujoco.clips import PoseTrackingWrapper, load_clip, record_clip, save_clip
+from econmotor.motor_backend.mujoco.clips import (
+    PoseTrackingWrapper,
+    load_clip,
+    record_clip,
+    save_clip,
+)
 
 
 def test_replaying_the_recorded_actions_tracks_the_clip_perfectly(tmp_path):

@@ -6,7 +6,11 @@ import pytest
 
 from econmotor.errors import ConfigError, UnknownNameError
 from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper
-from econmotor.motor_backend.mujoco.overlay import TERM_METRICS, EconomicOverlayWrapper, episode_metric
+from econmotor.motor_backend.mujoco.overlay import (
+    TERM_METRICS,
+    EconomicOverlayWrapper,
+    episode_metric,
+)
 from econmotor.motor_backend.mujoco.settings import parse_mujoco_settings
 from econmotor.motor_backend.mujoco_backend import MujocoBackend
 from econmotor.tasks import load_catalog
@@ -47,12 +51,12 @@ def test_unknown_task_lists_known_ones():
 def test_meter_reports_energy_from_actuator_forces_and_a_fall_as_one_error():
     env = EconomicMeteringWrapper(gym.make("Hopper-v5"), leg_distance_m=1.0, drivetrain_efficiency=0.5,
                                   idle_power_w=10.0, tilt_margin_rad=0.1, fall_tilt_rad=0.2)
-    obs, _ = env.reset(seed=0)
-    data, expected_wh, best_x, x0 = env.unwrapped.data, 0.0, float(env.unwrapped.data.qpos[0]), None
-    x0 = best_x
+    env.reset(seed=0)
+    data, expected_wh = env.unwrapped.data, 0.0
+    best_x = x0 = float(data.qpos[0])
     rng = np.random.default_rng(0)
     while True:
-        obs, _, terminated, truncated, info = env.step(rng.uniform(-1, 1, 3))
+        _, _, terminated, truncated, info = env.step(rng.uniform(-1, 1, 3))
         mech_w = float(np.sum(np.abs(data.qfrc_actuator[3:] * data.qvel[3:])))  # hopper's actuated hinges
         expected_wh += (mech_w / 0.5 + 10.0) * env.unwrapped.dt / 3600
         best_x = max(best_x, float(data.qpos[0]))
@@ -80,7 +84,8 @@ def test_truncated_episode_ends_with_max_steps_and_no_error():
 def test_each_overlay_term_sums_to_its_episode_metric(env_id):
     scales = {key: 0.5 + i for i, key in enumerate(k for k in TERM_METRICS if k != "pose_tracking")}
     meter = EconomicMeteringWrapper(gym.make(env_id, max_episode_steps=60), leg_distance_m=0.05)
-    env = EconomicOverlayWrapper(meter, scales, keep_task_reward=True)
+    refs = {"mpl_per_hour": 468.0, "error_rate": 0.002, "energy_kwh": 4e-5}
+    env = EconomicOverlayWrapper(meter, scales, keep_task_reward=True, references=refs)
     task_env = EconomicMeteringWrapper(gym.make(env_id, max_episode_steps=60), leg_distance_m=0.05)
     progressed = []
     for seed in range(4):
@@ -89,8 +94,9 @@ def test_each_overlay_term_sums_to_its_episode_metric(env_id):
         raw, terms = infos[-1]["econ_episode"], infos[-1]["overlay_terms"]
         for key, scale in scales.items():
             assert terms[key]["raw"] == pytest.approx(episode_metric(raw, key), rel=1e-9, abs=1e-12), key
-            assert terms[key]["weighted"] == pytest.approx(scale * episode_metric(raw, key), rel=1e-9, abs=1e-12)
-        overlay_return = sum(scale * episode_metric(raw, k) for k, scale in scales.items())
+            weighted = scale * episode_metric(raw, key) / refs.get(key, 1.0)
+            assert terms[key]["weighted"] == pytest.approx(weighted, rel=1e-9, abs=1e-12)
+        overlay_return = sum(scale * episode_metric(raw, k) / refs.get(k, 1.0) for k, scale in scales.items())
         assert sum(rewards) == pytest.approx(sum(task_rewards) + overlay_return, rel=1e-9)
         progressed.append(raw["units_completed"] > 0)
     assert any(progressed)  # the mpl and error terms were exercised with non-zero units

@@ -105,3 +105,17 @@ def test_bad_datapack_keys_name_the_datapack_and_key(dr, cur, key, tmp_path):
     with pytest.raises(ConfigError) as err:
         MujocoBackend().recipe("hopper_courier", EconomicObjectiveSpec(), [], [pack])
     assert err.value.key == key and "bad_pack" in str(err.value)
+
+
+def test_shipped_mujoco_datapacks_are_valid_for_every_courier():
+    from pathlib import Path
+
+    from econmotor.motor_backend.datapacks import load_datapack_configs
+
+    files = sorted((Path(__file__).parents[3] / "configs" / "datapacks").glob("mujoco_*.yaml"))
+    assert files
+    backend = MujocoBackend()
+    for pack in load_datapack_configs(files):
+        for task_id in ("hopper_courier", "walker_courier"):
+            recipe, described = backend.recipe(task_id, EconomicObjectiveSpec(), [], [pack])
+            assert described["datapack_ids"] == [pack.id] and recipe.randomization.active

@@ -146,7 +146,7 @@ class PoseTrackingWrapper(gym.Wrapper):
     def reference_frame(self) -> np.ndarray:
         """The clip's qpos at the current time (looping)."""
         t = self._t0 + self._steps * self._dt
-        return self._clip.qpos[int(round(t * self._clip.fps)) % len(self._clip.qpos)]
+        return self._clip.qpos[round(t * self._clip.fps) % len(self._clip.qpos)]
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)

@@ -39,6 +39,7 @@ class EnvRecipe:
 
     settings: MujocoTaskSettings
     scales: Mapping[str, float] = field(default_factory=dict)
+    references: Mapping[str, float] = field(default_factory=dict)
     keep_task_reward: bool = True
     randomization: DomainRandomization = field(default_factory=DomainRandomization)
     curriculum: Curriculum = field(default_factory=Curriculum)
@@ -61,7 +62,7 @@ def make_env(recipe: EnvRecipe, seed: int | None = None, overlay: bool = True) -
     env = EconomicMeteringWrapper(env, s.leg_distance_m, s.drivetrain_efficiency, s.idle_power_w,
                                   s.tilt_margin_rad, s.fall_tilt_rad, s.novelty_dims, s.novelty_bin)
     if overlay:
-        env = EconomicOverlayWrapper(env, recipe.scales, recipe.keep_task_reward)
+        env = EconomicOverlayWrapper(env, recipe.scales, recipe.keep_task_reward, recipe.references)
     return env
 
 

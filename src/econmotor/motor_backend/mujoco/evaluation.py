@@ -10,7 +10,7 @@ import gymnasium as gym
 import numpy as np
 
 from econmotor.motor_backend.base import ProgressFn, no_progress
-from econmotor.motor_backend.mujoco.training import algorithm_class, obs_normalizer, POLICY_FILE
+from econmotor.motor_backend.mujoco.training import POLICY_FILE, algorithm_class, obs_normalizer
 
 ActFn = Callable[[np.ndarray], np.ndarray]
 

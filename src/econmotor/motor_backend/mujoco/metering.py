@@ -41,8 +41,17 @@ from econmotor.errors import ConfigError
 class EpisodeTally:
     """Running sums of one episode; the overlay reads the running episode metrics from here."""
 
-    __slots__ = ("steps", "units", "errors", "energy_wh", "risk_sum", "novelty_sum", "pose_sum",
-                 "task_return", "dt_s")
+    __slots__ = (
+        "dt_s",
+        "energy_wh",
+        "errors",
+        "novelty_sum",
+        "pose_sum",
+        "risk_sum",
+        "steps",
+        "task_return",
+        "units",
+    )
 
     def __init__(self, dt_s: float) -> None:
         self.dt_s = dt_s

@@ -18,7 +18,12 @@ so the sum over an episode telescopes to ``m_k(T)``, the episode's metric of tha
 - ``risk_score`` / ``novelty_score``: means over steps
 - ``pose_tracking``: sum of per-step pose similarity (only with motion clips)
 
-At an episode's end ``info["overlay_terms"] = {key: {"raw": sum term, "weighted": scale * sum}}``
+With per-key references ``ref_k`` (``overlay_normalization: human_baseline``, see
+:func:`human_baseline_references`) the reward uses ``scale_k * term_k(t) / ref_k``: a weight
+of 1 is then "one human baseline's worth" of that metric, so an objective's weights compare
+like with like (throughput in legs/h is ~100x the task reward's scale, the error rate ~1/100).
+
+At an episode's end ``info["overlay_terms"] = {key: {"raw": sum term, "weighted": scale * sum / ref}}``
 and ``info["overlay_return"]`` (the overlay's part of the return) are added.
 """
 
@@ -30,7 +35,11 @@ from typing import Any
 import gymnasium as gym
 
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper, EpisodeTally, find_wrapper
+from econmotor.motor_backend.mujoco.metering import (
+    EconomicMeteringWrapper,
+    EpisodeTally,
+    find_wrapper,
+)
 
 #: overlay key -> the EpisodeTally method giving its running episode metric.
 TERM_METRICS: dict[str, str] = {
@@ -41,6 +50,22 @@ TERM_METRICS: dict[str, str] = {
     "novelty_score": "novelty_score",
     "pose_tracking": "pose_tracking",
 }
+
+
+def human_baseline_references(mp_human_units_per_hour: float, error_rate_human: float, idle_power_w: float,
+                              max_episode_s: float) -> dict[str, float]:
+    """Per-key references for ``overlay_normalization: human_baseline``.
+
+    ``mpl_per_hour``: the human's legs per hour ``MP_h``; ``error_rate``: the human's error rate
+    ``e_h``; ``energy_kwh``: ``idle_power_w * max_episode_s / 3.6e6``, the kWh the robot draws
+    standing idle for a whole episode; ``risk_score``, ``novelty_score``, ``pose_tracking``: 1.
+    """
+    return {
+        "mpl_per_hour": mp_human_units_per_hour if mp_human_units_per_hour > 0 else 1.0,
+        "error_rate": error_rate_human if error_rate_human > 0 else 1.0,
+        "energy_kwh": idle_power_w * max_episode_s / 3.6e6 if idle_power_w * max_episode_s > 0 else 1.0,
+        "risk_score": 1.0, "novelty_score": 1.0, "pose_tracking": 1.0,
+    }
 
 
 def episode_metric(raw_episode: Mapping[str, Any], key: str) -> float:
@@ -63,9 +88,11 @@ class EconomicOverlayWrapper(gym.Wrapper):
         env: an env with an :class:`EconomicMeteringWrapper` in its wrapper chain.
         scales: overlay key -> signed scale (a ``CompiledRewardOverlay`` or a plain mapping).
         keep_task_reward: keep the env's own reward (True) or use the overlay alone (False).
+        references: overlay key -> positive divisor of its term (missing keys: 1).
     """
 
-    def __init__(self, env: gym.Env, scales: Mapping[str, float], keep_task_reward: bool = True) -> None:
+    def __init__(self, env: gym.Env, scales: Mapping[str, float], keep_task_reward: bool = True,
+                 references: Mapping[str, float] | None = None) -> None:
         super().__init__(env)
         meter = find_wrapper(env, EconomicMeteringWrapper)
         if meter is None:
@@ -74,10 +101,16 @@ class EconomicOverlayWrapper(gym.Wrapper):
         if unknown:
             raise ConfigError("objective", f"extra_weights.{unknown[0]}",
                               "the mujoco backend has no reward term of this name", list(TERM_METRICS))
+        refs = dict(references or {})
+        bad = [k for k, v in refs.items() if not v > 0]
+        if bad:
+            raise ConfigError("EconomicOverlayWrapper", f"references.{bad[0]}", "must be > 0")
         self.scales = {k: float(v) for k, v in scales.items()}
+        #: the per-step multiplier of each term: scale / reference
+        self.factors = {k: self.scales[k] / float(refs.get(k, 1.0)) for k in self.scales}
         self.keep_task_reward = bool(keep_task_reward)
         self._tally: EpisodeTally = meter.tally
-        self._fns = [(k, s, getattr(EpisodeTally, TERM_METRICS[k])) for k, s in self.scales.items()]
+        self._fns = [(k, f, getattr(EpisodeTally, TERM_METRICS[k])) for k, f in self.factors.items()]
         self._prev = {k: 0.0 for k in self.scales}
         self._sums = {k: 0.0 for k in self.scales}
 
@@ -90,13 +123,13 @@ class EconomicOverlayWrapper(gym.Wrapper):
         obs, reward, terminated, truncated, info = self.env.step(action)
         total = float(reward) if self.keep_task_reward else 0.0
         tally, prev, sums = self._tally, self._prev, self._sums
-        for key, scale, fn in self._fns:
+        for key, factor, fn in self._fns:
             value = fn(tally)
             term = value - prev[key]
             prev[key] = value
             sums[key] += term
-            total += scale * term
+            total += factor * term
         if terminated or truncated:
-            info["overlay_terms"] = {k: {"raw": sums[k], "weighted": self.scales[k] * sums[k]} for k in sums}
-            info["overlay_return"] = sum(self.scales[k] * sums[k] for k in sums)
+            info["overlay_terms"] = {k: {"raw": sums[k], "weighted": self.factors[k] * sums[k]} for k in sums}
+            info["overlay_return"] = sum(self.factors[k] * sums[k] for k in sums)
         return obs, total, terminated, truncated, info

@@ -13,6 +13,7 @@ Catalog schema (``src/econmotor/tasks/mujoco.yaml``)::
         novelty_dims: 5                # first observation dims hashed for visit counts
         novelty_bin: 0.25              # bin width of that hash
         pose_tracking_scale: 1.0       # reward scale of the pose-tracking term when clips are given
+        overlay_normalization: human_baseline   # or none: divide each overlay term by a reference
         algorithm: ppo                 # default SB3 algorithm: ppo | sac
         num_envs: 4                    # default in-process environments
         normalize_obs: true            # VecNormalize observation statistics (exported to ONNX)
@@ -34,10 +35,11 @@ from econmotor.errors import ConfigError
 from econmotor.tasks.catalog import TaskSpec
 
 ALGORITHMS = ("ppo", "sac")
+OVERLAY_NORMALIZATIONS = ("human_baseline", "none")
 SETTINGS_KEYS = (
     "env_id", "leg_distance_m", "drivetrain_efficiency", "idle_power_w", "tilt_margin_rad", "fall_tilt_rad",
     "novelty_dims", "novelty_bin", "pose_tracking_scale", "algorithm", "num_envs", "normalize_obs",
-    "checkpoint_every_steps", "env_kwargs", "hyperparameters",
+    "checkpoint_every_steps", "env_kwargs", "hyperparameters", "overlay_normalization",
 )
 
 
@@ -59,6 +61,7 @@ class MujocoTaskSettings:
     num_envs: int = 4
     normalize_obs: bool = True
     checkpoint_every_steps: int = 20_000
+    overlay_normalization: str = "human_baseline"
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     hyperparameters: dict[str, dict[str, Any]] = field(default_factory=dict)
     source: str = "<catalog>"
@@ -76,7 +79,7 @@ def parse_mujoco_settings(spec: TaskSpec) -> MujocoTaskSettings:
     entry = spec.backend_entry("mujoco")
     src, prefix = spec.source, f"tasks.{spec.task_id}.backends.mujoco"
     check_keys(entry, SETTINGS_KEYS, src, prefix, required=("env_id",))
-    key = lambda name: f"{prefix}.{name}"  # noqa: E731
+    key = lambda name: f"{prefix}.{name}"
     kw: dict[str, Any] = {"task_id": spec.task_id, "source": src}
     kw["env_id"] = as_str(entry["env_id"], src, key("env_id"))
     for name in ("leg_distance_m", "idle_power_w", "tilt_margin_rad", "fall_tilt_rad", "novelty_bin",
@@ -91,6 +94,9 @@ def parse_mujoco_settings(spec: TaskSpec) -> MujocoTaskSettings:
             kw[name] = as_int(entry[name], src, key(name), min_value=1)
     if "algorithm" in entry:
         kw["algorithm"] = as_str(entry["algorithm"], src, key("algorithm"), ALGORITHMS)
+    if "overlay_normalization" in entry:
+        kw["overlay_normalization"] = as_str(entry["overlay_normalization"], src, key("overlay_normalization"),
+                                             OVERLAY_NORMALIZATIONS)
     if "normalize_obs" in entry:
         if not isinstance(entry["normalize_obs"], bool):
             raise ConfigError(src, key("normalize_obs"), "expected true or false")

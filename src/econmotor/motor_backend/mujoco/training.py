@@ -41,7 +41,7 @@ def algorithm_class(name: str) -> type[BaseAlgorithm]:
 
 def policy_kwargs_from(hp: Mapping[str, Any]) -> dict[str, Any]:
     """Turn YAML-friendly ``policy_kwargs`` (``activation_fn: relu|tanh``) into SB3's."""
-    import torch.nn as nn
+    from torch import nn
 
     hp = dict(hp)
     pk = dict(hp.get("policy_kwargs") or {})
