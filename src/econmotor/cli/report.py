@@ -27,7 +27,7 @@ from rich.table import Table
 from econmotor.cli._app import app, console, err_console, progress_bars, set_cpu_threads
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.economics.pricing import PricingPolicy
-from econmotor.errors import ConfigError, UnknownNameError
+from econmotor.errors import ConfigError, UnknownNameError, did_you_mean
 from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_configs
 from econmotor.motor_backend.factory import known_backends, make_motor_backend
 from econmotor.objectives import load_objective_spec, objective_from_vector
@@ -66,6 +66,7 @@ def resolve_datapacks(tokens: list[str], db_url: str) -> list[DatapackConfig]:
     configs: list[DatapackConfig] = []
     ids = [t for t in tokens if not _looks_like_path(t)]
     registered: dict[str, DatapackConfig] = {}
+    known: list[str] = []
     if ids and registry_exists(db_url):
         with Registry(db_url, create=False) as reg:
             known = reg.known_datapack_ids()
@@ -76,7 +77,9 @@ def resolve_datapacks(tokens: list[str], db_url: str) -> list[DatapackConfig]:
         elif token in registered:
             configs.append(registered[token])
         else:
-            raise UnknownNameError("datapack id", token, registered or ["(no datapacks registered yet)"])
+            raise ConfigError("--datapacks", token, "unknown datapack id and not a YAML file; a datapack is "
+                              "registered when a report first uses its YAML path" + did_you_mean(token, known),
+                              sorted(known) or "a YAML path (no datapack ids registered yet)")
     seen: set[str] = set()
     return [c for c in configs if not (c.id in seen or seen.add(c.id))]
 
@@ -198,6 +201,6 @@ def report_command(
             reg, train_id, eval_id = train_and_record(request, backend, lambda: Registry(url), progress)
     except KeyboardInterrupt:
         err_console.print(f"[yellow]interrupted[/]: the training run is recorded as interrupted in {url}")
-        raise typer.Exit(130) from None
+        raise typer.Abort from None
     with reg:
         show_outcome(report_after_training(reg, request, train_id, eval_id, out_dir, output_json, policy))

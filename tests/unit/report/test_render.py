@@ -1,0 +1,116 @@
+"""Report document, plots and renderings from a hand-made evaluation (no training)."""
+
+from __future__ import annotations
+
+import base64
+import json
+import math
+import re
+import stat
+from pathlib import Path
+
+import pytest
+
+from econmotor.economics.pricing import PricingPolicy, price_evaluation
+from econmotor.motor_backend.base import summarize_episodes
+from econmotor.objectives import EconomicObjectiveSpec
+from econmotor.report.document import (
+    REPORT_SCHEMA,
+    REPORT_SCHEMA_VERSION,
+    ReportContext,
+    build_document,
+)
+from econmotor.report.plots import episode_distributions, render_plots, training_curve, unit_costs
+from econmotor.report.render import (
+    fmt,
+    headline,
+    render_html,
+    render_markdown,
+    table_rows,
+    write_report,
+)
+from econmotor.tasks import get_task
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+# Three 30-minute shifts: 30, 20 and 0 clean dishes; 0, 2 and 3 errors; 50, 100 and 10 Wh.
+RAW = [
+    {"units_completed": 30, "errors": 0, "episode_length_s": 1800, "energy_wh": 50.0},
+    {"units_completed": 20, "errors": 2, "episode_length_s": 1800, "energy_wh": 100.0},
+    {"units_completed": 0, "errors": 3, "episode_length_s": 1800, "energy_wh": 10.0,
+     "termination_reason": "catastrophic_error"},
+]
+
+
+def make_doc(curve=None, notes="n <b>", share=0.5) -> dict:
+    task = get_task("dishwashing")
+    raw, econ, episodes = summarize_episodes(RAW, task.economics)
+    pricing = price_evaluation(task.economics, econ, episodes, PricingPolicy(share))
+    ctx = ReportContext(task=task, backend="dishwashing", objective=EconomicObjectiveSpec(name="obj"),
+                        datapack_ids=("dp1",), pricing=pricing, raw_metrics=raw, econ_metrics=econ,
+                        episodes=episodes, training_curve=curve or [], notes=notes, db_url="sqlite:///x")
+    return build_document(ctx)
+
+
+def test_document_is_versioned_strict_json_with_hand_computed_prices():
+    doc = make_doc()
+    assert (doc["schema"], doc["schema_version"]) == (REPORT_SCHEMA, REPORT_SCHEMA_VERSION)
+    text = json.dumps(doc, allow_nan=False)  # raises on inf/nan
+    assert json.loads(text) == doc
+    agg = doc["pricing"]["aggregate"]
+    # pooled: 50 dishes in 1.5 h = 33.33/h; 160 Wh / 1.5 h = 0.10667 kWh/h
+    # cost/h = 1.75 + 0.9 + 2.0 + 0.12*0.10667 = 4.6628; unit cost = 4.6628/33.333 = 0.139884
+    assert agg["mpl_units_per_hour"] == pytest.approx(100 / 3)
+    assert agg["robot_unit_cost_usd"] == pytest.approx((4.65 + 0.12 * 0.16 / 1.5) / (100 / 3))
+    assert agg["recommended_price_usd_per_unit"] == pytest.approx(
+        agg["robot_unit_cost_usd"] + 0.5 * (0.30 - agg["robot_unit_cost_usd"]))
+    # the third shift completed nothing: its unit cost is infinite -> null in JSON, and p90 with it
+    assert doc["episodes"][2]["robot_unit_cost_usd"] is None
+    assert doc["pricing"]["distributions"]["robot_unit_cost_usd"]["p90"] is None
+    assert doc["pricing"]["distributions"]["mpl_units_per_hour"]["p50"] == pytest.approx(40.0)
+    names = {row["name"] for row in doc["inputs"]}
+    assert {"wage_human_usd_per_hour", "robot_capex_usd", "spread_share", "robot_mpl_units_per_hour"} <= names
+    assert doc["objective"]["overlay"] == {"mpl_per_hour": 1.0}
+    assert doc["datapacks"] == ["dp1"] and doc["backend"] == "dishwashing"
+
+
+def test_table_rows_and_headline_read_the_document():
+    doc = make_doc()
+    rows = {r[0]: r for r in table_rows(doc)}
+    assert rows["human unit cost"][1:] == ("0.3",) * 5 + ("USD/unit",)
+    assert rows["robot unit cost"][5] == "n/a"  # p90 is infinite
+    assert "Charge " in headline(doc) and "cheaper than a human" in headline(doc)
+    assert fmt(None) == "n/a" and fmt(math.inf) == "n/a" and fmt(12345.6) == "12,346" and fmt(0.123456) == "0.1235"
+
+
+def test_plots_are_png_and_absent_without_data():
+    doc = make_doc(curve=[{"timesteps": 100, "mean_return": 1.0}, {"timesteps": 200, "mean_return": 2.0}])
+    for make in (episode_distributions, training_curve, unit_costs):
+        assert make(doc).startswith(PNG_MAGIC)
+    assert training_curve(make_doc()) is None
+    assert set(render_plots(make_doc())) == {"unit_costs", "episode_distributions"}
+
+
+def test_markdown_and_html_are_complete_and_self_contained():
+    doc = make_doc(curve=[{"timesteps": 100, "mean_return": 1.0}])
+    plots = render_plots(doc)
+    md = render_markdown(doc, {k: f"p/{k}.png" for k in plots})
+    assert md.startswith("# Task pricing report: dishwashing")
+    assert "| recommended price per unit |" in md and "![training_curve](p/training_curve.png)" in md
+    assert "| wage_human_usd_per_hour | 18 | USD/h |" in md
+    page = render_html(doc, plots)
+    assert "n &lt;b&gt;" in page and "<b>" not in page  # notes are escaped
+    assert not re.search(r"""(src|href)=["']?(https?:|//|file:)""", page)  # nothing external
+    images = re.findall(r'src="data:image/png;base64,([^"]+)"', page)
+    assert len(images) == 3 and all(base64.b64decode(i).startswith(PNG_MAGIC) for i in images)
+
+
+def test_write_report_lands_all_files_readable_and_leaves_no_temporaries(tmp_path: Path):
+    doc = make_doc()
+    files = write_report(doc, tmp_path / "out", "r1", json_path=tmp_path / "elsewhere" / "doc.json")
+    assert files == {"json": str(tmp_path / "elsewhere" / "doc.json"), "markdown": str(tmp_path / "out" / "r1.md"),
+                     "html": str(tmp_path / "out" / "r1.html")}
+    assert json.loads(Path(files["json"]).read_text()) == doc
+    assert (tmp_path / "out" / "r1_plots" / "unit_costs.png").read_bytes().startswith(PNG_MAGIC)
+    leftovers = [p for p in tmp_path.rglob("*") if p.name.endswith(".tmp")]
+    assert leftovers == []
+    assert Path(files["html"]).stat().st_mode & stat.S_IRGRP  # not the 0600 of a temporary file
