@@ -14,7 +14,8 @@ resumes where it stopped; a failed cell is recorded ``failed`` and retried next 
 Execution: sequential in this process by default. With Ray, each cell is a Ray task
 declaring ``num_cpus`` / ``num_gpus`` so a cluster schedules it; the driver records
 runs as results come back (so a SQLite registry on the driver works with a remote
-cluster). Policies land under ``output_dir/<cell_key>/`` on the node that trained them.
+cluster). Policies land under ``output_dir/<cell_key>/`` on the node that trained them;
+every node of a cluster needs econmotor installed (``pip install 'econmotor[ray]'``).
 """
 
 from __future__ import annotations
