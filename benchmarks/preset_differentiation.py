@@ -1,0 +1,146 @@
+"""Do objective presets train different dishwashing policies? (spec: RewardBuilder integration §7, check 2)
+
+Trains SB3 SAC with the ``dishwashing`` backend under the ``throughput``, ``energy_saver``
+and ``safety`` presets (3 seeds each), evaluates every policy on the same evaluation
+seeds, adds a uniform-random policy, and prints per preset: MPL (good units/h), Wh per
+good unit, error rate (errors / attempts), energy per hour (Wh/h), the mean action and
+how episodes ended. Then the ratios the spec expects, measured side by side:
+
+- throughput MPL / max(other presets' MPL)            expected > 1
+- safety error rate / min(other presets' error rate)   expected < 1
+- energy_saver Wh/h / min(other presets' Wh/h)         expected < 1
+
+Reward scaling: the backend's default ``human_baseline`` normalisation (see
+``econmotor.motor_backend.dishwashing_backend``): each metric is divided by what a robot at
+the human pace scores (60 units/h, 5 % errors, 3.2 Wh/h) and energy is priced per hour
+worked, so a preset's weights compare like with like. Raw terms would make the MPL term
+~1,000x the error term and every preset the same.
+
+Run: ``OMP_NUM_THREADS=1 .venv/bin/python benchmarks/preset_differentiation.py [--steps 12000]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from collections import Counter
+
+import numpy as np
+
+from econmotor.config.objective_profile import ObjectiveVector
+from econmotor.envs import DishwashingEnv
+from econmotor.motor_backend import make_motor_backend, summarize_episodes
+from econmotor.motor_backend.dishwashing_backend import DishwashingBackend
+from econmotor.objectives import objective_from_vector
+from econmotor.tasks import get_task
+
+PRESETS = ("throughput", "energy_saver", "safety")
+EVAL_SEED = 900_000
+
+
+def policy_row(backend: DishwashingBackend, policy_id: str, task_id: str, objective, episodes: int) -> dict:
+    """Evaluate a saved policy on the common evaluation seeds; add its mean action."""
+    result = backend.evaluate_policy(policy_id, task_id, objective, episodes, EVAL_SEED)
+    handle = backend.deploy_policy_handle(policy_id)
+    env = DishwashingEnv()
+    obs, _ = env.reset(seed=EVAL_SEED)
+    actions, done = [], False
+    while not done:
+        action = handle.act(obs)
+        actions.append(action)
+        obs, _, term, trunc, _ = env.step(action)
+        done = term or trunc
+    return row_of(result.econ_metrics, result.episodes, np.mean(actions, axis=0))
+
+
+def random_row(task_id: str, episodes: int, seed: int) -> dict:
+    """A uniform-random (speed, care) policy on the same evaluation seeds."""
+    spec = get_task(task_id)
+    env = DishwashingEnv()
+    rng = np.random.default_rng(seed)
+    raw = []
+    for i in range(episodes):
+        env.reset(seed=EVAL_SEED + i)
+        done = False
+        while not done:
+            _, _, term, trunc, info = env.step(rng.uniform(0, 1, 2).astype(np.float32))
+            done = term or trunc
+        raw.append(info["episode_summary"])
+    _, econ, summaries = summarize_episodes(raw, spec.economics)
+    return row_of(econ, summaries, np.array([0.5, 0.5]))
+
+
+def row_of(econ: dict, episodes: list[dict], mean_action: np.ndarray) -> dict:
+    return {
+        "mpl": econ["mpl_units_per_hour"],
+        "wh_per_unit": econ["energy_wh_per_unit"],
+        "error_rate": econ["error_rate"],
+        "wh_per_hour": econ["energy_kwh_per_hour"] * 1000.0,
+        "speed": float(mean_action[0]),
+        "care": float(mean_action[1]),
+        "ends": Counter(ep["termination_reason"] for ep in episodes),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="dishwashing")
+    parser.add_argument("--steps", type=int, default=12_000, help="SAC environment steps per run")
+    parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--eval-episodes", type=int, default=30)
+    args = parser.parse_args()
+
+    backend = DishwashingBackend()
+    assert isinstance(make_motor_backend("dishwashing"), DishwashingBackend)
+    rows: dict[str, list[dict]] = {}
+    started = time.perf_counter()
+    with tempfile.TemporaryDirectory() as out:
+        for preset in PRESETS:
+            objective = objective_from_vector(ObjectiveVector.from_preset(preset), preset)
+            for seed in range(args.seeds):
+                t0 = time.perf_counter()
+                result = backend.train_policy(args.task, objective, [], 1, args.steps, seed, output_dir=out,
+                                              eval_episodes=1)
+                row = policy_row(backend, result.policy_id, args.task, objective, args.eval_episodes)
+                rows.setdefault(preset, []).append(row)
+                print(f"  {preset:<12} seed {seed}: MPL {row['mpl']:6.1f}  err {row['error_rate']:.4f}  "
+                      f"Wh/h {row['wh_per_hour']:.3f}  action ({row['speed']:.2f}, {row['care']:.2f})  "
+                      f"[{time.perf_counter() - t0:.0f} s]", flush=True)
+    rows["random"] = [random_row(args.task, args.eval_episodes, s) for s in range(args.seeds)]
+    total_s = time.perf_counter() - started
+
+    print(f"\nPreset differentiation on '{args.task}': SAC {args.steps} steps x {args.seeds} seeds per preset, "
+          f"{args.eval_episodes} deterministic evaluation episodes per policy (same seeds), {total_s:.0f} s\n")
+    header = (f"{'preset':<13}{'MPL units/h':>16}{'Wh/unit':>16}{'error rate':>18}{'Wh/h':>14}"
+              f"{'speed, care':>14}   episode ends")
+    print(header)
+    print("-" * len(header))
+    means: dict[str, dict[str, float]] = {}
+    for name, rs in rows.items():
+        m = {k: float(np.mean([r[k] for r in rs])) for k in ("mpl", "wh_per_unit", "error_rate", "wh_per_hour",
+                                                              "speed", "care")}
+        s = {k: float(np.std([r[k] for r in rs])) for k in m}
+        means[name] = m
+        ends = sum((r["ends"] for r in rs), Counter())
+        print(f"{name:<13}{m['mpl']:>9.1f} ±{s['mpl']:>5.1f}{m['wh_per_unit']:>9.4f} ±{s['wh_per_unit']:.4f}"
+              f"{m['error_rate']:>11.4f} ±{s['error_rate']:.4f}{m['wh_per_hour']:>8.3f} ±{s['wh_per_hour']:.2f}"
+              f"   ({m['speed']:.2f}, {m['care']:.2f})   {dict(ends)}")
+
+    def others(name: str, key: str) -> list[float]:
+        return [means[p][key] for p in PRESETS if p != name]
+
+    print("\nRatios (expected by the spec):")
+    print(f"  throughput MPL / best other preset MPL        = "
+          f"{means['throughput']['mpl'] / max(others('throughput', 'mpl')):.3f}   (expected > 1)")
+    print(f"  safety error rate / lowest other error rate   = "
+          f"{means['safety']['error_rate'] / min(others('safety', 'error_rate')):.3f}   (expected < 1)")
+    print(f"  energy_saver Wh/h / lowest other Wh/h         = "
+          f"{means['energy_saver']['wh_per_hour'] / min(others('energy_saver', 'wh_per_hour')):.3f}   "
+          f"(expected < 1)")
+    print(f"  best preset MPL / random policy MPL           = "
+          f"{max(means[p]['mpl'] for p in PRESETS) / means['random']['mpl']:.3f}")
+
+
+if __name__ == "__main__":
+    main()
