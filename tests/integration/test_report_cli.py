@@ -226,3 +226,24 @@ def test_an_interrupted_training_run_is_recorded_as_interrupted(workdir: Path) -
     assert proc.returncode == 130, err[-2000:]
     run = Registry(create=False).run(1)
     assert run.status == "interrupted" and "KeyboardInterrupt" in run.error and run.finished_at is not None
+
+
+def test_datapacks_flag_takes_commas_repeats_and_spaces(workdir: Path) -> None:
+    from econmotor.cli.report import split_datapack_values
+    from econmotor.motor_backend.datapacks import parse_datapack
+
+    assert split_datapack_values(["a.yaml,b", "c d", " e "]) == ["a.yaml", "b", "c", "d", "e"]
+    url = f"sqlite:///{workdir / 'reg.sqlite'}"
+    first = _record_hand_made_eval(url)
+    with Registry(url) as reg:
+        reg.record_datapacks([parse_datapack({"id": i}, "<test>") for i in ("dp_a", "dp_b", "dp_c")])
+        run = reg.run(first)
+        result = MotorEvalResult("p", "dishwashing", "dishwashing", run.raw_metrics, run.econ_metrics,
+                                 [e.summary for e in reg.episodes(run_ids=[first])])
+        both = reg.record_run("eval", result, objective={"name": "hand"}, datapack_ids=["dp_a", "dp_b", "dp_c"])
+        reg.record_run("eval", result, objective={"name": "hand"}, datapack_ids=["dp_a"])  # newest
+    for flags in (["--datapacks", "dp_a", "dp_b"], ["--datapacks", "dp_a,dp_c"], ["--datapacks", "dp_b",
+                                                                                   "--datapacks", "dp_c"]):
+        assert main(["report", "--motor-backend", "none", "--task-id", "dishwashing", "--db-url", url,
+                     *flags, "--output-json", "picked.json", "--output-dir", "out"]) == 0
+        assert json.loads((workdir / "picked.json").read_text())["runs"]["priced"] == both

@@ -181,6 +181,12 @@ def report_command(
     out_dir = output_dir or Path("reports") / task_id
 
     if motor_backend == NO_BACKEND:
+        ignored = [flag for flag, value in (("--num-envs", num_envs), ("--max-steps", max_steps),
+                                             ("--eval-episodes", eval_episodes or None),
+                                             ("--objective-config", objective_config)) if value is not None]
+        if ignored:
+            err_console.print(f"[yellow]note[/]: {', '.join(ignored)} ignored: --motor-backend none prices a "
+                              "recorded run without training or evaluating")
         if not registry_exists(url):
             raise ConfigError("--db-url", None, f"no registry at {url}; train a run first")
         with Registry(url, create=False) as reg:
