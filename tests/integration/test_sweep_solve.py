@@ -114,6 +114,15 @@ def test_ray_sweep_then_solve(tmp_path, local_ray):
         dominated = any(dominates(q, p) for q in points.values())
         assert dominated == (run_id not in front), run_id
 
+    # registry filters: one objective's runs on one datapack (the two seeds)
+    out3 = tmp_path / "surface_filtered"
+    assert main(["solve", "--db-url", db_url, "--objective", "safety", "--datapacks", "dw_fragile",
+                 "--motor-backend", "dishwashing", "--output-dir", str(out3)]) == 0
+    doc3 = json.loads((out3 / "objective_surface.json").read_text())
+    assert sorted((r["objective"], tuple(r["datapacks"]), r["seed"]) for r in doc3["runs"]) == \
+        [("safety", ("dw_fragile",), 0), ("safety", ("dw_fragile",), 1)]
+    assert main(["solve", "--db-url", db_url, "--task-id", "dishwashing_realistic"]) == 2
+
     # the JSONL export solves to the same answer
     out2 = tmp_path / "surface_from_jsonl"
     assert main(["solve", "--episodes-jsonl", str(export), "--constraints", str(CONSTRAINTS),
