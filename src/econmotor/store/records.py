@@ -6,7 +6,7 @@ import datetime as dt
 from dataclasses import dataclass, field
 from typing import Any
 
-from econmotor.store.models import EpisodeRow, RunRow
+from econmotor.store.models import EpisodeRow, ReportRow, RunRow
 
 
 @dataclass(frozen=True)
@@ -76,6 +76,11 @@ class ReportRecord:
     created_at: dt.datetime | None
 
 
+def _utc(value: dt.datetime | None) -> dt.datetime | None:
+    """SQLite hands back naive datetimes; every timestamp econmotor writes is UTC."""
+    return value.replace(tzinfo=dt.UTC) if value is not None and value.tzinfo is None else value
+
+
 def run_record(row: RunRow) -> RunRecord:
     return RunRecord(
         id=row.id, kind=row.kind, task_id=row.task_id, backend=row.backend, status=row.status,
@@ -85,7 +90,7 @@ def run_record(row: RunRow) -> RunRecord:
         raw_metrics=dict(row.raw_metrics or {}), econ_metrics=dict(row.econ_metrics or {}),
         training_curve=list(row.training_curve or []), artifacts=dict(row.artifacts or {}),
         notes=row.notes or "", error=row.error, parent_run_id=row.parent_run_id, robot_id=row.robot_id,
-        created_at=row.created_at, finished_at=row.finished_at,
+        created_at=_utc(row.created_at), finished_at=_utc(row.finished_at),
     )
 
 
@@ -95,3 +100,8 @@ def episode_record(ep: EpisodeRow, run: RunRow) -> EpisodeRecord:
         run_kind=run.kind, objective_name=run.objective_name, datapack_ids=tuple(run.datapack_ids or ()),
         seed=run.seed, termination_reason=ep.termination_reason, summary=dict(ep.summary or {}),
     )
+
+
+def report_record(row: ReportRow) -> ReportRecord:
+    return ReportRecord(row.id, row.task_id, row.train_run_id, row.eval_run_id, dict(row.document or {}),
+                        dict(row.files or {}), _utc(row.created_at))

@@ -36,23 +36,27 @@ version is refused with a message saying what to do.
 from __future__ import annotations
 
 import contextlib
-import math
 from collections.abc import Iterable, Iterator, Mapping, Sequence
-from pathlib import Path
 from typing import Any, Self
 
 import numpy as np
-from sqlalchemy import create_engine, distinct, event, exists, func, inspect, select, text
+from sqlalchemy import create_engine, func, inspect, select, text
 from sqlalchemy.engine import Engine, make_url
 from sqlalchemy.exc import SQLAlchemyError
 from sqlalchemy.orm import Session
 
 from econmotor.errors import RegistryError, UnknownNameError
 from econmotor.motor_backend.datapacks import DatapackConfig, parse_datapack
+from econmotor.store.engine import (
+    DB_URL_ENV,
+    default_db_url,
+    make_sqlite_concurrent,
+    registry_exists,
+    sqlite_path,
+)
 from econmotor.store.models import (
     EPISODE_COLUMNS,
     RUN_KINDS,
-    RUN_STATUSES,
     Base,
     DatapackRow,
     EpisodeRow,
@@ -64,36 +68,17 @@ from econmotor.store.models import (
     TaskRow,
     utc_now,
 )
+from econmotor.store.queries import check_status, episode_row, filter_runs
 from econmotor.store.records import (
     EpisodeRecord,
     ReportRecord,
     RunRecord,
     episode_record,
+    report_record,
     run_record,
 )
 
-#: Environment variable the CLI reads for the database URL.
-DB_URL_ENV = "ECONMOTOR_DB_URL"
-_SQLITE_FILE = Path(".econmotor") / "registry.sqlite"
-
-
-def default_db_url(base_dir: str | Path | None = None) -> str:
-    """``sqlite:///<base_dir or cwd>/.econmotor/registry.sqlite`` (absolute path)."""
-    return f"sqlite:///{(Path(base_dir or Path.cwd()) / _SQLITE_FILE).resolve()}"
-
-
-def sqlite_path(url: str) -> Path | None:
-    """The database file of a SQLite URL, ``None`` for other databases or in-memory SQLite."""
-    parsed = make_url(url)
-    if parsed.get_backend_name() != "sqlite" or parsed.database in (None, "", ":memory:"):
-        return None
-    return Path(parsed.database)
-
-
-def registry_exists(url: str) -> bool:
-    """False only for a SQLite file that does not exist yet (other URLs: assumed to exist)."""
-    path = sqlite_path(url)
-    return path is None or path.exists()
+__all__ = ["DB_URL_ENV", "Registry", "default_db_url", "registry_exists"]
 
 
 class Registry:
@@ -124,7 +109,7 @@ class Registry:
             kwargs["connect_args"] = {"timeout": busy_timeout_s}
         self.engine: Engine = create_engine(self.url, **kwargs)
         if self._sqlite:
-            _make_sqlite_concurrent(self.engine, busy_timeout_s)
+            make_sqlite_concurrent(self.engine, busy_timeout_s)
         self._ensure_schema(create)
 
     # ------------------------------------------------------------------ schema
@@ -276,7 +261,7 @@ class Registry:
             episodes: per-episode summaries (default: ``result.episodes``).
             **fields: run columns to set directly (``raw_metrics``, ``error``, ...).
         """
-        _check_status(status)
+        check_status(status)
         values: dict[str, Any] = {}
         if result is not None:
             values = {"policy_path": result.policy_id, "raw_metrics": dict(result.raw_metrics),
@@ -293,11 +278,11 @@ class Registry:
                 setattr(run, key, value)
             run.status, run.finished_at = status, utc_now()
             if episodes:
-                s.add_all(_episode_row(run_id, ep, i) for i, ep in enumerate(episodes))
+                s.add_all(episode_row(run_id, ep, i) for i, ep in enumerate(episodes))
 
     def mark_run(self, run_id: int, status: str, error: str | None = None) -> None:
         """Set a run's status (e.g. ``failed`` with the error text); keeps everything else."""
-        _check_status(status)
+        check_status(status)
         with self._write() as s:
             run = self._get_run(s, run_id)
             run.status, run.error, run.finished_at = status, error, utc_now()
@@ -337,7 +322,7 @@ class Registry:
         with self._write() as s:
             self._get_run(s, run_id)
             start = s.scalar(select(func.count()).select_from(EpisodeRow).where(EpisodeRow.run_id == run_id))
-            s.add_all(_episode_row(run_id, ep, start + i) for i, ep in enumerate(episodes))
+            s.add_all(episode_row(run_id, ep, start + i) for i, ep in enumerate(episodes))
         return len(episodes)
 
     @staticmethod
@@ -355,7 +340,7 @@ class Registry:
              datapacks: Sequence[str] | str | None = None, objective: str | None = None,
              kind: str | None = None, status: str | None = None) -> list[RunRecord]:
         """Runs matching every given filter, oldest first."""
-        stmt = _filter(select(RunRow), task_id, backend, datapacks, objective, kind, status).order_by(RunRow.id)
+        stmt = filter_runs(select(RunRow), task_id, backend, datapacks, objective, kind, status).order_by(RunRow.id)
         with self._read() as s:
             return [run_record(r) for r in s.scalars(stmt)]
 
@@ -378,7 +363,7 @@ class Registry:
                  kind: str | None = None, status: str | None = "completed",
                  run_ids: Iterable[int] | None = None) -> list[EpisodeRecord]:
         """Per-episode summaries of matching runs, ordered by run then episode index."""
-        stmt = _filter(select(EpisodeRow, RunRow).join(RunRow, EpisodeRow.run_id == RunRow.id),
+        stmt = filter_runs(select(EpisodeRow, RunRow).join(RunRow, EpisodeRow.run_id == RunRow.id),
                        task_id, backend, datapacks, objective, kind, status)
         if run_ids is not None:
             stmt = stmt.where(RunRow.id.in_(list(run_ids)))
@@ -396,7 +381,7 @@ class Registry:
             raise UnknownNameError("episode column", bad[0], EPISODE_COLUMNS)
         cols = [EpisodeRow.run_id] + [getattr(EpisodeRow, k) for k in keys]
         run_ids = filters.pop("run_ids", None)
-        stmt = _filter(select(*cols).join(RunRow, EpisodeRow.run_id == RunRow.id),
+        stmt = filter_runs(select(*cols).join(RunRow, EpisodeRow.run_id == RunRow.id),
                        filters.pop("task_id", None), filters.pop("backend", None),
                        filters.pop("datapacks", None), filters.pop("objective", None),
                        filters.pop("kind", None), filters.pop("status", "completed"))
@@ -430,70 +415,6 @@ class Registry:
         if task_id:
             stmt = stmt.where(ReportRow.task_id == task_id)
         with self._read() as s:
-            return [ReportRecord(r.id, r.task_id, r.train_run_id, r.eval_run_id, r.document, r.files,
-                                 r.created_at) for r in s.scalars(stmt)]
+            return [report_record(r) for r in s.scalars(stmt)]
 
 
-def _check_status(status: str) -> None:
-    if status not in RUN_STATUSES:
-        raise RegistryError(f"run status must be one of {RUN_STATUSES}, got {status!r}")
-
-
-def _filter(stmt: Any, task_id: str | None, backend: str | None, datapacks: Sequence[str] | str | None,
-            objective: str | None, kind: str | None, status: str | None) -> Any:
-    if task_id:
-        stmt = stmt.where(RunRow.task_id == task_id)
-    if backend:
-        stmt = stmt.where(RunRow.backend == backend)
-    if objective:
-        stmt = stmt.where(RunRow.objective_name == objective)
-    if kind:
-        stmt = stmt.where(RunRow.kind == kind)
-    if status:
-        stmt = stmt.where(RunRow.status == status)
-    if datapacks is not None:
-        ids = [datapacks] if isinstance(datapacks, str) else list(dict.fromkeys(datapacks))
-        if not ids:
-            stmt = stmt.where(~exists().where(RunDatapackRow.run_id == RunRow.id))
-        else:
-            having = (select(RunDatapackRow.run_id).where(RunDatapackRow.datapack_id.in_(ids))
-                      .group_by(RunDatapackRow.run_id)
-                      .having(func.count(distinct(RunDatapackRow.datapack_id)) == len(ids)))
-            stmt = stmt.where(RunRow.id.in_(having))
-    return stmt
-
-
-def _episode_row(run_id: int, summary: Mapping[str, Any], index: int) -> EpisodeRow:
-    columns = {}
-    for key in EPISODE_COLUMNS:
-        value = summary.get(key)
-        try:
-            value = float(value) if value is not None else None
-        except (TypeError, ValueError):
-            value = None
-        columns[key] = None if value is None or math.isnan(value) else value
-    return EpisodeRow(run_id=run_id, episode_index=int(summary.get("episode_index", index)),
-                      termination_reason=str(summary.get("termination_reason", "max_steps")),
-                      summary=dict(summary), **columns)
-
-
-def _make_sqlite_concurrent(engine: Engine, busy_timeout_s: float) -> None:
-    """WAL + busy timeout + BEGIN IMMEDIATE: concurrent writers wait for each other.
-
-    Deferred transactions that read then write can fail at once with SQLITE_BUSY
-    (the busy handler is not used when upgrading a read lock); IMMEDIATE avoids that.
-    """
-
-    @event.listens_for(engine, "connect")
-    def _on_connect(dbapi_conn: Any, _record: Any) -> None:
-        dbapi_conn.isolation_level = None  # SQLAlchemy's "begin" event below emits BEGIN
-        cursor = dbapi_conn.cursor()
-        cursor.execute(f"PRAGMA busy_timeout = {int(busy_timeout_s * 1000)}")
-        cursor.execute("PRAGMA journal_mode = WAL")
-        cursor.execute("PRAGMA synchronous = NORMAL")
-        cursor.execute("PRAGMA foreign_keys = ON")
-        cursor.close()
-
-    @event.listens_for(engine, "begin")
-    def _on_begin(conn: Any) -> None:
-        conn.exec_driver_sql("BEGIN IMMEDIATE")

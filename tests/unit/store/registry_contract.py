@@ -48,7 +48,7 @@ def check_run_round_trip_keeps_metrics_and_infinities(url: str) -> None:
     assert run.config["backend_config"] == {"lr": 3e-4}
     assert run.training_curve == [{"timesteps": 100, "mean_return": 1.5}]
     assert run.econ_metrics == _result().econ_metrics
-    assert run.finished_at is not None
+    assert run.finished_at is not None and run.finished_at.tzinfo is not None
     episodes = reg.episodes()
     assert [e.episode_index for e in episodes] == [0, 1]
     assert episodes[1].termination_reason == "catastrophic_error"
