@@ -50,11 +50,13 @@ import numpy as np
 from gymnasium import spaces
 
 from econmotor.config.econ_params import EconParams
+from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.economics import labour
 from econmotor.economics.legacy_reward import LegacyRewardWeights, compute_econ_reward
 from econmotor.envs.dishwashing_randomization import EconRandomization
 from econmotor.errors import ConfigError
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
+from econmotor.objectives.loader import objective_from_vector
 from econmotor.valuation.reward_builder import (
     build_reward_terms,
     combine_reward,
@@ -141,9 +143,6 @@ class DishwashingEnv(gym.Env):
             raise ConfigError("<DishwashingEnv>", "objective_vector",
                               f"expected 5 weights [mpl, error, energy, safety, novelty], got {self.objective_vector}")
         if objective is None:
-            from econmotor.config.objective_profile import ObjectiveVector
-            from econmotor.objectives.loader import objective_from_vector
-
             objective = (objective_from_vector(ObjectiveVector.from_list(objective_vector))
                          if objective_vector is not None else EconomicObjectiveSpec())
         self.objective = objective
