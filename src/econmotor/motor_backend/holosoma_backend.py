@@ -278,6 +278,9 @@ class HolosomaBackend:
             "overrides": overrides.to_dict(), "plan": {**plan.__dict__, "messages": list(plan.messages)},
             "overlay_weights": weights, "messages": messages, "econ_term_log": econ_log,
             "reward_terms": result["reward_terms"], "train_wall_s": outcome.wall_s,
+            "econ_term_seconds": result.get("econ_term_seconds", 0.0),
+            "iteration_times_s": [{"collection_s": c.get("collection_s"), "learn_s": c.get("learn_s")}
+                                  for c in outcome.curve],
         }
         if eval_episodes > 0:
             ev = self.evaluate_policy(str(run_dir), task_id, objective, eval_episodes, seed,

@@ -28,6 +28,7 @@ calls (the "leader") computes every rate, the others read them.
 from __future__ import annotations
 
 import math
+import time
 from typing import Any
 
 import torch
@@ -45,6 +46,8 @@ from econmotor.motor_backend.holosoma.econ_formulas import (
 
 SUPPORTED_KEYS = OVERLAY_TERM_KEYS
 TERM_PREFIX = "econ_"
+#: seconds spent in econ terms and calls made, in this process (the overhead benchmark reads it).
+TIMER = {"seconds": 0.0, "calls": 0}
 _STATE_ATTR = "_econmotor_overlay_state"
 
 
@@ -127,6 +130,9 @@ class EconOverlayTerm(RewardTermBase):
         """Nothing per episode: novelty statistics persist across an env slot's episodes."""
 
     def __call__(self, env: Any, **params: Any) -> torch.Tensor:
+        start = time.perf_counter()
         if self.state.leader == id(self) or not self.state.rates:
             self.state.rates = compute_step_rates(env, self.state, params)
+        TIMER["seconds"] += time.perf_counter() - start
+        TIMER["calls"] += 1
         return self.state.rates[self.key]

@@ -136,6 +136,7 @@ def _report_iterations(total: int) -> None:
         scalars = kwargs.get("ep_scalars_to_log") or {}
         rewards = list(self.rewbuffer)
         emit("curve", iteration=int(it), timesteps=int(self.tot_timesteps),
+             collection_s=float(self.collection_time), learn_s=float(self.learn_time),
              mean_return=(sum(rewards) / len(rewards)) if rewards else None,
              econ={k: float(v) for k, v in scalars.items() if "econ_" in k})
         emit("progress", label="holosoma train", done=min(int(it) + 1, total), total=total)
@@ -167,7 +168,9 @@ def train(job: dict[str, Any]) -> dict[str, Any]:
     exp_dir = runs[-1]
     checkpoint = _latest(list(exp_dir.glob("model_*.pt")))
     onnx = checkpoint.with_suffix(".onnx") if checkpoint is not None else None
-    return {"experiment_dir": str(exp_dir), "checkpoint": str(checkpoint) if checkpoint else None,
+    terms_module = sys.modules.get("econmotor.motor_backend.holosoma_reward_terms")
+    timer = dict(terms_module.TIMER) if terms_module is not None else {"seconds": 0.0, "calls": 0}
+    return {"econ_term_seconds": timer["seconds"], "econ_term_calls": timer["calls"],"experiment_dir": str(exp_dir), "checkpoint": str(checkpoint) if checkpoint else None,
             "onnx": str(onnx) if onnx is not None and onnx.exists() else None,
             "reward_terms": sorted(cfg.reward.terms), "episode_length_s": cfg.simulator.config.sim.max_episode_length_s,
             "control_dt_s": cfg.simulator.config.sim.control_decimation_steps / cfg.simulator.config.sim.fps}

@@ -1,0 +1,125 @@
+"""End to end through the real Holosoma (classic MuJoCo, CPU) in .venv-holosoma.
+
+G1 locomotion with the spec's example objective overlay and datapack: a few PPO
+iterations, Holosoma's recorded evaluation, econ metrics from the recording, and the
+deployed ONNX handle reproducing the recorded actions from the recorded observations.
+If .venv-holosoma is missing, the fixture builds it with ``make holosoma`` (minutes).
+"""
+
+from __future__ import annotations
+
+import math
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from econmotor.errors import BackendError
+from econmotor.motor_backend.datapacks import load_datapack_configs
+from econmotor.motor_backend.factory import make_motor_backend
+from econmotor.motor_backend.holosoma.jobs import run_job
+from econmotor.motor_backend.holosoma_backend import HolosomaPolicyHandle, find_holosoma_python
+from econmotor.objectives import compile_economic_overlay, load_objective_spec
+
+pytestmark = [pytest.mark.slow, pytest.mark.holosoma]
+REPO = Path(__file__).resolve().parents[2]
+OBJECTIVE = REPO / "configs" / "objectives" / "example_holosoma_objective.yaml"
+DATAPACK = REPO / "configs" / "datapacks" / "example_holosoma_datapack.yaml"
+ITERATIONS = 10
+EPISODE_S = 4.0
+
+
+@pytest.fixture(scope="module")
+def holosoma_venv() -> Path:
+    venv = REPO / ".venv-holosoma"
+    if not (venv / ".econmotor-installed").exists():
+        subprocess.run(["make", "holosoma"], cwd=REPO, check=True, timeout=1800)
+    find_holosoma_python(venv)
+    return venv
+
+
+@pytest.fixture(scope="module")
+def trained(holosoma_venv: Path, tmp_path_factory: pytest.TempPathFactory):
+    backend = make_motor_backend("holosoma", simulator="mujoco", venv=holosoma_venv, eval_episode_length_s=EPISODE_S)
+    objective = load_objective_spec(OBJECTIVE)
+    packs = load_datapack_configs([DATAPACK])
+    events: list[tuple[str, float, float]] = []
+    result = backend.train_policy(
+        "humanoid_locomotion_g1", objective, [], num_envs=2048, max_steps=24 * ITERATIONS, seed=3,
+        datapack_configs=packs, output_dir=tmp_path_factory.mktemp("holosoma"), eval_episodes=2,
+        progress=lambda label, done, total: events.append((label, done, total)),
+    )
+    return backend, objective, result, events
+
+
+def test_request_is_adapted_to_one_cpu_env_and_announced(trained) -> None:
+    _, _, result, events = trained
+    messages = result.config["messages"]
+    assert any("num_envs 2048 -> 1" in m for m in messages)
+    assert any("stability_margin" in m and "ignored" in m for m in messages)
+    assert any(label.startswith("holosoma: num_envs 2048 -> 1") for label, _, _ in events)
+    train_progress = [(d, t) for label, d, t in events if label == "holosoma train"]
+    assert train_progress[-1] == (ITERATIONS, ITERATIONS)
+    assert any(label == "holosoma evaluate" for label, _, _ in events)
+    assert result.config["plan"]["num_envs"] == 1 and result.config["plan"]["iterations"] == ITERATIONS
+
+
+def test_overlay_terms_are_holosoma_reward_terms_and_logged(trained) -> None:
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    _, objective, result, _ = trained
+    scales = compile_economic_overlay(objective)
+    weights = result.config["overlay_weights"]
+    assert set(weights) == {"mpl_per_hour", "energy_kwh", "error_rate", "risk_score"}
+    for key, weight in weights.items():
+        assert weight == pytest.approx(0.05 * scales[key])
+        assert f"econ_{key}" in result.config["reward_terms"]
+    tags = EventAccumulator(result.artifacts["tensorboard"]).Reload().Tags()["scalars"]
+    assert "Episode/rew_econ_energy_kwh" in tags and "RawEpisode/raw_rew_econ_energy_kwh" in tags
+    assert "Episode/rew_econ_mpl_per_hour" in tags and "Episode/rew_tracking_lin_vel" in tags
+    assert result.config["econ_term_log"]["RawEpisode/raw_rew_econ_energy_kwh"] > 0  # joints did work
+    assert result.config["overrides"]["randomization"]["randomize_friction_startup"]["friction_range"] == [0.5, 1.0]
+
+
+def test_evaluation_from_the_recording_gives_finite_econ_metrics(trained) -> None:
+    _, _, result, _ = trained
+    assert result.raw_metrics["num_episodes"] == 2 and len(result.episodes) == 2
+    for ep in result.episodes:
+        assert 0 < ep["episode_length_s"] <= EPISODE_S + 1e-9
+        assert ep["termination_reason"] in ("fall", "time_out", "max_steps")
+        assert ep["energy_wh"] > 0 and 0 <= ep["risk_score"] <= 1 and 0 <= ep["novelty_score"] < 1
+    assert result.raw_metrics["energy_wh"] == pytest.approx(sum(ep["energy_wh"] for ep in result.episodes))
+    for key in ("mpl_units_per_hour", "error_rate", "energy_kwh", "energy_kwh_per_hour", "implied_wage_usd_per_hour",
+                "wage_parity", "robot_cost_usd_per_hour", "risk_score", "novelty_score"):
+        assert math.isfinite(result.econ_metrics[key]), key
+    mean_power_w = result.raw_metrics["energy_wh"] * 3600 / result.raw_metrics["episode_length_s"]
+    assert 1.0 < mean_power_w < 20_000.0  # a 35 kg humanoid's joints, through an 80 % drivetrain
+
+
+def test_onnx_handle_reproduces_recorded_actions(trained) -> None:
+    backend, _, result, _ = trained
+    handle = backend.deploy_policy_handle(result.policy_id)
+    assert isinstance(handle, HolosomaPolicyHandle)
+    assert len(handle.dof_names) == 29 and len(handle.kp) == 29 and len(handle.kd) == 29
+    assert handle.action_scale is not None
+    assert handle.econmotor_metadata["task_id"] == "humanoid_locomotion_g1"
+    assert handle.econmotor_metadata["objective"]["error_weight"] == 0.5
+    assert handle.econmotor_metadata["task_economics"]["wage_human_usd_per_hour"] == 18.0
+    with np.load(result.config["evaluation"]["recording"]) as rec:
+        obs, actions, reset = rec["actor_obs"], rec["actions"], rec["reset"]
+    steps = [t for t in range(0, len(obs) - 1, 7) if not reset[t]][:10]
+    assert steps
+    for t in steps:  # the action at t+1 was computed by Holosoma from the observation recorded at t
+        np.testing.assert_allclose(handle.act(obs[t]), actions[t + 1], rtol=1e-4, atol=1e-4)
+    assert handle.act(obs[steps]).shape == (len(steps), handle.action_dim)
+
+
+def test_holosoma_error_text_is_surfaced(holosoma_venv: Path, tmp_path: Path) -> None:
+    job = {"action": "evaluate", "run_dir": str(tmp_path), "checkpoint": str(tmp_path / "missing_model.pt"),
+           "num_steps": 10, "episode_length_s": 1.0, "seed": 0}
+    with pytest.raises(BackendError) as info:
+        run_job(holosoma_venv / "bin" / "python", job, tmp_path, lambda *a: None)
+    text = str(info.value)
+    assert "Holosoma evaluate failed" in text and "missing_model.pt" in text and "Traceback" in text
+    assert (tmp_path / "evaluate.log").is_file()
