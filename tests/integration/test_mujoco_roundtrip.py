@@ -106,3 +106,16 @@ def test_cli_train_and_evaluate(tmp_path):
                  "--output-dir", str(tmp_path / "ev")]) == 0
     assert len(json.loads((tmp_path / "ev" / "evaluation.json").read_text())["episodes"]) == 2
     assert main(["train", "--task", "hoper_courier", "--max-steps", "10"]) == 2
+
+
+def test_sac_policy_exports_its_squashed_actor(tmp_path):
+    backend = make_motor_backend("mujoco")
+    result = backend.train_policy("hopper_courier", EconomicObjectiveSpec(), [], 1, 300, 2, output_dir=tmp_path / "sac",
+                                  eval_episodes=1, algorithm="sac",
+                                  hyperparameters={"learning_starts": 100, "batch_size": 32})
+    assert result.config["algorithm"] == "sac" and result.config["hyperparameters"]["buffer_size"] == 1000
+    _, act = load_policy(result.policy_id, "sac")
+    obs = np.random.default_rng(1).normal(0.0, 1.0, size=(16, 11))
+    actions = backend.deploy_policy_handle(result.policy_id).act(obs)
+    assert np.abs(actions - np.stack([act(o) for o in obs])).max() < 1e-5
+    assert np.all(np.abs(actions) <= 1.0)

@@ -68,6 +68,7 @@ def train_command(
     eval_episodes: int = typer.Option(5, "--eval-episodes", help="Deterministic episodes after training."),
     resume: bool = typer.Option(False, "--resume", help="Continue the run in --output-dir from its last checkpoint."),
     algorithm: str = typer.Option(None, "--algorithm", help="Override the task's algorithm (mujoco: ppo | sac)."),
+    vec_env: str = typer.Option(None, "--vec-env", help="mujoco: dummy (in-process, default) | subproc."),
     json_out: Path = typer.Option(None, "--json", help="Also write the result as JSON here."),
 ) -> None:
     """Train a motor policy for an economic objective and print its economics."""
@@ -79,10 +80,10 @@ def train_command(
         extra["resume"] = True
     if algorithm:
         extra["algorithm"] = algorithm
-    if extra and backend != "mujoco":
-        raise ConfigError("<command line>", "--resume/--algorithm", f"backend '{backend}' does not support them",
-                          ["mujoco"])
-    motor = make_motor_backend(backend)
+    if (extra or vec_env) and backend != "mujoco":
+        raise ConfigError("<command line>", "--resume/--algorithm/--vec-env",
+                          f"backend '{backend}' does not support them", ["mujoco"])
+    motor = make_motor_backend(backend, **({"vec_env": vec_env} if vec_env else {}))
     with progress_bars() as progress:
         result = motor.train_policy(task, objective, [c.id for c in configs],
                                     num_envs if (num_envs > 0 or backend == "mujoco") else 1, max_steps, seed,

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
+import torch
 
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import (
@@ -55,12 +56,15 @@ class MujocoBackend:
         vec_env: ``"dummy"`` (in-process, the default: fastest on 2 cores) or ``"subproc"``.
         keep_task_reward: add the overlay to the task's reward (True) or replace it (False).
         runs_dir: where runs go when ``output_dir`` is not given.
+        torch_threads: torch intra-op threads while training / evaluating (1: small MLPs run
+            fastest single-threaded, and parallel jobs do not oversubscribe the cores).
     """
 
     name = "mujoco"
 
     def __init__(self, task_files: Sequence[str | Path] = (), datapack_provider: DatapackProvider | None = None,
-                 vec_env: str = "dummy", keep_task_reward: bool = True, runs_dir: str | Path = "runs/mujoco") -> None:
+                 vec_env: str = "dummy", keep_task_reward: bool = True, runs_dir: str | Path = "runs/mujoco",
+                 torch_threads: int = 1) -> None:
         if vec_env not in ("dummy", "subproc"):
             raise ConfigError("<mujoco backend>", "vec_env", f"unknown vector env '{vec_env}'", ["dummy", "subproc"])
         self.catalog = load_catalog(task_files)
@@ -68,6 +72,7 @@ class MujocoBackend:
         self.vec_env = vec_env
         self.keep_task_reward = keep_task_reward
         self.runs_dir = Path(runs_dir)
+        self.torch_threads = max(1, int(torch_threads))
 
     # --- configuration -------------------------------------------------------------------
     def task(self, task_id: str) -> tuple[TaskSpec, MujocoTaskSettings]:
@@ -119,6 +124,7 @@ class MujocoBackend:
         ``num_envs <= 0`` uses the catalog's default; ``resume=True`` continues the run in
         ``output_dir`` from its newest checkpoint up to ``max_steps`` total environment steps.
         """
+        torch.set_num_threads(self.torch_threads)
         recipe, described = self.recipe(task_id, objective, datapack_ids, datapack_configs)
         settings = recipe.settings
         if output_dir is None:
@@ -160,6 +166,7 @@ class MujocoBackend:
         if config.get("task_id") != task_id:
             raise ConfigError(str(Path(policy_id) / RUN_CONFIG_FILE), "task_id",
                               f"policy was trained on '{config.get('task_id')}', not '{task_id}'")
+        torch.set_num_threads(self.torch_threads)
         recipe, described = self.recipe(task_id, objective, datapack_ids, datapack_configs)
         _, act = load_policy(policy_id, config["algorithm"])
         env = make_env(self._eval_recipe(recipe), seed=seed)
