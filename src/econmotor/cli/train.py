@@ -22,6 +22,15 @@ SHOWN_METRICS = ("mpl_units_per_hour", "error_rate", "energy_wh_per_unit", "impl
                  "wage_parity", "robot_unit_cost_usd", "human_unit_cost_usd", "spread_per_unit_usd")
 
 
+# options shared by train and evaluate (module-level, as Typer allows and ruff's B008 prefers)
+TASK_OPTION = typer.Option(..., "--task", help="Task id from the catalog (econmotor tasks).")
+BACKEND_OPTION = typer.Option("mujoco", "--backend", help="Motor backend factory name.")
+OBJECTIVE_CONFIG_OPTION = typer.Option(None, "--objective-config", help="Objective YAML.")
+OBJECTIVE_PRESET_OPTION = typer.Option(None, "--objective-preset", help="Objective preset name.")
+SEED_OPTION = typer.Option(0, "--seed")
+JSON_OPTION = typer.Option(None, "--json", help="Also write the result as JSON here.")
+
+
 def resolve_objective(config: Path | None, preset: str | None) -> EconomicObjectiveSpec:
     """The objective from a YAML file, a preset name, or the default (throughput weight 1)."""
     if config is not None and preset is not None:
@@ -56,20 +65,20 @@ def write_json(path: Path | None, payload: dict[str, Any]) -> None:
 
 @app.command("train")
 def train_command(
-    task: str = typer.Option(..., "--task", help="Task id from the catalog (econmotor tasks)."),
-    backend: str = typer.Option("mujoco", "--backend", help="Motor backend factory name."),
-    objective_config: Path = typer.Option(None, "--objective-config", help="Objective YAML."),
-    objective_preset: str = typer.Option(None, "--objective-preset", help="Objective preset name."),
+    task: str = TASK_OPTION,
+    backend: str = BACKEND_OPTION,
+    objective_config: Path = OBJECTIVE_CONFIG_OPTION,
+    objective_preset: str = OBJECTIVE_PRESET_OPTION,
     datapacks: list[Path] = typer.Option([], "--datapacks", help="Datapack YAML files (in order)."),
     num_envs: int = typer.Option(0, "--num-envs", help="Environments (0: the task's default)."),
     max_steps: int = typer.Option(100_000, "--max-steps", help="Total environment steps."),
-    seed: int = typer.Option(0, "--seed"),
+    seed: int = SEED_OPTION,
     output_dir: Path = typer.Option(None, "--output-dir", help="Run directory (the policy id)."),
     eval_episodes: int = typer.Option(5, "--eval-episodes", help="Deterministic episodes after training."),
     resume: bool = typer.Option(False, "--resume", help="Continue the run in --output-dir from its last checkpoint."),
     algorithm: str = typer.Option(None, "--algorithm", help="Override the task's algorithm (mujoco: ppo | sac)."),
     vec_env: str = typer.Option(None, "--vec-env", help="mujoco: dummy (in-process, default) | subproc."),
-    json_out: Path = typer.Option(None, "--json", help="Also write the result as JSON here."),
+    json_out: Path = JSON_OPTION,
 ) -> None:
     """Train a motor policy for an economic objective and print its economics."""
     set_cpu_threads()
@@ -101,15 +110,15 @@ def train_command(
 @app.command("evaluate")
 def evaluate_command(
     policy: str = typer.Option(..., "--policy", help="Policy id (mujoco: the run directory)."),
-    task: str = typer.Option(..., "--task", help="Task id the policy was trained on."),
-    backend: str = typer.Option("mujoco", "--backend", help="Motor backend factory name."),
-    objective_config: Path = typer.Option(None, "--objective-config", help="Objective YAML."),
-    objective_preset: str = typer.Option(None, "--objective-preset", help="Objective preset name."),
+    task: str = TASK_OPTION,
+    backend: str = BACKEND_OPTION,
+    objective_config: Path = OBJECTIVE_CONFIG_OPTION,
+    objective_preset: str = OBJECTIVE_PRESET_OPTION,
     datapacks: list[Path] = typer.Option([], "--datapacks", help="Datapack YAML files applied while evaluating."),
     episodes: int = typer.Option(10, "--episodes", help="Deterministic evaluation episodes."),
-    seed: int = typer.Option(0, "--seed"),
+    seed: int = SEED_OPTION,
     output_dir: Path = typer.Option(None, "--output-dir", help="Write evaluation.json here."),
-    json_out: Path = typer.Option(None, "--json", help="Also write the result as JSON here."),
+    json_out: Path = JSON_OPTION,
 ) -> None:
     """Evaluate a trained policy deterministically and print its economics."""
     set_cpu_threads()
