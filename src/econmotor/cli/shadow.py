@@ -23,12 +23,12 @@ def shadow_command(
     total_steps: int = typer.Option(20_000, "--total-steps", help="SAC environment steps."),
     use_objective_reward: bool = typer.Option(
         False, "--use-objective-reward", help="The flip: the learner sees the RewardBuilder reward, not legacy."),
-    constraints: Path = typer.Option(None, "--constraints", help="Constraint-set YAML."),
+    constraints: str = typer.Option(None, "--constraints", help="Constraint-set YAML."),
     constraint_mode: str = typer.Option("penalty", "--constraint-mode", help="penalty | lagrangian."),
     objective_sampling: str = typer.Option("fixed", "--objective-sampling", help="fixed | dirichlet (per episode)."),
     reward_weights: str = typer.Option("identity", "--reward-weights", help="identity | analytic | net."),
     seed: int = typer.Option(0, "--seed"),
-    save_dir: Path = typer.Option(Path("runs/shadow"), "--save-dir", help="Run directory."),
+    save_dir: str = typer.Option("runs/shadow", "--save-dir", help="Run directory."),
     max_episode_steps: int = typer.Option(None, "--max-episode-steps", help="Episode length override."),
     lagrange_lr: float = typer.Option(1.0, "--lagrange-lr", help="Dual learning rate (lagrangian)."),
     learning_starts: int = typer.Option(1000, "--learning-starts", help="SAC random steps before updates."),
@@ -49,8 +49,8 @@ def shadow_command(
     config = ShadowConfig(
         env=env, objective=tuple(vector.to_list()), objective_label=label, total_steps=total_steps,
         use_objective_reward=use_objective_reward,
-        constraints=load_constraint_set(constraints) if constraints else None, constraint_mode=constraint_mode,
-        objective_sampling=objective_sampling, reward_weights=reward_weights, seed=seed, save_dir=str(save_dir),
+        constraints=load_constraint_set(Path(constraints)) if constraints else None, constraint_mode=constraint_mode,
+        objective_sampling=objective_sampling, reward_weights=reward_weights, seed=seed, save_dir=save_dir,
         max_episode_steps=max_episode_steps, lagrange_lr=lagrange_lr, learning_starts=learning_starts,
         eval_episodes=eval_episodes)
     with progress_bars() as progress:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import pytest
 
 from econmotor.errors import ConfigError
@@ -21,7 +23,7 @@ def test_multiplier_rises_while_violated_and_falls_back_to_zero_when_met():
         lag.record({"max_error_rate": -0.03})
         values.append(lag.update()["max_error_rate"])
     assert values[5] == pytest.approx(0.44)
-    assert all(b <= a for a, b in zip(values[4:], values[5:], strict=False))
+    assert all(b <= a for a, b in itertools.pairwise(values[4:]))
     assert values[-1] == 0.0
     assert len(lag.history) == 15
 

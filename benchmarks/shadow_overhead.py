@@ -1,0 +1,72 @@
+"""Steps/s of SAC with shadow logging over the same SAC without it (goal: ratio >= 0.95).
+
+Both arms train SB3 SAC on the dishwashing workcell with the legacy reward, same
+seed and hyperparameters; the shadow arm adds the ShadowRewardWrapper (both rewards
+per step, per-term sums, running Pearson/Spearman, JSONL per episode, plot at the
+end) and its callback. Arms alternate (A B A B ...) so machine load hits both alike.
+A second line times the env alone (no learner) to show the wrapper's raw cost.
+
+    .venv/bin/python benchmarks/shadow_overhead.py [--steps 3000] [--repeats 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import time
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np
+import torch
+
+from econmotor.rl.shadow_log import ShadowRecorder
+from econmotor.rl.train_sac_objective import ShadowConfig, build_env, train_sac_objective
+
+
+def sac_steps_per_s(shadow: bool, steps: int, seed: int) -> float:
+    with tempfile.TemporaryDirectory() as tmp:
+        config = ShadowConfig(env="dishwashing", objective_label="throughput", objective=(2, 1, 0.5, 1, 0),
+                              total_steps=steps, learning_starts=min(500, steps // 4), seed=seed, shadow=shadow,
+                              save_dir=tmp if shadow else None, eval_episodes=0)
+        return train_sac_objective(config).steps_per_s
+
+
+def env_steps_per_s(shadow: bool, steps: int) -> float:
+    with tempfile.TemporaryDirectory() as tmp:
+        config = ShadowConfig(env="dishwashing", shadow=shadow)
+        env, _, _ = build_env(config, ShadowRecorder(tmp) if shadow else None)
+        rng = np.random.default_rng(0)
+        acts = rng.uniform(0, 1, size=(steps, 2)).astype(np.float32)
+        env.reset(seed=0)
+        start = time.perf_counter()
+        for a in acts:
+            *_, terminated, truncated, _ = env.step(a)
+            if terminated or truncated:
+                env.reset()
+        return steps / (time.perf_counter() - start)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=3000)
+    parser.add_argument("--repeats", type=int, default=2)
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    plain, shadow = [], []
+    for r in range(args.repeats):
+        plain.append(sac_steps_per_s(False, args.steps, seed=r))
+        shadow.append(sac_steps_per_s(True, args.steps, seed=r))
+        print(f"repeat {r}: SAC without shadow {plain[-1]:.1f} steps/s, with shadow {shadow[-1]:.1f} steps/s")
+    env_plain = env_steps_per_s(False, 20_000)
+    env_shadow = env_steps_per_s(True, 20_000)
+    print(f"env only (no learner): without shadow {env_plain:.0f} steps/s, with shadow {env_shadow:.0f} steps/s, "
+          f"ratio {env_shadow / env_plain:.3f}")
+    ratio = float(np.sum(shadow) / np.sum(plain))
+    print(f"SAC steps/s with shadow / without: {np.mean(shadow):.1f} / {np.mean(plain):.1f} = ratio {ratio:.3f} "
+          f"(goal >= 0.95) over {args.repeats} alternating repeats of {args.steps} steps")
+
+
+if __name__ == "__main__":
+    main()
