@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 import typer
@@ -26,6 +27,10 @@ def record_clip_command(
     path = MujocoBackend().record_clip(policy, out, num_steps=steps, seed=seed)
     console.print(f"clip written: {path}")
     if datapack_out is not None:
+        # relative to the datapack file when the clip lies below it, so the pair can be moved together
+        clip_ref = path.resolve()
+        with contextlib.suppress(ValueError):
+            clip_ref = clip_ref.relative_to(datapack_out.resolve().parent)
         pack = DatapackConfig(id=datapack_id or path.stem, description=f"motion clip recorded from {policy}",
-                              motion_clips=(MotionClipRef(str(path.resolve()), 1.0),))
+                              motion_clips=(MotionClipRef(str(clip_ref), 1.0),))
         console.print(f"datapack written: {save_datapack_config(pack, datapack_out)}")

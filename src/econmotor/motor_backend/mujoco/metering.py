@@ -129,7 +129,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
         self._inv_bin = 1.0 / float(novelty_bin)
         self._free_root = int(base.model.jnt_type[0]) == int(mujoco.mjtJoint.mjJNT_FREE)
         self._wh_per_w = self.dt_s / 3600.0
-        self.visit_counts: dict[bytes, int] = {}
+        self.visit_counts: dict[bytes, int] = {}  # cell -> visits
         self.tally = EpisodeTally(self.dt_s)
         self._x0 = self._best_x = 0.0
 
@@ -160,10 +160,10 @@ class EconomicMeteringWrapper(gym.Wrapper):
         tally.energy_wh += (mech_w * self._inv_eff + self._idle_w) * self._wh_per_w
         if terminated:
             tally.errors += 1.0
-        excess = self.tilt_rad() - self._tilt_margin
+        excess = (self.tilt_rad() if self._free_root else abs(float(data.qpos[2]))) - self._tilt_margin
         if excess > 0:
             tally.risk_sum += min(1.0, excess / self._tilt_span)
-        key = np.floor(obs[: self._novelty_dims] * self._inv_bin).astype(np.int32).tobytes()
+        key = np.floor(obs[: self._novelty_dims] * self._inv_bin).tobytes()  # integral floats: a cell id
         count = self.visit_counts.get(key, 0) + 1
         self.visit_counts[key] = count
         tally.novelty_sum += count ** -0.5
