@@ -157,7 +157,8 @@ def train_and_record(request: TrainRequest, backend: Any, open_registry: Callabl
         raise
     train_id = run.start()
     registry = run.registry
-    registry.finish_run(train_id, result)
+    used_envs = (result.config or {}).get("num_envs")  # e.g. the catalog default behind num_envs=0
+    registry.finish_run(train_id, result, **({"num_envs": used_envs} if isinstance(used_envs, int) else {}))
     if request.eval_episodes <= 0:
         return registry, train_id, None
     eval_seed = request.seed + 1_000

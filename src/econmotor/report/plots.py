@@ -39,7 +39,7 @@ def episode_distributions(doc: dict[str, Any]) -> bytes | None:
     if not episodes:
         return None
     unit = doc["task"]["unit"]
-    panels = [("mpl_units_per_hour", f"MPL ({unit}s per hour)", _BLUE),
+    panels = [("mpl_units_per_hour", f"MPL (units per hour; unit: {unit})", _BLUE),
               ("energy_wh", "energy per episode (Wh)", _ORANGE),
               ("errors", "errors per episode", "#d62728")]
     fig = Figure(figsize=(11, 3.2))

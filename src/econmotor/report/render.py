@@ -165,7 +165,8 @@ def _html_table(header: tuple[str, ...] | None, rows: list[tuple[str, ...]], cls
 def render_html(doc: Mapping[str, Any], plots: Mapping[str, bytes]) -> str:
     """A self-contained HTML page: inline CSS, plots as base64 PNG data URIs."""
     s = _sections(doc)
-    bad = "" if doc["pricing"]["aggregate"].get("competitive") else " bad"
+    agg = doc["pricing"]["aggregate"]
+    bad = "" if agg.get("competitive") and (agg.get("implied_wage_usd_per_hour") or 0.0) >= 0 else " bad"
     body = [f"<h1>Task pricing report: {html.escape(doc['task']['task_id'])}</h1>",
             f'<p class="headline{bad}">{html.escape(headline(doc))}</p>',
             _html_table(None, s["facts"], "facts"),
