@@ -247,3 +247,18 @@ def test_datapacks_flag_takes_commas_repeats_and_spaces(workdir: Path) -> None:
         assert main(["report", "--motor-backend", "none", "--task-id", "dishwashing", "--db-url", url,
                      *flags, "--output-json", "picked.json", "--output-dir", "out"]) == 0
         assert json.loads((workdir / "picked.json").read_text())["runs"]["priced"] == both
+
+
+@pytest.mark.slow
+def test_demo_prints_the_html_report_path_last(workdir: Path) -> None:
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "COLUMNS": "120"}
+    env.pop("ECONMOTOR_DB_URL", None)
+    result = subprocess.run([sys.executable, "-c", "import sys; from econmotor.cli import main; "
+                             "sys.exit(main(sys.argv[1:]))", "demo", "--max-steps", "512", "--eval-episodes", "1"],
+                            cwd=workdir, env=env, capture_output=True, text=True, timeout=240, check=False)
+    assert result.returncode == 0, result.stderr[-3000:]
+    last = result.stdout.strip().splitlines()[-1]
+    assert last == "HTML report: reports/demo/hopper_courier_run2.html"
+    doc = json.loads((workdir / "reports" / "demo" / "hopper_courier_run2.json").read_text())
+    assert doc["task"]["task_id"] == "hopper_courier" and doc["runs"]["train"]["max_steps"] == 512
+    assert doc["runs"]["train"]["num_envs"] == 4  # the catalog's default, as the backend used it
