@@ -253,8 +253,8 @@ def test_datapacks_flag_takes_commas_repeats_and_spaces(workdir: Path) -> None:
 def test_demo_prints_the_html_report_path_last(workdir: Path) -> None:
     env = {**os.environ, "OMP_NUM_THREADS": "1", "COLUMNS": "120"}
     env.pop("ECONMOTOR_DB_URL", None)
-    result = subprocess.run([sys.executable, "-c", "import sys; from econmotor.cli import main; "
-                             "sys.exit(main(sys.argv[1:]))", "demo", "--max-steps", "512", "--eval-episodes", "1"],
+    entry = "import sys; from econmotor.cli import main; sys.exit(main(sys.argv[1:]))"
+    result = subprocess.run([sys.executable, "-c", entry, "demo", "--max-steps", "512", "--eval-episodes", "1"],
                             cwd=workdir, env=env, capture_output=True, text=True, timeout=240, check=False)
     assert result.returncode == 0, result.stderr[-3000:]
     last = result.stdout.strip().splitlines()[-1]
