@@ -206,7 +206,8 @@ def report_command(
         with _sigterm_as_interrupt(), progress_bars() as progress:
             reg, train_id, eval_id = train_and_record(request, backend, lambda: Registry(url), progress)
     except KeyboardInterrupt:
-        err_console.print(f"[yellow]interrupted[/]: the training run is recorded as interrupted in {url}")
+        err_console.print(f"[yellow]interrupted[/]: the run in progress is recorded as interrupted in {url}; "
+                          "completed runs are kept (report from them with --motor-backend none)", highlight=False)
         raise typer.Abort from None
     with reg:
         show_outcome(report_after_training(reg, request, train_id, eval_id, out_dir, output_json, policy))
