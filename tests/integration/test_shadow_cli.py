@@ -15,7 +15,8 @@ pytestmark = pytest.mark.slow
 def test_shadow_run_writes_logs_plot_model_and_agrees_on_the_recorded_steps(tmp_path):
     out = tmp_path / "run"
     rc = main(["shadow", "--env", "dishwashing", "--objective-preset", "throughput", "--total-steps", "400",
-               "--learning-starts", "100", "--eval-episodes", "1", "--seed", "1", "--save-dir", str(out)])
+               "--learning-starts", "100", "--eval-episodes", "1", "--seed", "1", "--save-dir", str(out),
+               "--eval-preset", "safety"])
     assert rc == 0
     lines = [json.loads(x) for x in (out / "shadow_episodes.jsonl").read_text().splitlines()]
     assert lines and all(not r["flipped"] for r in lines)
@@ -24,7 +25,7 @@ def test_shadow_run_writes_logs_plot_model_and_agrees_on_the_recorded_steps(tmp_
     assert summary["steps"] == 400 and summary["episodes"] == len(lines)
     run = json.loads((out / "run.json").read_text())
     assert run["config"]["objective_label"] == "throughput"
-    assert set(run["evaluation"]) == {"throughput"}
+    assert set(run["evaluation"]) == {"throughput", "safety"}
     assert (out / "sac_model.zip").is_file() and (out / "shadow_plot.png").is_file()
 
 
@@ -46,6 +47,13 @@ def test_flipped_lagrangian_net_run_logs_multipliers_and_saves_the_net(tmp_path)
     assert run["multipliers"] and set(run["evaluation"]) == {"default", "throughput", "energy_saver", "safety"}
     net = EconObjectiveNet.load(out / "econ_objective_net.pt")
     assert net.reward_weights([1, 1, 1, 1, 0], *_features()).alpha_mpl > 0
+    again = tmp_path / "again"
+    assert main(["shadow", "--env", "dishwashing", "--reward-weights", "net", "--reward-net",
+                 str(out / "econ_objective_net.pt"), "--total-steps", "50", "--learning-starts", "10",
+                 "--eval-episodes", "0", "--max-episode-steps", "20", "--save-dir", str(again)]) == 0
+    first = json.loads((again / "shadow_episodes.jsonl").read_text().splitlines()[0])
+    expected = net.reward_weights(first["objective_vector"], _features()[0], _features()[1]).to_list()
+    assert first["reward_weights"] == pytest.approx(expected)
 
 
 def _features():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Annotated
 
 import typer
 from rich.table import Table
@@ -27,12 +28,17 @@ def shadow_command(
     constraint_mode: str = typer.Option("penalty", "--constraint-mode", help="penalty | lagrangian."),
     objective_sampling: str = typer.Option("fixed", "--objective-sampling", help="fixed | dirichlet (per episode)."),
     reward_weights: str = typer.Option("identity", "--reward-weights", help="identity | analytic | net."),
+    reward_net: str = typer.Option(None, "--reward-net",
+                                   help="With --reward-weights net: start from this saved econ_objective_net.pt."),
     seed: int = typer.Option(0, "--seed"),
     save_dir: str = typer.Option("runs/shadow", "--save-dir", help="Run directory."),
     max_episode_steps: int = typer.Option(None, "--max-episode-steps", help="Episode length override."),
     lagrange_lr: float = typer.Option(1.0, "--lagrange-lr", help="Dual learning rate (lagrangian)."),
     learning_starts: int = typer.Option(1000, "--learning-starts", help="SAC random steps before updates."),
     eval_episodes: int = typer.Option(5, "--eval-episodes", help="Deterministic episodes per objective."),
+    eval_preset: Annotated[list[str] | None, typer.Option(
+        "--eval-preset", help="Evaluate under this preset too (repeatable); any preset for a conditioned policy.",
+    )] = None,
 ) -> None:
     """Train SAC on the legacy reward while logging the RewardBuilder reward beside it (or flipped)."""
     set_cpu_threads()
@@ -50,9 +56,13 @@ def shadow_command(
         env=env, objective=tuple(vector.to_list()), objective_label=label, total_steps=total_steps,
         use_objective_reward=use_objective_reward,
         constraints=load_constraint_set(Path(constraints)) if constraints else None, constraint_mode=constraint_mode,
-        objective_sampling=objective_sampling, reward_weights=reward_weights, seed=seed, save_dir=save_dir,
+        objective_sampling=objective_sampling, reward_weights=reward_weights, reward_net_path=reward_net,
+        seed=seed, save_dir=save_dir,
         max_episode_steps=max_episode_steps, lagrange_lr=lagrange_lr, learning_starts=learning_starts,
-        eval_episodes=eval_episodes)
+        eval_episodes=eval_episodes,
+        eval_objectives={label: tuple(vector.to_list()),
+                         **{p: tuple(ObjectiveVector.from_preset(p).to_list()) for p in eval_preset}}
+        if eval_preset else {})
     with progress_bars() as progress:
         result = train_sac_objective(config, progress)
     s = result.summary

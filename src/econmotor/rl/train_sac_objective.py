@@ -70,6 +70,7 @@ class ShadowConfig:
     constraint_mode: str = "penalty"
     objective_sampling: str = "fixed"
     reward_weights: str = "identity"
+    reward_net_path: str | None = None  # ``net``: start from a saved EconObjectiveNet (else the analytic init)
     seed: int = 0
     save_dir: str | None = None
     shadow: bool = True  # False: the same SAC on the env's own legacy reward (benchmarks)
@@ -177,7 +178,9 @@ def train_sac_objective(config: ShadowConfig, progress: ProgressFn = no_progress
 
     torch.manual_seed(config.seed)
     save_dir = Path(config.save_dir) if config.save_dir else None
-    net = EconObjectiveNet() if config.reward_weights == "net" else None
+    net = None
+    if config.reward_weights == "net":
+        net = EconObjectiveNet.load(config.reward_net_path) if config.reward_net_path else EconObjectiveNet()
     recorder = ShadowRecorder(save_dir) if config.shadow else None
     env, task, shaper = build_env(config, recorder, net)
     env.reset(seed=config.seed)
