@@ -312,8 +312,9 @@ class HolosomaBackend:
         episode_s = float(self.eval_episode_length_s or manifest["episode_length_s"])
         steps = num_episodes * math.ceil(episode_s / float(manifest["control_dt_s"]))
         run_dir = Path(output_dir or Path(policy_id) / f"eval-{time.strftime('%Y%m%d-%H%M%S')}").resolve()
+        simulator = self._eval_simulator(manifest.get("simulator", "mujoco"), run_dir, progress)
         job = {"action": "evaluate", "run_dir": str(run_dir), "checkpoint": manifest["checkpoint"],
-               "num_steps": steps, "episode_length_s": episode_s, "seed": int(seed)}
+               "num_steps": steps, "episode_length_s": episode_s, "seed": int(seed), "simulator": simulator}
         outcome = run_job(self.python, job, run_dir, progress, self.job_timeout_s)
         raw_episodes = episodes_from_recording(outcome.result["recording"], settings, num_episodes)
         if not raw_episodes:
@@ -323,6 +324,18 @@ class HolosomaBackend:
                   "exported_onnx": outcome.result.get("onnx"), "episode_length_s": episode_s, "num_steps": steps,
                   "messages": list(outcome.messages), "eval_log": outcome.log_path}
         return MotorEvalResult(policy_id, task_id, self.name, raw, econ, episodes, config)
+
+    def _eval_simulator(self, trained_on: str, run_dir: Path, progress: ProgressFn) -> str:
+        """The training simulator when this machine has it (or the one asked for), else the auto choice."""
+        caps = self.capabilities(run_dir)
+        wanted = trained_on if self.simulator == "auto" else self.simulator
+        try:
+            return choose_simulator(wanted, caps)[0]
+        except ConfigError:
+            fallback = choose_simulator("auto", caps)[0]
+            progress(f"holosoma: evaluating on {fallback}: the policy was trained on {wanted}, "
+                     "which this machine cannot run", 1.0, 1.0)
+            return fallback
 
     def deploy_policy_handle(self, policy_id: str) -> HolosomaPolicyHandle:
         """An onnxruntime handle for a trained run directory (or an ONNX file)."""

@@ -98,7 +98,7 @@ def compute_step_rates(env: Any, state: _OverlayState, params: dict[str, Any]) -
         progress_units_per_s=_progress_units_per_s(env, params),
         power_w=_power_w(env, params["efficiency"]),
         fell=fell,
-        risk=tilt_risk(env.base_quat, math.cos(params["max_tilt_rad"])),
+        risk=tilt_risk(env.simulator.base_quat, math.cos(params["max_tilt_rad"])),
         novelty=novelty,
         dt_s=float(env.dt),
         episode_s=float(env.max_episode_length_s),

@@ -30,6 +30,7 @@ from econmotor.motor_backend.holosoma.protocol import emit
 OVERLAY_TERM = "econmotor.motor_backend.holosoma_reward_terms:EconOverlayTerm"
 RECORDING_TARGET = "econmotor.motor_backend.holosoma.recording.EconRecordingCallback"
 PROJECT = "econmotor"
+MATERIAL_TERM = "randomize_robot_rigid_body_material_startup"
 
 
 def probe() -> dict[str, Any]:
@@ -73,23 +74,41 @@ def _reward_config(cfg: Any, overlay: dict[str, Any]) -> Any:
     return dataclasses.replace(cfg.reward, terms=terms)
 
 
+def _simulator_name(cfg: Any) -> str:
+    from holosoma.config_values.simulator import SIMULATOR_REGISTRY
+
+    return next((name for name, sim in SIMULATOR_REGISTRY.items() if sim._target_ == cfg.simulator._target_
+                 and sim.config.mujoco_backend == cfg.simulator.config.mujoco_backend), cfg.simulator.config.name)
+
+
+def _simulator(name: str, cfg: Any) -> Any:
+    """Registry simulator ``name`` with the episode length of ``cfg``'s simulator."""
+    from holosoma.config_values.simulator import SIMULATOR_REGISTRY
+
+    sim = SIMULATOR_REGISTRY[name]
+    episode_s = cfg.simulator.config.sim.max_episode_length_s
+    return dataclasses.replace(sim, config=dataclasses.replace(
+        sim.config, sim=dataclasses.replace(sim.config.sim, max_episode_length_s=episode_s)))
+
+
 def build_train_config(job: dict[str, Any]) -> Any:
     """The Holosoma ExperimentConfig of a train job (preset + every override)."""
     from holosoma.config_types.logger import DisabledLoggerConfig
     from holosoma.config_values.experiment import EXPERIMENT_REGISTRY
-    from holosoma.config_values.simulator import SIMULATOR_REGISTRY
     from holosoma.config_values.terrain import TERRAIN_REGISTRY
 
     cfg = EXPERIMENT_REGISTRY[job["experiment"]]
-    episode_s = cfg.simulator.config.sim.max_episode_length_s
-    sim = SIMULATOR_REGISTRY[job["simulator"]]
-    sim = dataclasses.replace(sim, config=dataclasses.replace(
-        sim.config, sim=dataclasses.replace(sim.config.sim, max_episode_length_s=episode_s)))
+    sim = _simulator(job["simulator"], cfg)
     over = job["overrides"]
     randomization = cfg.randomization
     if over["randomization"]:
         setup = dict(randomization.setup_terms)
         for term, params in over["randomization"].items():
+            if term == "randomize_friction_startup" and term not in setup and MATERIAL_TERM in setup:
+                # whole-body tracking presets randomize friction through the rigid-body material term
+                term = MATERIAL_TERM
+                params = {"static_friction_range": params["friction_range"],
+                          "dynamic_friction_range": params["friction_range"]}
             setup = _merge_term(setup, term, params, f"datapack domain_randomization -> randomization '{term}'")
         randomization = dataclasses.replace(randomization, setup_terms=setup)
     if job["simulator"] in ("mujoco", "mjwarp") and job["motion_task"]:
@@ -97,7 +116,10 @@ def build_train_config(job: dict[str, Any]) -> Any:
         emit("message", text="randomization.ignore_unsupported=True: some whole-body-tracking randomizers "
                              "have no MuJoCo implementation and are skipped")
     curriculum = cfg.curriculum
-    if over["curriculum"]:
+    if over["curriculum"] and "penalty_curriculum" not in curriculum.setup_terms:
+        emit("message", text=f"datapack curriculum ignored: preset {job['experiment']} has no PenaltyCurriculum "
+                             f"(its curriculum terms: {', '.join(sorted(curriculum.setup_terms))})")
+    elif over["curriculum"]:
         setup = _merge_term(dict(curriculum.setup_terms), "penalty_curriculum", over["curriculum"],
                             "datapack curriculum -> PenaltyCurriculum")
         curriculum = dataclasses.replace(curriculum, setup_terms=setup)
@@ -196,7 +218,10 @@ def evaluate(job: dict[str, Any]) -> dict[str, Any]:
     saved, wandb_path = load_saved_experiment_config(checkpoint)
     overrides = EvalOverridesConfig(headless=True, num_envs=1, disable_logger=True,
                                     max_episode_length_s=float(job["episode_length_s"]))
-    cfg = dataclasses.replace(saved, eval_overrides=overrides).get_eval_config()
+    saved_for_eval = dataclasses.replace(saved, eval_overrides=overrides)
+    if job.get("simulator") and job["simulator"] != _simulator_name(saved):
+        saved_for_eval = dataclasses.replace(saved_for_eval, simulator=_simulator(job["simulator"], saved))
+    cfg = saved_for_eval.get_eval_config()
     cfg = dataclasses.replace(
         cfg,
         training=dataclasses.replace(cfg.training, max_eval_steps=int(job["num_steps"]), seed=int(job["seed"]),
