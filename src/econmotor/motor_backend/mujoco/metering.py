@@ -156,7 +156,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
         if x > self._best_x:
             tally.units += (x - self._best_x) / self.leg_distance_m
             self._best_x = x
-        mech_w = float(np.abs(data.qfrc_actuator) @ np.abs(data.qvel))
+        mech_w = sum(map(abs, (data.qfrc_actuator * data.qvel).tolist()))  # faster than numpy for nv < ~50
         tally.energy_wh += (mech_w * self._inv_eff + self._idle_w) * self._wh_per_w
         if terminated:
             tally.errors += 1.0
