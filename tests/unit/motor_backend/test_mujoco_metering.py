@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from econmotor.errors import ConfigError, UnknownNameError
+from econmotor.objectives import EconomicObjectiveSpec
 from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper
 from econmotor.motor_backend.mujoco.overlay import (
     TERM_METRICS,
@@ -109,3 +110,15 @@ def test_overlay_can_replace_the_task_reward_and_rejects_unknown_terms():
     assert sum(rewards) == pytest.approx(-2.0 * infos[-1]["econ_episode"]["energy_wh"] / 1000.0)
     with pytest.raises(ConfigError, match="stability_margin"):
         EconomicOverlayWrapper(meter, {"stability_margin": -0.1})
+
+
+@pytest.mark.parametrize("task_id", ["hopper_courier", "walker_courier", "ant_courier", "humanoid_courier"])
+def test_every_courier_builds_its_metered_env(task_id):
+    from econmotor.motor_backend.mujoco.env_factory import make_env
+
+    recipe, described = MujocoBackend().recipe(task_id, EconomicObjectiveSpec(mpl_weight=1.0, error_weight=1.0))
+    env = make_env(recipe, seed=0)
+    rewards, infos, _ = run_episode(env, 0, max_steps=2000)
+    raw = infos[-1]["econ_episode"]
+    assert raw["energy_wh"] > 0 and raw["length_steps"] == len(rewards)
+    assert described["overlay_references"] == {"mpl_per_hour": 468.0, "error_rate": 0.002}

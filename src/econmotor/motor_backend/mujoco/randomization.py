@@ -43,6 +43,7 @@ CURRICULUM_KEYS = ("initial_difficulty", "max_difficulty", "ramp_steps")
 TERRAIN_HALF_SIZE_M = 30.0
 TERRAIN_CELLS = 241
 TERRAIN_CLEAR_RADIUS_M = 1.0
+_ROUGH_XML: dict[str, str] = {}
 
 
 @dataclass(frozen=True)
@@ -148,7 +149,9 @@ def make_base_env(env_id: str, env_kwargs: Mapping[str, Any], randomization: Dom
         probe = gym.make(env_id, **kwargs)
         base_xml = probe.unwrapped.fullpath
         probe.close()
-        kwargs["xml_file"] = str(rough_terrain_xml(base_xml, tempfile.mkdtemp(prefix="econmotor_terrain_")))
+        if base_xml not in _ROUGH_XML:  # one model file per process and base model
+            _ROUGH_XML[base_xml] = str(rough_terrain_xml(base_xml, tempfile.mkdtemp(prefix="econmotor_terrain_")))
+        kwargs["xml_file"] = _ROUGH_XML[base_xml]
     return gym.make(env_id, **kwargs)
 
 
