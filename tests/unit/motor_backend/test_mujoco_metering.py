@@ -5,7 +5,6 @@ import numpy as np
 import pytest
 
 from econmotor.errors import ConfigError, UnknownNameError
-from econmotor.objectives import EconomicObjectiveSpec
 from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper
 from econmotor.motor_backend.mujoco.overlay import (
     TERM_METRICS,
@@ -14,6 +13,7 @@ from econmotor.motor_backend.mujoco.overlay import (
 )
 from econmotor.motor_backend.mujoco.settings import parse_mujoco_settings
 from econmotor.motor_backend.mujoco_backend import MujocoBackend
+from econmotor.objectives import EconomicObjectiveSpec
 from econmotor.tasks import load_catalog
 
 
