@@ -9,6 +9,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from econmotor.errors import BackendError
 from econmotor.motor_backend.base import ProgressFn, no_progress
 from econmotor.motor_backend.mujoco.training import POLICY_FILE, algorithm_class, obs_normalizer
 
@@ -31,7 +32,11 @@ def torch_act_fn(model: Any, normalizer: tuple[np.ndarray, np.ndarray, float, fl
 
 def load_policy(run_dir: str | Path, algorithm: str) -> tuple[Any, ActFn]:
     """Load ``policy.zip`` (+ observation statistics) of a run: ``(model, act)``."""
-    model = algorithm_class(algorithm).load(str(Path(run_dir) / POLICY_FILE), device="cpu")
+    path = Path(run_dir) / POLICY_FILE
+    if not path.is_file():
+        raise BackendError(f"no trained policy in {run_dir} (no {POLICY_FILE}): training did not finish; "
+                           "continue it with `econmotor train --resume --output-dir <run dir>`")
+    model = algorithm_class(algorithm).load(str(path), device="cpu")
     return model, torch_act_fn(model, obs_normalizer(run_dir))
 
 
