@@ -70,7 +70,9 @@ def shadow_command(
                   f"learner reward: {'objective' if use_objective_reward else 'legacy'}, {result.steps_per_s:.0f} steps/s")
     console.print(f"correlation legacy vs objective: step Pearson {_fmt(s.get('step_pearson'))}, "
                   f"Spearman {_fmt(s.get('step_spearman'))}; episode Pearson {_fmt(s.get('episode_pearson'))}, "
-                  f"Spearman {_fmt(s.get('episode_spearman'))} over {s.get('episodes')} episodes")
+                  f"Spearman {_fmt(s.get('episode_spearman'))}; legacy sum vs episode J Pearson "
+                  f"{_fmt(s.get('legacy_vs_J_pearson'))}, Spearman {_fmt(s.get('legacy_vs_J_spearman'))} "
+                  f"over {s.get('episodes')} episodes")
     table = Table(title="evaluation (deterministic)")
     for col in ("objective", "J", "MPL units/h", "error rate", "Wh/unit", "wage parity"):
         table.add_column(col)

@@ -1,7 +1,8 @@
 """ShadowRecorder: the shadow-mode log (JSONL per episode, a summary JSON, a plot).
 
 Per step it feeds both rewards into a :class:`RunningCorrelation`; per episode it
-feeds the two episode sums into another and writes one JSON line with the episode's
+feeds the two episode sums into another (and the legacy sum against the
+episode J, the RewardBuilder scalarisation of the episode summary, into a third) and writes one JSON line with the episode's
 record (both sums, per-term totals, episode J, econ summary, constraint state) plus
 the running correlations: step Pearson over all steps (exact, streaming), step
 Spearman over the last ``window`` steps, episode Pearson and Spearman over all
@@ -52,6 +53,7 @@ class ShadowRecorder:
         self.window = int(window)
         self.steps = RunningCorrelation(capacity=4096)
         self.episodes = RunningCorrelation(capacity=256)
+        self.episode_j = RunningCorrelation(capacity=256)
         self.records: list[dict[str, Any]] = []
         self._file = None
         if self.out_dir is not None:
@@ -64,11 +66,14 @@ class ShadowRecorder:
     def end_episode(self, record: dict[str, Any]) -> dict[str, Any]:
         """Add the running correlations to ``record``, keep it and write its JSON line."""
         self.episodes.add(record["legacy_sum"], record["objective_sum"])
+        self.episode_j.add(record["legacy_sum"], record["episode_J"])
         record["correlation"] = {
             "step_pearson": self.steps.pearson(),
             "step_spearman_window": self.steps.spearman(self.window),
             "episode_pearson": self.episodes.pearson(),
             "episode_spearman": self.episodes.spearman(),
+            "legacy_vs_J_pearson": self.episode_j.pearson(),
+            "legacy_vs_J_spearman": self.episode_j.spearman(),
             "steps_so_far": self.steps.count,
         }
         record = json_safe(record)
@@ -89,6 +94,8 @@ class ShadowRecorder:
             "step_spearman": self.steps.spearman(),
             "episode_pearson": self.episodes.pearson(),
             "episode_spearman": self.episodes.spearman(),
+            "legacy_vs_J_pearson": self.episode_j.pearson(),
+            "legacy_vs_J_spearman": self.episode_j.spearman(),
             "mean_legacy_sum": mean("legacy_sum"),
             "mean_objective_sum": mean("objective_sum"),
             "mean_learner_sum": mean("learner_sum"),
@@ -128,7 +135,8 @@ class ShadowRecorder:
         x = np.arange(1, len(recs) + 1)
         for key, label in (("step_pearson", "step Pearson (all steps)"),
                            ("step_spearman_window", f"step Spearman (last {self.window} steps)"),
-                           ("episode_pearson", "episode Pearson"), ("episode_spearman", "episode Spearman")):
+                           ("episode_pearson", "episode Pearson"), ("episode_spearman", "episode Spearman"),
+                           ("legacy_vs_J_spearman", "episode Spearman, legacy sum vs J")):
             ax2.plot(x, [nan(r["correlation"][key]) for r in recs], label=label)
         ax2.set_ylim(-1.05, 1.05)
         ax2.set_xlabel("episode")

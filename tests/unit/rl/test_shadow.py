@@ -123,7 +123,11 @@ def test_recorder_writes_jsonl_summary_and_plot(tmp_path):
     assert len(lines) == 3 == summary["episodes"]
     first = json.loads(lines[0])
     assert set(first["correlation"]) >= {"step_pearson", "step_spearman_window", "episode_pearson",
-                                          "episode_spearman"}
+                                          "episode_spearman", "legacy_vs_J_pearson", "legacy_vs_J_spearman"}
     assert json.loads((tmp_path / SUMMARY_FILE).read_text())["steps"] == summary["steps"] > 0
     assert -1.0 <= summary["step_pearson"] <= 1.0
+    records = [json.loads(line) for line in lines]
+    legacy, j = np.array([r["legacy_sum"] for r in records]), np.array([r["episode_J"] for r in records])
+    dl, dj = legacy - legacy.mean(), j - j.mean()
+    assert summary["legacy_vs_J_pearson"] == pytest.approx(dl @ dj / np.sqrt((dl @ dl) * (dj @ dj)))
     assert (tmp_path / PLOT_FILE).stat().st_size > 1000
