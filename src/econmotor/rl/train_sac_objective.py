@@ -15,8 +15,8 @@ The whole training loop, top to bottom (SB3 SAC; wrappers and callbacks, no fork
 ``reward_weights`` picks the scales the objective reward applies to the RewardBuilder
 terms: ``identity`` (``combine_reward(w, terms)``, the spec's form), ``analytic``
 (dollar-consistent, :mod:`econmotor.networks.econ_objective_net`) or ``net``
-(EconObjectiveNet, which starts equal to ``analytic``, is fitted after training on the
-run's episodes and saved with the run). The objective vector is always normalised
+(EconObjectiveNet, which starts equal to ``analytic`` or to a saved net, is fitted after
+training and evaluation on the run's episodes and saved with the run). The objective vector is always normalised
 onto the simplex, for the observation and for the reward alike.
 """
 
@@ -96,6 +96,9 @@ class ShadowConfig:
         if self.total_steps < 1:
             raise ConfigError("--total-steps", None, f"must be >= 1, got {self.total_steps}")
         ObjectiveVector.from_list(list(self.objective), source="--objective-vector").normalize()
+        if not self.shadow and (self.use_objective_reward or self.constraints is not None):
+            raise ConfigError("<ShadowConfig>", "shadow", "the flip and constraints need the shadow wrapper; "
+                              "set shadow=True")
 
     def to_dict(self) -> dict[str, Any]:
         out = asdict(self)
@@ -196,9 +199,9 @@ def train_sac_objective(config: ShadowConfig, progress: ProgressFn = no_progress
     model.learn(config.total_steps, callback=callbacks)
     steps_per_s = config.total_steps / max(1e-9, time.perf_counter() - start)
     summary = recorder.finish() if recorder is not None else {}
+    evaluation = evaluate(model, config, net, progress)  # with the weights the policy trained on
     if net is not None and recorder is not None and recorder.records:
         fit_net_on_records(net, recorder.records, task)
-    evaluation = evaluate(model, config, net, progress)
     multipliers = list(shaper.multipliers.history) if shaper is not None and shaper.mode == "lagrangian" else []
     if save_dir is not None:
         save_run(save_dir, model, config, summary, evaluation, multipliers, net, steps_per_s)

@@ -1,0 +1,29 @@
+"""ShadowConfig rejects what cannot run, naming the option to fix."""
+
+from __future__ import annotations
+
+import pytest
+
+from econmotor.errors import ConfigError
+from econmotor.rl.train_sac_objective import ShadowConfig, eval_objectives
+from econmotor.valuation import ConstraintSet
+
+
+def test_bad_configs_name_the_option():
+    with pytest.raises(ConfigError, match="--reward-weights"):
+        ShadowConfig(reward_weights="learned")
+    with pytest.raises(ConfigError, match="--objective-vector"):
+        ShadowConfig(objective=(1.0, -1.0, 0.0, 0.0, 0.0))
+    with pytest.raises(ConfigError, match="all-zero"):
+        ShadowConfig(objective=(0.0, 0.0, 0.0, 0.0, 0.0))
+    with pytest.raises(ConfigError, match="shadow"):
+        ShadowConfig(shadow=False, use_objective_reward=True)
+    with pytest.raises(ConfigError, match="shadow"):
+        ShadowConfig(shadow=False, constraints=ConstraintSet(max_error_rate=0.1))
+
+
+def test_a_dirichlet_run_is_evaluated_under_the_three_presets_by_default():
+    assert set(eval_objectives(ShadowConfig(objective_sampling="dirichlet"))) == {
+        "default", "throughput", "energy_saver", "safety"}
+    assert eval_objectives(ShadowConfig(objective=(2, 1, 0.5, 1, 0), objective_label="throughput")) == {
+        "throughput": (2, 1, 0.5, 1, 0)}
