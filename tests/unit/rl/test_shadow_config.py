@@ -27,3 +27,16 @@ def test_a_dirichlet_run_is_evaluated_under_the_three_presets_by_default():
         "default", "throughput", "energy_saver", "safety"}
     assert eval_objectives(ShadowConfig(objective=(2, 1, 0.5, 1, 0), objective_label="throughput")) == {
         "throughput": (2, 1, 0.5, 1, 0)}
+
+
+def test_the_shipped_shadow_constraint_sets_load():
+    from pathlib import Path
+
+    from econmotor.valuation import load_constraint_set
+
+    root = Path(__file__).resolve().parents[3] / "configs" / "constraints"
+    files = sorted(root.glob("shadow_*.yaml"))
+    assert len(files) >= 2
+    sets = {f.stem: load_constraint_set(f) for f in files}
+    assert sets["shadow_error_cap"].max_error_rate == 0.03
+    assert sets["shadow_parity_energy"].energy_basis == "per_episode"
