@@ -104,3 +104,28 @@ def test_two_registries_creating_the_schema_at_once_on_postgresql(pg_url: str) -
     assert len(set(ids)) == 2 and len(regs[0].runs()) == 2
     for reg in regs:
         reg.close()
+
+
+def test_report_from_a_postgresql_registry(pg_url: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import json
+
+    from econmotor.cli import main
+    from econmotor.motor_backend.base import MotorEvalResult, summarize_episodes
+    from econmotor.store import Registry
+    from econmotor.tasks import get_task
+
+    monkeypatch.chdir(tmp_path)
+    task = get_task("dishwashing")
+    raw, econ, eps = summarize_episodes([{"units_completed": 50, "errors": 0, "episode_length_s": 3600,
+                                          "energy_wh": 100}], task.economics)
+    with Registry(pg_url) as reg:
+        run_id = reg.record_run("eval", MotorEvalResult("p", "dishwashing", "dishwashing", raw, econ, eps))
+    monkeypatch.setenv("ECONMOTOR_DB_URL", pg_url)  # read at the CLI edge
+    assert main(["report", "--motor-backend", "none", "--task-id", "dishwashing", "--output-dir", "out"]) == 0
+    doc = json.loads((tmp_path / "out" / f"dishwashing_run{run_id}.json").read_text())
+    # 50 dishes/h, 0.1 kWh/h: unit cost (1.75 + 0.9 + 2.0 + 0.012)/50 = 0.09324
+    assert doc["pricing"]["aggregate"]["robot_unit_cost_usd"] == pytest.approx(0.09324)
+    assert doc["registry"]["db_url"].startswith("postgresql+psycopg://econ@127.0.0.1")
+    assert not (tmp_path / ".econmotor").exists()
+    with Registry(pg_url) as reg:
+        assert [r.id for r in reg.reports("dishwashing")] == [doc["registry"]["report_id"]]
