@@ -33,7 +33,6 @@ from typing import Any
 
 import gymnasium as gym
 import mujoco
-import numpy as np
 
 from econmotor.errors import ConfigError
 
@@ -119,6 +118,8 @@ class EconomicMeteringWrapper(gym.Wrapper):
         if not hasattr(base, "data") or not hasattr(base, "model"):
             raise ConfigError(where, "env", f"{base!r} is not a MuJoCo env (no model/data)")
         self._data = base.data
+        # views into MjData's fixed buffers, read every step
+        self._qfrc, self._qvel = base.data.qfrc_actuator, base.data.qvel
         self.dt_s = float(base.dt)
         self.leg_distance_m = float(leg_distance_m)
         self._inv_eff = 1.0 / float(drivetrain_efficiency)
@@ -129,7 +130,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
         self._inv_bin = 1.0 / float(novelty_bin)
         self._free_root = int(base.model.jnt_type[0]) == int(mujoco.mjtJoint.mjJNT_FREE)
         self._wh_per_w = self.dt_s / 3600.0
-        self.visit_counts: dict[bytes, int] = {}  # cell -> visits
+        self.visit_counts: dict[tuple[int, ...], int] = {}  # cell -> visits
         self.tally = EpisodeTally(self.dt_s)
         self._x0 = self._best_x = 0.0
 
@@ -156,14 +157,15 @@ class EconomicMeteringWrapper(gym.Wrapper):
         if x > self._best_x:
             tally.units += (x - self._best_x) / self.leg_distance_m
             self._best_x = x
-        mech_w = sum(map(abs, (data.qfrc_actuator * data.qvel).tolist()))  # faster than numpy for nv < ~50
+        mech_w = sum(map(abs, (self._qfrc * self._qvel).tolist()))  # faster than np.abs(...).sum() here
         tally.energy_wh += (mech_w * self._inv_eff + self._idle_w) * self._wh_per_w
         if terminated:
             tally.errors += 1.0
         excess = (self.tilt_rad() if self._free_root else abs(float(data.qpos[2]))) - self._tilt_margin
         if excess > 0:
             tally.risk_sum += min(1.0, excess / self._tilt_span)
-        key = np.floor(obs[: self._novelty_dims] * self._inv_bin).tobytes()  # integral floats: a cell id
+        inv = self._inv_bin
+        key = tuple([math.floor(v * inv) for v in obs[: self._novelty_dims].tolist()])
         count = self.visit_counts.get(key, 0) + 1
         self.visit_counts[key] = count
         tally.novelty_sum += count ** -0.5

@@ -110,26 +110,28 @@ class EconomicOverlayWrapper(gym.Wrapper):
         self.factors = {k: self.scales[k] / float(refs.get(k, 1.0)) for k in self.scales}
         self.keep_task_reward = bool(keep_task_reward)
         self._tally: EpisodeTally = meter.tally
-        self._fns = [(k, f, getattr(EpisodeTally, TERM_METRICS[k])) for k, f in self.factors.items()]
-        self._prev = {k: 0.0 for k in self.scales}
-        self._sums = {k: 0.0 for k in self.scales}
+        self._keys = list(self.factors)
+        self._fns = [(i, self.factors[k], getattr(EpisodeTally, TERM_METRICS[k])) for i, k in enumerate(self._keys)]
+        self._prev = [0.0] * len(self._keys)  # running metric at the previous step, per key
+        self._sums = [0.0] * len(self._keys)  # episode sum of each term
 
     def reset(self, **kwargs: Any):
-        for k in self.scales:
-            self._prev[k] = self._sums[k] = 0.0
+        for i in range(len(self._keys)):
+            self._prev[i] = self._sums[i] = 0.0
         return self.env.reset(**kwargs)
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
         total = float(reward) if self.keep_task_reward else 0.0
         tally, prev, sums = self._tally, self._prev, self._sums
-        for key, factor, fn in self._fns:
+        for i, factor, fn in self._fns:
             value = fn(tally)
-            term = value - prev[key]
-            prev[key] = value
-            sums[key] += term
+            term = value - prev[i]
+            prev[i] = value
+            sums[i] += term
             total += factor * term
         if terminated or truncated:
-            info["overlay_terms"] = {k: {"raw": sums[k], "weighted": self.factors[k] * sums[k]} for k in sums}
-            info["overlay_return"] = sum(self.factors[k] * sums[k] for k in sums)
+            info["overlay_terms"] = {k: {"raw": sums[i], "weighted": self.factors[k] * sums[i]}
+                                     for i, k in enumerate(self._keys)}
+            info["overlay_return"] = sum(self.factors[k] * sums[i] for i, k in enumerate(self._keys))
         return obs, total, terminated, truncated, info
