@@ -6,7 +6,7 @@ import datetime as dt
 from dataclasses import dataclass, field
 from typing import Any
 
-from econmotor.store.models import EpisodeRow, ReportRow, RunRow
+from econmotor.store.models import ReportRow, RunRow
 
 
 @dataclass(frozen=True)
@@ -94,7 +94,8 @@ def run_record(row: RunRow) -> RunRecord:
     )
 
 
-def episode_record(ep: EpisodeRow, run: RunRow) -> EpisodeRecord:
+def episode_record(ep: Any, run: RunRow) -> EpisodeRecord:
+    """``ep``: an EpisodeRow or a row with its run_id, episode_index, termination_reason, summary."""
     return EpisodeRecord(
         run_id=ep.run_id, episode_index=ep.episode_index, task_id=run.task_id, backend=run.backend,
         run_kind=run.kind, objective_name=run.objective_name, datapack_ids=tuple(run.datapack_ids or ()),

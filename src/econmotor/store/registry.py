@@ -363,13 +363,17 @@ class Registry:
                  kind: str | None = None, status: str | None = "completed",
                  run_ids: Iterable[int] | None = None) -> list[EpisodeRecord]:
         """Per-episode summaries of matching runs, ordered by run then episode index."""
-        stmt = filter_runs(select(EpisodeRow, RunRow).join(RunRow, EpisodeRow.run_id == RunRow.id),
-                       task_id, backend, datapacks, objective, kind, status)
+        cols = (EpisodeRow.run_id, EpisodeRow.episode_index, EpisodeRow.termination_reason, EpisodeRow.summary)
+        stmt = filter_runs(select(*cols).join(RunRow, EpisodeRow.run_id == RunRow.id),
+                           task_id, backend, datapacks, objective, kind, status)
+        run_stmt = filter_runs(select(RunRow), task_id, backend, datapacks, objective, kind, status)
         if run_ids is not None:
             stmt = stmt.where(RunRow.id.in_(list(run_ids)))
+            run_stmt = run_stmt.where(RunRow.id.in_(list(run_ids)))
         stmt = stmt.order_by(EpisodeRow.run_id, EpisodeRow.episode_index)
-        with self._read() as s:
-            return [episode_record(ep, run) for ep, run in s.execute(stmt)]
+        with self._read() as s:  # plain column rows: no ORM object per episode
+            runs = {r.id: r for r in s.scalars(run_stmt)}
+            return [episode_record(row, runs[row.run_id]) for row in s.execute(stmt)]
 
     def episode_arrays(self, keys: Sequence[str] = EPISODE_COLUMNS, **filters: Any) -> dict[str, np.ndarray]:
         """Column arrays (float64, NaN where missing) of :meth:`episodes`' rows plus ``run_id``.
