@@ -123,3 +123,20 @@ def test_holosoma_error_text_is_surfaced(holosoma_venv: Path, tmp_path: Path) ->
     text = str(info.value)
     assert "Holosoma evaluate failed" in text and "missing_model.pt" in text and "Traceback" in text
     assert (tmp_path / "evaluate.log").is_file()
+
+
+def test_econmotor_core_runs_on_holosomas_numpy_1(holosoma_venv: Path) -> None:
+    code = (
+        "import numpy, econmotor.config, econmotor.objectives, econmotor.valuation, econmotor.motor_backend\n"
+        "from econmotor.economics import EconomicMeter\n"
+        "from econmotor.tasks import load_catalog\n"
+        "from econmotor.motor_backend.base import summarize_episodes\n"
+        "catalog = load_catalog()\n"
+        "econ = catalog.get('humanoid_locomotion_g1').economics\n"
+        "raw, metrics, eps = summarize_episodes([{'units_completed': 2.0, 'errors': 1.0, 'episode_length_s': 60.0,"
+        " 'energy_wh': 5.0}], econ)\n"
+        "print(numpy.__version__.split('.')[0], len(catalog.ids()) > 0, round(metrics['mpl_units_per_hour'], 6))\n"
+    )
+    out = subprocess.run([str(holosoma_venv / "bin" / "python"), "-c", code], capture_output=True, text=True,
+                         check=True, cwd=REPO)
+    assert out.stdout.split() == ["1", "True", "120.0"]
