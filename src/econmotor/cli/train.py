@@ -16,6 +16,7 @@ from econmotor.motor_backend.datapacks import load_datapack_configs
 from econmotor.motor_backend.factory import make_motor_backend
 from econmotor.objectives import EconomicObjectiveSpec
 from econmotor.objectives.loader import load_objective_spec, objective_from_vector
+from econmotor.valuation import default_objective_vector
 
 #: econ metrics shown after training / evaluation.
 SHOWN_METRICS = ("mpl_units_per_hour", "error_rate", "energy_wh_per_unit", "implied_wage_usd_per_hour",
@@ -32,7 +33,7 @@ JSON_OPTION = typer.Option(None, "--json", help="Also write the result as JSON h
 
 
 def resolve_objective(config: Path | None, preset: str | None) -> EconomicObjectiveSpec:
-    """The objective from a YAML file, a preset name, or the default (throughput weight 1)."""
+    """The objective from a YAML file, a preset name, or RewardBuilder's default vector [1, 0.2, 0.1, 0.05, 0]."""
     if config is not None and preset is not None:
         raise ConfigError("<command line>", "--objective-preset", "give --objective-config or --objective-preset")
     if config is not None:
@@ -41,7 +42,7 @@ def resolve_objective(config: Path | None, preset: str | None) -> EconomicObject
         if preset not in OBJECTIVE_PRESETS:
             raise ConfigError("<command line>", "--objective-preset", f"unknown preset '{preset}'", OBJECTIVE_PRESETS)
         return objective_from_vector(ObjectiveVector.from_preset(preset), name=preset)
-    return EconomicObjectiveSpec(name="default")
+    return objective_from_vector(ObjectiveVector.from_list(default_objective_vector()), name="default")
 
 
 def render_result(title: str, raw: dict[str, Any], econ: dict[str, Any]) -> None:
