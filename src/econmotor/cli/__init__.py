@@ -22,7 +22,7 @@ for _module in pkgutil.iter_modules(__path__):
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; econmotor errors print as one clear line and exit with status 2."""
     try:
-        app(args=argv, standalone_mode=False)
+        rc = app(args=argv, standalone_mode=False)
     except EconmotorError as exc:
         err_console.print(f"[bold red]error:[/] {exc}", highlight=False)
         return 2
@@ -40,7 +40,8 @@ def main(argv: list[str] | None = None) -> int:
             exc.show()
             return exc.exit_code
         raise
-    return 0
+    # with standalone_mode=False click returns typer.Exit's code instead of raising it
+    return rc if isinstance(rc, int) else 0
 
 
 def entrypoint() -> None:

@@ -33,3 +33,18 @@ def test_console_script_runs():
     proc = subprocess.run([sys.executable, "-m", "econmotor", "--help"], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     assert "report" in proc.stdout or "tasks" in proc.stdout
+
+
+def test_typer_exit_code_inside_a_command_is_returned():
+    import typer
+
+    from econmotor.cli import app
+
+    @app.command("_exit_probe", hidden=True)
+    def _probe() -> None:
+        raise typer.Exit(3)
+
+    try:
+        assert main(["_exit_probe"]) == 3
+    finally:
+        app.registered_commands[:] = [c for c in app.registered_commands if c.name != "_exit_probe"]
