@@ -8,6 +8,7 @@ If .venv-holosoma is missing, the fixture builds it with ``make holosoma`` (minu
 
 from __future__ import annotations
 
+import json
 import math
 import subprocess
 from pathlib import Path
@@ -115,14 +116,17 @@ def test_onnx_handle_reproduces_recorded_actions(trained) -> None:
     assert handle.act(obs[steps]).shape == (len(steps), handle.action_dim)
 
 
-def test_holosoma_error_text_is_surfaced(holosoma_venv: Path, tmp_path: Path) -> None:
-    job = {"action": "evaluate", "run_dir": str(tmp_path), "checkpoint": str(tmp_path / "missing_model.pt"),
-           "num_steps": 10, "episode_length_s": 1.0, "seed": 0}
+def test_holosoma_error_text_is_surfaced(trained, holosoma_venv: Path, tmp_path: Path) -> None:
+    # The fixture's own train job, but 2 envs on classic MuJoCo: Holosoma itself refuses.
+    _, _, result, _ = trained
+    job = json.loads((Path(result.policy_id) / "train_job.json").read_text(encoding="utf-8"))
+    job.update(num_envs=2, iterations=1, run_dir=str(tmp_path))
     with pytest.raises(BackendError) as info:
         run_job(holosoma_venv / "bin" / "python", job, tmp_path, lambda *a: None)
     text = str(info.value)
-    assert "Holosoma evaluate failed" in text and "missing_model.pt" in text and "Traceback" in text
-    assert (tmp_path / "evaluate.log").is_file()
+    assert "Holosoma train failed" in text and "Traceback" in text
+    assert "ClassicBackend only supports single environment, got 2" in text
+    assert str(tmp_path / "train.log") in text
 
 
 def test_econmotor_core_runs_on_holosomas_numpy_1(holosoma_venv: Path) -> None:
