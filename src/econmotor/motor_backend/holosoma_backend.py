@@ -113,17 +113,27 @@ class HolosomaPolicyHandle:
         self.kd = self.holosoma_metadata.get("kd")
         self.action_scale = self.holosoma_metadata.get("action_scale")
         self._input = self.session.get_inputs()[0]
+        self.takes_time_step = any(i.name == "time_step" for i in self.session.get_inputs())
         self.obs_dim = int(self._input.shape[-1])
         self.action_dim = int(self.session.get_outputs()[0].shape[-1])
 
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        """Actions for one observation ``[obs_dim]`` or a batch ``[n, obs_dim]`` (float32)."""
+    def act(self, obs: np.ndarray, time_step: int = 0) -> np.ndarray:
+        """Actions for one observation ``[obs_dim]`` or a batch ``[n, obs_dim]`` (float32).
+
+        Whole-body-tracking exports also take the motion clip's ``time_step`` (frame index).
+        """
         x = np.asarray(obs, dtype=np.float32)
         single = x.ndim == 1
         batch = x[None, :] if single else x
         if batch.shape[-1] != self.obs_dim:
             raise BackendError(f"observation width {batch.shape[-1]} does not match the policy's {self.obs_dim}")
-        out = np.concatenate([self.session.run(None, {self._input.name: row[None, :]})[0] for row in batch])
+        outputs = []
+        for row in batch:
+            feed = {self._input.name: row[None, :]}
+            if self.takes_time_step:
+                feed["time_step"] = np.array([[time_step]], dtype=np.float32)
+            outputs.append(self.session.run(None, feed)[0])
+        out = np.concatenate(outputs)
         return out[0] if single else out
 
 
