@@ -67,6 +67,7 @@ __all__ = ["HOLOSOMA_TASK_PRESETS", "HolosomaBackend", "HolosomaPolicyHandle", "
 
 VENV_ENV = "ECONMOTOR_HOLOSOMA_VENV"
 SIMULATOR_ENV = "ECONMOTOR_HOLOSOMA_SIMULATOR"
+ALGO_ENV = "ECONMOTOR_HOLOSOMA_ALGO"
 MANIFEST = "policy.json"
 _REPO_ROOT = Path(__file__).resolve().parents[3]
 
@@ -166,11 +167,12 @@ class HolosomaBackend:
     Args:
         simulator: ``auto`` (default; $ECONMOTOR_HOLOSOMA_SIMULATOR overrides), ``isaacgym``,
             ``isaacsim``, ``mjwarp`` or ``mujoco`` (classic, CPU, one env).
-        algo: ``ppo`` (default) or ``fast_sac``; a task entry's ``algo`` is used when not given.
+        algo: ``ppo`` or ``fast_sac`` ($ECONMOTOR_HOLOSOMA_ALGO, else the task entry's ``algo``, else ppo).
         venv: the Holosoma virtualenv (default: see :func:`find_holosoma_python`).
         cpu_max_env_steps: cap on environment steps when training on the CPU.
         eval_episode_length_s: evaluation episode length (default: the preset's, 20 s for locomotion).
         job_timeout_s: kill a job running longer than this.
+        task_files: user task catalog YAML files (added to the shipped catalog).
     """
 
     name = "holosoma"
@@ -183,10 +185,13 @@ class HolosomaBackend:
         cpu_max_env_steps: int = DEFAULT_CPU_MAX_ENV_STEPS,
         eval_episode_length_s: float | None = None,
         job_timeout_s: float | None = None,
+        task_files: Sequence[str | Path] = (),
     ) -> None:
         self.simulator = simulator or os.environ.get(SIMULATOR_ENV, "auto")
+        # an unknown simulator name fails here, before any job starts
         choose_simulator(self.simulator, Capabilities(cuda=True, isaacgym=True, isaacsim=True, mujoco_warp=True))
-        self.algo = algo
+        self.algo = algo or os.environ.get(ALGO_ENV) or None
+        self.task_files = list(task_files)
         self.venv = venv
         self.cpu_max_env_steps = int(cpu_max_env_steps)
         self.eval_episode_length_s = eval_episode_length_s
@@ -205,9 +210,8 @@ class HolosomaBackend:
             self._caps = Capabilities.from_dict(outcome.result)
         return self._caps
 
-    @staticmethod
-    def _task(task_id: str) -> tuple[Any, dict[str, Any]]:
-        spec = get_task(task_id)
+    def _task(self, task_id: str) -> tuple[Any, dict[str, Any]]:
+        spec = get_task(task_id, self.task_files)
         return spec, task_settings(task_id, spec.backend_entry("holosoma"), spec.source)
 
     @staticmethod
@@ -317,7 +321,7 @@ class HolosomaBackend:
         if num_episodes < 1:
             raise ConfigError("<evaluate>", "num_episodes", f"must be >= 1, got {num_episodes}")
         manifest = self._manifest(policy_id)
-        spec = get_task(task_id)
+        spec = get_task(task_id, self.task_files)
         settings = manifest["settings"]  # the physical parameters the policy was trained with
         episode_s = float(self.eval_episode_length_s or manifest["episode_length_s"])
         steps = num_episodes * math.ceil(episode_s / float(manifest["control_dt_s"]))
