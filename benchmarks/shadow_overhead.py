@@ -3,10 +3,12 @@
 Both arms train SB3 SAC on the dishwashing workcell with the legacy reward, same
 seed and hyperparameters; the shadow arm adds the ShadowRewardWrapper (both rewards
 per step, per-term sums, running Pearson/Spearman, JSONL per episode, plot at the
-end) and its callback. Arms alternate (A B A B ...) so machine load hits both alike.
-A second line times the env alone (no learner) to show the wrapper's raw cost.
+end) and its callback. Arms run in A B B A order per repeat, so a machine whose load
+drifts during the run (2 shared cores) hits both arms alike. A second line times the
+env alone (no learner) for the wrapper's raw cost per step, and a third gives the
+ratio that cost implies at the measured SAC speed (load-independent).
 
-    .venv/bin/python benchmarks/shadow_overhead.py [--steps 3000] [--repeats 2]
+    .venv/bin/python benchmarks/shadow_overhead.py [--steps 2000] [--repeats 1]
 """
 
 from __future__ import annotations
@@ -50,19 +52,24 @@ def env_steps_per_s(shadow: bool, steps: int) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=3000)
-    parser.add_argument("--repeats", type=int, default=2)
+    parser.add_argument("--steps", type=int, default=2000)
+    parser.add_argument("--repeats", type=int, default=1)
     args = parser.parse_args()
     torch.set_num_threads(1)
     plain, shadow = [], []
     for r in range(args.repeats):
-        plain.append(sac_steps_per_s(False, args.steps, seed=r))
-        shadow.append(sac_steps_per_s(True, args.steps, seed=r))
-        print(f"repeat {r}: SAC without shadow {plain[-1]:.1f} steps/s, with shadow {shadow[-1]:.1f} steps/s")
+        for arm in (False, True, True, False):
+            (shadow if arm else plain).append(sac_steps_per_s(arm, args.steps, seed=r))
+            print(f"repeat {r}: SAC {'with' if arm else 'without'} shadow "
+                  f"{(shadow if arm else plain)[-1]:.1f} steps/s", flush=True)
     env_plain = env_steps_per_s(False, 20_000)
     env_shadow = env_steps_per_s(True, 20_000)
     print(f"env only (no learner): without shadow {env_plain:.0f} steps/s, with shadow {env_shadow:.0f} steps/s, "
           f"ratio {env_shadow / env_plain:.3f}")
+    cost_s = 1.0 / env_shadow - 1.0 / env_plain
+    implied = 1.0 / (1.0 + cost_s * float(np.mean(plain)))
+    print(f"shadow wrapper cost {cost_s * 1e6:.0f} us/step -> implied SAC ratio {implied:.4f} at "
+          f"{np.mean(plain):.1f} steps/s")
     ratio = float(np.sum(shadow) / np.sum(plain))
     print(f"SAC steps/s with shadow / without: {np.mean(shadow):.1f} / {np.mean(plain):.1f} = ratio {ratio:.3f} "
           f"(goal >= 0.95) over {args.repeats} alternating repeats of {args.steps} steps")
