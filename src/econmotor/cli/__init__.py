@@ -10,6 +10,7 @@ import pkgutil
 import sys
 
 import typer
+from typer._click.exceptions import ClickException  # typer vendors click
 
 from econmotor.cli._app import app, err_console
 from econmotor.errors import EconmotorError
@@ -33,13 +34,9 @@ def main(argv: list[str] | None = None) -> int:
         return exc.exit_code
     except SystemExit as exc:  # click usage errors
         return int(exc.code or 0)
-    except Exception as exc:  # click.ClickException and friends
-        import click
-
-        if isinstance(exc, click.ClickException):
-            exc.show()
-            return exc.exit_code
-        raise
+    except ClickException as exc:  # usage errors: one message, no traceback
+        exc.show()
+        return exc.exit_code
     # with standalone_mode=False click returns typer.Exit's code instead of raising it
     return rc if isinstance(rc, int) else 0
 

@@ -48,3 +48,9 @@ def test_typer_exit_code_inside_a_command_is_returned():
         assert main(["_exit_probe"]) == 3
     finally:
         app.registered_commands[:] = [c for c in app.registered_commands if c.name != "_exit_probe"]
+
+
+def test_usage_errors_are_one_message_not_a_traceback(capsys):
+    assert main(["tasks", "--no-such-flag"]) == 2
+    err = capsys.readouterr().err
+    assert "no-such-flag" in err.lower() and "Traceback" not in err
