@@ -100,6 +100,8 @@ def test_each_overlay_term_sums_to_its_episode_metric(env_id):
         overlay_return = sum(scale * episode_metric(raw, k) / refs.get(k, 1.0) for k, scale in scales.items())
         assert sum(rewards) == pytest.approx(sum(task_rewards) + overlay_return, rel=1e-9)
         progressed.append(raw["units_completed"] > 0)
+        tally = meter.tally  # the overlay's one-call snapshot agrees with the named running metrics
+        assert tally.running_metrics() == tuple(getattr(tally, key)() for key in TERM_METRICS)
     assert any(progressed)  # the mpl and error terms were exercised with non-zero units
 
 

@@ -83,6 +83,19 @@ class EpisodeTally:
     def pose_tracking(self) -> float:
         return self.pose_sum
 
+    def running_metrics(self) -> tuple[float, float, float, float, float, float]:
+        """All six running metrics at once, in :data:`RUNNING_METRIC_KEYS` order (one call per step)."""
+        steps, units, errors = self.steps, self.units, self.errors
+        attempted = units + errors
+        if steps:
+            return (units * 3600.0 / (steps * self.dt_s), errors / attempted if attempted > 0 else 0.0,
+                    self.energy_wh / 1000.0, self.risk_sum / steps, self.novelty_sum / steps, self.pose_sum)
+        return (0.0, 0.0, self.energy_wh / 1000.0, 0.0, 0.0, self.pose_sum)
+
+
+#: overlay keys in the order of :meth:`EpisodeTally.running_metrics`.
+RUNNING_METRIC_KEYS = ("mpl_per_hour", "error_rate", "energy_kwh", "risk_score", "novelty_score", "pose_tracking")
+
 
 class EconomicMeteringWrapper(gym.Wrapper):
     """Meter units, energy, falls, risk and novelty of a Gymnasium MuJoCo env (see module doc).

@@ -36,20 +36,14 @@ import gymnasium as gym
 
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.mujoco.metering import (
+    RUNNING_METRIC_KEYS,
     EconomicMeteringWrapper,
     EpisodeTally,
     find_wrapper,
 )
 
-#: overlay key -> the EpisodeTally method giving its running episode metric.
-TERM_METRICS: dict[str, str] = {
-    "mpl_per_hour": "mpl_per_hour",
-    "error_rate": "error_rate",
-    "energy_kwh": "energy_kwh",
-    "risk_score": "risk_score",
-    "novelty_score": "novelty_score",
-    "pose_tracking": "pose_tracking",
-}
+#: overlay keys this backend can weight (each an EpisodeTally running metric of the same name).
+TERM_METRICS: tuple[str, ...] = RUNNING_METRIC_KEYS
 
 
 def human_baseline_references(mp_human_units_per_hour: float, error_rate_human: float, idle_power_w: float,
@@ -111,7 +105,7 @@ class EconomicOverlayWrapper(gym.Wrapper):
         self.keep_task_reward = bool(keep_task_reward)
         self._tally: EpisodeTally = meter.tally
         self._keys = list(self.factors)
-        self._fns = [(i, self.factors[k], getattr(EpisodeTally, TERM_METRICS[k])) for i, k in enumerate(self._keys)]
+        self._fns = [(i, self.factors[k], RUNNING_METRIC_KEYS.index(k)) for i, k in enumerate(self._keys)]
         self._prev = [0.0] * len(self._keys)  # running metric at the previous step, per key
         self._sums = [0.0] * len(self._keys)  # episode sum of each term
 
@@ -124,8 +118,9 @@ class EconomicOverlayWrapper(gym.Wrapper):
         obs, reward, terminated, truncated, info = self.env.step(action)
         total = float(reward) if self.keep_task_reward else 0.0
         tally, prev, sums = self._tally, self._prev, self._sums
-        for i, factor, fn in self._fns:
-            value = fn(tally)
+        metrics = tally.running_metrics()
+        for i, factor, m in self._fns:
+            value = metrics[m]
             term = value - prev[i]
             prev[i] = value
             sums[i] += term
