@@ -232,7 +232,7 @@ def evaluate(job: dict[str, Any]) -> dict[str, Any]:
     callbacks = EvalCallbacksConfig(recording=RecordingCallbackConfig(
         _target_=RECORDING_TARGET, config=RecordingConfig(enabled=True, output_path=recording_path)))
     os.environ["ECONMOTOR_EVAL_STEPS"] = str(int(job["num_steps"]))
-    emit("message", text=f"Holosoma eval_agent: {job['num_steps']} steps on {cfg.simulator.config.name}, "
+    emit("message", text=f"Holosoma eval_agent: {job['num_steps']} steps on {_simulator_name(cfg)}, "
                          f"episodes of {job['episode_length_s']} s, recording to {recording_path}")
     run_eval_with_tyro(cfg, checkpoint, saved, wandb_path, eval_cbs_cfg=callbacks)
     ckpt = Path(job["checkpoint"])
