@@ -75,6 +75,9 @@ def test_curriculum_raises_difficulty_of_the_training_envs(tmp_path):
     events = EventAccumulator(str(next((tmp_path / "run" / "tb").iterdir()))).Reload()
     values = [e.value for e in events.Scalars("curriculum/difficulty")]
     assert values[0] < 0.3 and values[-1] > 0.9 and values == sorted(values)
+    # per-term episode sums go to TensorBoard raw and weighted, with the metered episode metrics
+    tags = set(events.Tags()["scalars"])
+    assert {"overlay/mpl_per_hour_raw", "overlay/mpl_per_hour_weighted", "econ/energy_wh"} <= tags
 
 
 def test_rough_terrain_height_follows_difficulty():
