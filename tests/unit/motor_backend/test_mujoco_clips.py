@@ -56,3 +56,19 @@ def test_bad_clip_files_name_the_datapack_and_key(tmp_path, arrays, match):
     with pytest.raises(ConfigError, match=match) as err:
         load_clip(path, nq=6, origin="datapack 'mocap_v1'", key="motion_clips[0]")
     assert err.value.key == "motion_clips[0].path" and "mocap_v1" in str(err.value)
+
+
+def test_clips_are_sampled_by_weight(tmp_path):
+    rng = np.random.default_rng(2)
+    base = np.array([0, 1.25, 0, 0, 0, 0])
+    heavy = load_clip(save_clip(tmp_path / "a.npz", base + rng.normal(0, 0.01, (20, 6)), 125.0), 6, weight=3.0)
+    never = load_clip(save_clip(tmp_path / "b.npz", base + 0.3 + rng.normal(0, 0.01, (20, 6)), 125.0), 6, weight=0.0)
+    light = load_clip(save_clip(tmp_path / "c.npz", base - 0.2 + rng.normal(0, 0.01, (20, 6)), 125.0), 6, weight=1.0)
+    env = PoseTrackingWrapper(gym.make("Hopper-v5"), [heavy, never, light], seed=0)
+    picks = []
+    for seed in range(200):
+        env.reset(seed=seed)
+        picks.append(env.current_clip.path)
+    assert never.path not in picks
+    share = picks.count(heavy.path) / len(picks)
+    assert 0.65 < share < 0.85  # 3 : 1

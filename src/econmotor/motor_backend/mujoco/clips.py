@@ -143,6 +143,11 @@ class PoseTrackingWrapper(gym.Wrapper):
             obs = self._base._get_obs()
         return obs, info
 
+    @property
+    def current_clip(self) -> MotionClip:
+        """The clip this episode tracks (drawn by weight at reset)."""
+        return self._clip
+
     def reference_frame(self) -> np.ndarray:
         """The clip's qpos at the current time (looping)."""
         t = self._t0 + self._steps * self._dt
