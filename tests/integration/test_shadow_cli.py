@@ -52,15 +52,16 @@ def test_flipped_lagrangian_net_run_logs_multipliers_and_saves_the_net(tmp_path)
                  str(out / "econ_objective_net.pt"), "--total-steps", "50", "--learning-starts", "10",
                  "--eval-episodes", "0", "--max-episode-steps", "20", "--save-dir", str(again)]) == 0
     first = json.loads((again / "shadow_episodes.jsonl").read_text().splitlines()[0])
-    expected = net.reward_weights(first["objective_vector"], _features()[0], _features()[1]).to_list()
+    # the step terms sum to the episode's: the net sees the episode's hours (20 one-minute steps)
+    expected = net.reward_weights(first["objective_vector"], *_features(episode_steps=20)).to_list()
     assert first["reward_weights"] == pytest.approx(expected)
 
 
-def _features():
+def _features(episode_steps=240):
     from econmotor.networks.econ_objective_net import EconFeatures, EnergyResponse
     from econmotor.tasks import get_task
 
-    return EconFeatures.from_economics(get_task("dishwashing").economics), EnergyResponse(1 / 60)
+    return EconFeatures.from_economics(get_task("dishwashing").economics), EnergyResponse(episode_steps / 60)
 
 
 def test_shadow_runs_on_a_mujoco_task(tmp_path):

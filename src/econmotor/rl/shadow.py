@@ -7,9 +7,14 @@ dishwashing key set: ``d_mpl``, ``error_rate_t``, ``implied_wage_t``,
 
 - legacy: ``alpha*d_mpl - beta*error_rate_t - gamma*|implied_wage_t/wage_human - 1|``
   via :func:`econmotor.economics.compute_econ_reward`;
-- objective: ``combine_reward(reward_weights, build_reward_terms(step_summary, reward_params))``,
+- objective: ``combine_reward(reward_weights, IncrementalRewardTerms.step(step_summary, reward_params))``,
   every term kept (``reward_weights`` from the episode's objective vector:
-  identity, analytic or EconObjectiveNet).
+  identity, analytic or EconObjectiveNet). The incremental terms (change of the
+  running MPL and error rate, the step's energy, -1 once on a catastrophic end, change
+  of the running novelty) sum over an episode to ``build_reward_terms(episode_summary)``,
+  so ``objective_sum == combine_reward(reward_weights, episode_terms)`` and, with
+  ``identity`` weights, ``objective_sum == episode_J``: the objective return is the
+  episode J, as the legacy ``alpha*dMP`` term sums to the episode MPL.
 
 The learner sees ``legacy`` unless ``use_objective_reward`` (the flip), then the
 constraint shaping (:mod:`econmotor.rl.constraint_shaping`) if any. Nothing else
@@ -36,7 +41,12 @@ from econmotor.motor_backend.base import episode_summary
 from econmotor.rl.conditioning import ObjectiveConditioningWrapper
 from econmotor.rl.constraint_shaping import ConstraintShaper
 from econmotor.rl.shadow_log import ShadowRecorder
-from econmotor.valuation.reward_builder import REWARD_TERM_NAMES, build_reward_terms, combine_reward
+from econmotor.valuation.reward_builder import (
+    REWARD_TERM_NAMES,
+    IncrementalRewardTerms,
+    build_reward_terms,
+    combine_reward,
+)
 
 WeightsFn = Callable[[ObjectiveVector], RewardWeights]
 ECON_SUMMARY_KEYS = ("mpl_episode", "error_rate_episode", "energy_Wh", "energy_Wh_per_unit", "wage_parity",
@@ -89,6 +99,7 @@ class ShadowRewardWrapper(gym.Wrapper):
         self.legacy_weights, self.constraints = legacy_weights or LegacyRewardWeights(), constraints
         self.recorder = recorder if recorder is not None else ShadowRecorder()
         self._conditioning = find_conditioning(env)
+        self.incremental = IncrementalRewardTerms()
         self.episode_index = 0
         self._start_episode()
 
@@ -98,6 +109,7 @@ class ShadowRewardWrapper(gym.Wrapper):
         self._w = self.weights.to_list()
         self.legacy_sum = self.objective_sum = self.learner_sum = 0.0
         self.term_sums = dict.fromkeys(REWARD_TERM_NAMES, 0.0)
+        self.incremental.reset()
         self.steps = 0
 
     def reset(self, **kwargs: Any):
@@ -112,7 +124,7 @@ class ShadowRewardWrapper(gym.Wrapper):
             raise ConfigError("<env>", "info.step_summary", "shadow mode needs a per-step summary in info; wrap "
                               "MuJoCo envs in econmotor.rl.step_summary.MujocoStepSummaryWrapper")
         legacy = legacy_step_reward(summary, self.legacy_weights)
-        terms = build_reward_terms(summary, self.reward_params)
+        terms = self.incremental.step(summary, self.reward_params)
         objective = combine_reward(self._w, terms)
         reward = objective if self.use_objective_reward else legacy
         if self.constraints is not None:
@@ -154,6 +166,7 @@ class ShadowRewardWrapper(gym.Wrapper):
             "term_totals_weighted": {k: w * self.term_sums[k] for k, w in zip(REWARD_TERM_NAMES, self._w)},
             "episode_terms": ep_terms,
             "episode_J": combine_reward(vector, ep_terms),
+            "episode_objective": combine_reward(self._w, ep_terms),
             "econ": {k: ep.get(k) for k in ECON_SUMMARY_KEYS if k in ep},
         }
         if self.constraints is not None:

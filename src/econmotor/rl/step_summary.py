@@ -11,7 +11,9 @@ tally around each step and writes ``info["step_summary"]``:
   over an episode is the episode MPL), ``mpl_step = units / dt_h``;
 - ``error_rate_t = errors / attempts`` (0 with no attempt), ``implied_wage_t =
   p * mpl_step - c_d * error_rate_t * mpl_step``, ``wage_human``, ``wage_parity_t``;
-- ``catastrophic`` (a fall), ``novelty`` (this step's novelty bonus), ``termination_reason``.
+- ``catastrophic`` (a fall), ``novelty`` (this step's novelty bonus), ``novelty_running``
+  (the running episode novelty score, the mean bonus so far, as the episode reports it),
+  ``termination_reason``.
 """
 
 from __future__ import annotations
@@ -68,6 +70,7 @@ class MujocoStepSummaryWrapper(gym.Wrapper):
             "error_rate_t": err, "implied_wage_t": wage, "wage_human": econ.wage_human_usd_per_hour,
             "wage_parity_t": labour.wage_parity(wage, econ.wage_human_usd_per_hour),
             "catastrophic": bool(terminated), "novelty": t.novelty_sum - novelty0,
+            "novelty_running": t.novelty_score(),
             "termination_reason": reason,
         }
         self._prev_mpl = mpl

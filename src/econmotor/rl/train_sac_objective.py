@@ -146,9 +146,15 @@ class ShadowCallback(BaseCallback):
 
 
 def make_weights_fn(mode: str, task: TaskEnv, net: EconObjectiveNet | None):
-    """Objective vector -> RewardWeights for step summaries of ``task`` (identity / analytic / net)."""
+    """Objective vector -> RewardWeights for the step terms of ``task`` (identity / analytic / net).
+
+    The shadow wrapper's step terms are increments whose episode sums are the episode's
+    terms, so the summary they cover is an episode: the analytic mapping's ``h`` is the
+    episode length limit in hours (``max_episode_steps * dt_s / 3600``), as in
+    :func:`fit_net_on_records`.
+    """
     econ = EconFeatures.from_economics(task.economics)
-    energy = EnergyResponse(task.dt_s / 3600.0, getattr(task.reward_params, "energy_price_usd_per_kwh", None)
+    energy = EnergyResponse(task.max_episode_steps * task.dt_s / 3600.0, getattr(task.reward_params, "energy_price_usd_per_kwh", None)
                             is not None)
     if mode == "identity":
         return identity_reward_weights

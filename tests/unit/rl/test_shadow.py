@@ -19,13 +19,16 @@ from econmotor.tasks import get_task
 from econmotor.valuation import ConstraintSet
 
 THROUGHPUT = ObjectiveVector.from_preset("throughput")
+ALL_TERMS = ObjectiveVector.from_list([2.0, 1.0, 0.5, 1.0, 0.5])
+#: catastrophe-prone toy workcell: 3 catastrophic steps end the shift, no SLA termination.
+CLUMSY = EconParams.preset("toy").with_overrides({"k_err": 0.6, "max_error_rate_sla": 10.0})
 
 
-def make_env(flip=False, constraints=None, recorder=None, conditioned=False):
-    base = DishwashingEnv(EconParams.preset("toy"), reward_mode="legacy")
-    env = ObjectiveConditioningWrapper(base, THROUGHPUT, "fixed") if conditioned else base
+def make_env(flip=False, constraints=None, recorder=None, conditioned=False, params=None, objective=THROUGHPUT):
+    base = DishwashingEnv(params or EconParams.preset("toy"), reward_mode="legacy")
+    env = ObjectiveConditioningWrapper(base, objective, "fixed") if conditioned else base
     return ShadowRewardWrapper(env, economics=get_task("dishwashing").economics, reward_params=base.params,
-                               weights_for=identity_reward_weights, objective=THROUGHPUT,
+                               weights_for=identity_reward_weights, objective=objective,
                                use_objective_reward=flip, constraints=constraints, recorder=recorder)
 
 
@@ -38,33 +41,47 @@ def rollout(env, acts, seed=11):
     steps = []
     for a in acts:
         obs, reward, terminated, truncated, info = env.step(a)
-        steps.append({"obs": obs, "reward": reward, "info": info})
+        steps.append({"obs": obs, "reward": reward, "info": info, "action": a})
         if terminated or truncated:
             break
     return obs0, steps
 
 
 def test_both_rewards_equal_hand_computed_values_on_recorded_steps():
-    _, steps = rollout(make_env(), actions(40))
-    assert len(steps) >= 5
-    w = np.array([2, 1, 0.5, 1, 0]) / 4.5
+    # a catastrophe-prone shift: catastrophic steps happen before the one that ends it
+    _, steps = rollout(make_env(params=CLUMSY, objective=ALL_TERMS), actions(300))
+    catastrophic_steps = [s["info"]["step_summary"]["errors"] == s["info"]["step_summary"]["attempts"]
+                          for s in steps]
+    assert steps[-1]["info"]["step_summary"]["termination_reason"] == "catastrophic_error"
+    assert sum(catastrophic_steps[:-1]) == 2 and catastrophic_steps[-1]
+    w = np.array([2, 1, 0.5, 1, 0.5]) / 5.0
     dt_h = 60.0 / 3600.0
-    units_total, mpl_prev = 0, 0.0
+    units_total = errors_total = attempts_total = 0
+    mpl_prev = err_rate_prev = 0.0
+    cells = set()
     for t, step in enumerate(steps, start=1):
         s = step["info"]["step_summary"]
         units_total += s["units"]
+        errors_total += s["errors"]
+        attempts_total += s["attempts"]
         mpl_run = units_total / (t * dt_h)
+        err_rate_run = errors_total / attempts_total
         err = s["errors"] / s["attempts"]
         mpl_step = s["units"] / dt_h
         wage = 0.30 * mpl_step - 1.0 * err * mpl_step  # p*MP - c_d*e*MP, toy prices
         legacy = (mpl_run - mpl_prev) - 1.0 * err - 0.1 * abs(wage / 18.0 - 1.0)
         wh = s["attempts"] * 0.05  # no electricity price in 'toy': r_energy = -Wh
-        catastrophic = 1.0 if s["errors"] == s["attempts"] else 0.0
-        objective = w[0] * mpl_run - w[1] * err - w[2] * wh - w[3] * catastrophic
+        ends_in_catastrophe = 1.0 if t == len(steps) else 0.0  # once, on the step that ends the shift
+        speed, care = (float(x) for x in step["action"])
+        cell = (min(int(speed * 5), 4), min(int(care * 5), 4))
+        novelty = 0.0 if cell in cells else 1.0 / 25.0  # share of the 5x5 (speed, care) grid visited
+        cells.add(cell)
+        objective = (w[0] * (mpl_run - mpl_prev) - w[1] * (err_rate_run - err_rate_prev) - w[2] * wh
+                     - w[3] * ends_in_catastrophe + w[4] * novelty)
         assert step["info"]["shadow"]["legacy"] == pytest.approx(legacy, rel=1e-9, abs=1e-9)
         assert step["info"]["shadow"]["objective"] == pytest.approx(objective, rel=1e-9, abs=1e-9)
         assert step["reward"] == step["info"]["shadow"]["legacy"]
-        mpl_prev = mpl_run
+        mpl_prev, err_rate_prev = mpl_run, err_rate_run
 
 
 def test_episode_record_sums_terms_and_episode_j_by_hand():
@@ -74,13 +91,34 @@ def test_episode_record_sums_terms_and_episode_j_by_hand():
     assert record["steps"] == len(steps)
     assert record["legacy_sum"] == pytest.approx(sum(s["info"]["shadow"]["legacy"] for s in steps))
     assert record["objective_sum"] == pytest.approx(sum(s["info"]["shadow"]["objective"] for s in steps))
-    assert record["term_totals"]["r_error"] == pytest.approx(
-        -sum(s["info"]["step_summary"]["error_rate_t"] for s in steps))
+    units, errors, attempts = (sum(s["info"]["step_summary"][k] for s in steps) for k in ("units", "errors", "attempts"))
+    hours = len(steps) * 60.0 / 3600.0
+    assert record["term_totals"]["r_mpl"] == pytest.approx(units / hours, rel=1e-9)
+    assert record["term_totals"]["r_error"] == pytest.approx(-errors / attempts, rel=1e-9)
+    assert record["term_totals"]["r_energy"] == pytest.approx(-0.05 * attempts, rel=1e-9)
     w = np.array([2, 1, 0.5, 1, 0]) / 4.5
     catastrophic = 1.0 if ep["termination_reason"] == "catastrophic_error" else 0.0
-    j = w[0] * ep["mpl_episode"] - w[1] * ep["error_rate_episode"] - w[2] * ep["energy_Wh"] - w[3] * catastrophic
-    assert record["episode_J"] == pytest.approx(j)
+    j = w[0] * units / hours - w[1] * errors / attempts - w[2] * 0.05 * attempts - w[3] * catastrophic
+    assert record["episode_J"] == pytest.approx(j, rel=1e-9)
     assert record["econ"]["termination_reason"] == ep["termination_reason"]
+
+
+PRICED = EconParams.preset("realistic").with_overrides({"energy_price_usd_per_kwh": 0.12})
+
+
+@pytest.mark.parametrize("params", [EconParams.preset("toy"), CLUMSY, PRICED],
+                         ids=["toy", "catastrophe_prone", "realistic_priced"])
+def test_step_objective_rewards_sum_to_the_episode_j(params):
+    """The invariant: sum_t objective_t == combine_reward(w, build_reward_terms(episode summary))."""
+    env = make_env(params=params, objective=ALL_TERMS)
+    for episode in range(3):
+        _, steps = rollout(env, actions(300, seed=episode), seed=episode)
+        record = steps[-1]["info"]["shadow_episode"]
+        total = sum(s["info"]["shadow"]["objective"] for s in steps)
+        assert total == pytest.approx(record["episode_J"], rel=1e-6, abs=1e-9)
+        assert record["objective_sum"] == pytest.approx(record["episode_J"], rel=1e-6, abs=1e-9)
+        for name, value in record["episode_terms"].items():
+            assert record["term_totals"][name] == pytest.approx(value, rel=1e-6, abs=1e-9), name
 
 
 def test_the_flip_changes_only_which_reward_the_learner_sees():

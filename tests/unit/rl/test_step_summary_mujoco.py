@@ -32,22 +32,51 @@ def test_step_summaries_add_up_to_the_metered_episode():
     assert info["step_summary"]["catastrophic"] == (raw["termination_reason"] == "fall")
 
 
-def test_shadow_wrapper_runs_on_a_mujoco_task_with_priced_energy():
+def shadow_episode(vector, seed):
     task = make_task_env("hopper_courier")
     env = ShadowRewardWrapper(task.env, economics=task.economics, reward_params=task.reward_params,
-                              weights_for=identity_reward_weights, objective=ObjectiveVector.from_preset("balanced"))
-    env.reset(seed=0)
-    env.action_space.seed(0)
+                              weights_for=identity_reward_weights, objective=ObjectiveVector.from_list(vector))
+    env.reset(seed=seed)
+    env.action_space.seed(seed)
+    steps = []
     for _ in range(task.max_episode_steps):
         _, reward, terminated, truncated, info = env.step(env.action_space.sample())
-        s = info["step_summary"]
-        # r_energy is priced in USD for catalog economics: -(pi_e * Wh / 1000)
-        expected = (s["mpl_t"] - s["error_rate_t"] - task.economics.energy_price_usd_per_kwh * s["Wh"] / 1000.0
-                    - (1.0 if s["catastrophic"] else 0.0) + 0.0) / 4.0
-        assert info["shadow"]["objective"] == pytest.approx(expected, rel=1e-9, abs=1e-12)
-        assert reward == info["shadow"]["legacy"]
+        steps.append((reward, info))
         if terminated or truncated:
             break
-    record = info["shadow_episode"]
+    return task, steps
+
+
+def test_shadow_wrapper_runs_on_a_mujoco_task_with_priced_energy():
+    task, steps = shadow_episode([1.0, 1.0, 1.0, 1.0, 0.0], seed=0)
+    units = errors = novelty = 0.0
+    mpl_prev = err_prev = 0.0
+    dt_h = task.dt_s / 3600.0
+    for t, (reward, info) in enumerate(steps, start=1):
+        s = info["step_summary"]
+        units, errors, novelty = units + s["units"], errors + s["errors"], novelty + s["novelty"]
+        mpl, err = units / (t * dt_h), (errors / (units + errors) if units + errors > 0 else 0.0)
+        fell = 1.0 if s["termination_reason"] == "fall" else 0.0
+        # increments of the running episode metrics; r_energy priced in USD: -(pi_e * Wh / 1000)
+        expected = ((mpl - mpl_prev) - (err - err_prev) - task.economics.energy_price_usd_per_kwh * s["Wh"] / 1000.0
+                    - fell) / 4.0
+        assert info["shadow"]["objective"] == pytest.approx(expected, rel=1e-9, abs=1e-12)
+        assert s["novelty_running"] == pytest.approx(novelty / t, rel=1e-12)
+        assert reward == info["shadow"]["legacy"]
+        mpl_prev, err_prev = mpl, err
+    record = steps[-1][1]["shadow_episode"]
     assert record["econ"]["termination_reason"] in ("fall", "max_steps")
     assert np.isfinite(record["episode_J"])
+
+
+def test_step_objective_rewards_sum_to_the_episode_j_on_hopper_courier():
+    """The invariant on a real MuJoCo episode, every term weighted (novelty: mean visit bonus)."""
+    _, steps = shadow_episode([1.0, 2.0, 0.5, 1.0, 3.0], seed=4)
+    record = steps[-1][1]["shadow_episode"]
+    assert record["steps"] == len(steps) > 1
+    total = sum(info["shadow"]["objective"] for _, info in steps)
+    assert total == pytest.approx(record["episode_J"], rel=1e-6, abs=1e-9)
+    for name, value in record["episode_terms"].items():
+        assert record["term_totals"][name] == pytest.approx(value, rel=1e-6, abs=1e-9), name
+    assert record["term_totals"]["r_safety"] == (-1.0 if record["econ"]["termination_reason"] == "fall" else 0.0)
+    assert record["episode_terms"]["r_novelty"] > 0

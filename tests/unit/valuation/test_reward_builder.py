@@ -46,3 +46,42 @@ def test_presets_order_good_over_bad_and_accept_objective_vectors():
 def test_combine_reward_needs_five_weights():
     with pytest.raises(ValueError):
         combine_reward([1.0, 2.0], build_reward_terms(GOOD))
+
+
+def test_incremental_terms_sum_to_the_episode_terms_of_recorded_counts():
+    from econmotor.valuation.reward_builder import IncrementalRewardTerms
+
+    # three 1-minute steps: (good units, errors, Wh); the shift ends in a catastrophe
+    counts = [(2, 0, 0.1), (0, 0, 0.05), (1, 2, 0.15)]
+    reasons = [None, None, "catastrophic_error"]
+    novelty_running = [0.5, 0.25, 0.5]
+    price = EconParams(energy_price_usd_per_kwh=0.12)
+    incremental, sums, units = IncrementalRewardTerms(), {}, 0
+    for t, ((u, e, wh), reason, nov) in enumerate(zip(counts, reasons, novelty_running, strict=True), start=1):
+        units += u
+        step = {"mpl_t": units / (t / 60.0), "errors": e, "attempts": u + e, "Wh": wh,
+                "termination_reason": reason, "novelty_running": nov, "catastrophic": e > 0 and u == 0}
+        for name, value in incremental.step(step, price).items():
+            sums[name] = sums.get(name, 0.0) + value
+    # the episode by hand: 3 units in 3 minutes, 2 errors in 5 attempts, 0.3 Wh at $0.12/kWh
+    assert sums == pytest.approx({"r_mpl": 60.0, "r_error": -0.4, "r_energy": -0.3 * 0.12 / 1000.0,
+                                  "r_safety": -1.0, "r_novelty": 0.5})
+    episode = {"mpl": 60.0, "error_rate": 0.4, "energy_Wh": 0.3, "termination_reason": "catastrophic_error",
+               "novelty": 0.5}
+    assert sums == pytest.approx(build_reward_terms(episode, price))
+
+
+def test_incremental_safety_fires_once_and_reset_starts_a_new_episode():
+    from econmotor.valuation.reward_builder import IncrementalRewardTerms
+
+    incremental = IncrementalRewardTerms()
+    step = {"mpl_t": 30.0, "errors": 1, "attempts": 1, "Wh": 2.0, "vase_broken": True,
+            "overlay_terms": {"novelty_score": 0.04}}
+    first, second = incremental.step(step), incremental.step(step)
+    assert (first["r_safety"], second["r_safety"]) == (-1.0, 0.0)
+    assert (first["r_mpl"], second["r_mpl"]) == (30.0, 0.0)
+    assert first["r_energy"] == -2.0 and first["r_novelty"] == 0.04  # no price: Wh; overlay novelty increment
+    incremental.reset()
+    assert incremental.step({**step, "errors": 0})["r_safety"] == -1.0
+    with pytest.raises(ValueError, match="attempts"):
+        incremental.step({"mpl_t": 1.0, "errors": 0})
