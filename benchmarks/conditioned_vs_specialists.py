@@ -7,7 +7,9 @@ RewardBuilder reward (flipped) with dollar-consistent (``analytic``) weights, on
 same workcell as benchmarks/constraints_dishwashing.py. Each policy is evaluated
 deterministically under each preset, pinned in the observation. Printed per preset:
 
-- return: the episode sum of the trained per-step objective reward (analytic weights);
+- return: the episode sum of the trained per-step objective reward (analytic weights;
+  the step terms are increments summing to the episode's, so this is the analytic
+  scalarisation of the episode summary);
 - J: ``combine_reward(normalised preset, build_reward_terms(episode summary))`` (spec form);
 - the conditioned policy's ratio to the specialist on both (goal: >= 0.90).
 
