@@ -24,8 +24,8 @@ SHOWN_METRICS = ("mpl_units_per_hour", "error_rate", "energy_wh_per_unit", "impl
 
 
 # options shared by train and evaluate (module-level, as Typer allows and ruff's B008 prefers)
-TASK_OPTION = typer.Option(..., "--task", help="Task id from the catalog (econmotor tasks).")
-BACKEND_OPTION = typer.Option("mujoco", "--backend", help="Motor backend factory name.")
+TASK_OPTION = typer.Option(..., "--task-id", "--task", help="Task id from the catalog (econmotor tasks).")
+BACKEND_OPTION = typer.Option("mujoco", "--motor-backend", "--backend", help="Motor backend factory name.")
 OBJECTIVE_CONFIG_OPTION = typer.Option(None, "--objective-config", help="Objective YAML.")
 OBJECTIVE_PRESET_OPTION = typer.Option(None, "--objective-preset", help="Objective preset name.")
 SEED_OPTION = typer.Option(0, "--seed")
