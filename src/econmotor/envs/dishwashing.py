@@ -36,8 +36,17 @@ Rewards (``reward_mode``):
   :attr:`DishwashingEnv.ignored_overlay_keys`.
 - ``"legacy"``: :func:`econmotor.economics.compute_econ_reward` on the step summary
   (``d_mpl``, ``error_rate_t``, ``implied_wage_t``, ``wage_human``).
-- ``"reward_builder"``: ``combine_reward(objective_vector, build_reward_terms(step_summary,
-  econ_params))`` — running MPL, the step's error rate, the step's Wh, -1 on a catastrophic step.
+- ``"reward_builder"``: ``combine_reward(objective_vector, IncrementalRewardTerms.step(step_summary,
+  econ_params))`` — change of the running MPL, minus the change of the running error rate,
+  minus the step's Wh (or its cost), -1 once on a catastrophic end, the step's novelty
+  increment. The terms are increments of the running episode metrics (reset at every
+  ``reset``), so the episode return is the episode J:
+  ``sum_t r_t == combine_reward(objective_vector, build_reward_terms(episode_summary, econ_params))``.
+
+The step summary also carries the running episode values a constraint reads
+(``error_rate_running``, ``implied_wage_running``, ``wage_parity_running``), computed
+as the episode summary computes them, so that ``econmotor.rl.constraint_shaping`` can
+charge increments of the running episode violation.
 """
 
 from __future__ import annotations
@@ -58,7 +67,7 @@ from econmotor.errors import ConfigError
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
 from econmotor.objectives.loader import objective_from_vector
 from econmotor.valuation.reward_builder import (
-    build_reward_terms,
+    IncrementalRewardTerms,
     combine_reward,
     default_objective_vector,
 )
@@ -157,6 +166,7 @@ class DishwashingEnv(gym.Env):
         self.action_space = spaces.Box(0.0, 1.0, shape=(2,), dtype=np.float32)
         self.observation_space = spaces.Box(0.0, OBS_HIGH, shape=(len(OBS_NAMES),), dtype=np.float32)
         self._env_steps = 0
+        self.incremental_terms = IncrementalRewardTerms()
         self._reset_counters()
 
     # ------------------------------------------------------------------ state
@@ -172,6 +182,7 @@ class DishwashingEnv(gym.Env):
         self.last_attempts = 0
         self.last_error_rate = 0.0
         self.visited_cells: set[tuple[int, int]] = set()
+        self.incremental_terms.reset()
 
     def _obs(self) -> np.ndarray:
         p = self.params
@@ -248,6 +259,8 @@ class DishwashingEnv(gym.Env):
         err_step = errors / attempts
         mpl_step = units / dt_h
         wage = labour.implied_wage(p.price_per_unit, mpl_step, p.damage_cost, err_step)
+        wage_running = labour.implied_wage(p.price_per_unit, self.mpl_running, p.damage_cost,
+                                           self.error_rate_running)
         price = p.energy_price_usd_per_kwh or 0.0
         profit = p.price_per_unit * units - p.damage_cost * errors - price * wh / 1000.0
         self.profit_usd += profit
@@ -271,6 +284,8 @@ class DishwashingEnv(gym.Env):
             "error_rate_t": err_step, "error_rate_running": self.error_rate_running,
             "implied_wage_t": wage, "wage_human": p.wage_human,
             "wage_parity_t": labour.wage_parity(wage, p.wage_human),
+            "implied_wage_running": wage_running,
+            "wage_parity_running": labour.wage_parity(wage_running, p.wage_human),
             "ep_t": labour.energy_productivity(self.mpl_running, self.kwh_per_hour_running),
             "profit": profit, "profit_cumulative": self.profit_usd,
             "catastrophic": catastrophic, "overlay_terms": terms,
@@ -299,7 +314,7 @@ class DishwashingEnv(gym.Env):
         if self.reward_mode == "legacy":
             return compute_econ_reward(summary["d_mpl"], summary["error_rate_t"], summary["implied_wage_t"],
                                        summary["wage_human"], self.legacy_weights)
-        return combine_reward(self.objective_vector, build_reward_terms(summary, self.params))
+        return combine_reward(self.objective_vector, self.incremental_terms.step(summary, self.params))
 
     def episode_summary(self, termination_reason: str | None = None) -> dict[str, Any]:
         """The episode so far: the meter's raw keys plus the RewardBuilder fields.

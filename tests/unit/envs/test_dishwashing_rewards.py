@@ -10,6 +10,7 @@ from econmotor.economics import LegacyRewardWeights, compute_econ_reward
 from econmotor.envs import DishwashingEnv
 from econmotor.objectives import EconomicObjectiveSpec, compile_economic_overlay
 from econmotor.valuation import build_reward_terms, combine_reward
+from econmotor.valuation.reward_builder import IncrementalRewardTerms
 
 EPISODE_METRIC_OF = {
     "mpl_per_hour": "mpl_episode",
@@ -67,24 +68,50 @@ def test_legacy_reward_is_compute_econ_reward_of_the_step_summary():
     assert sum(i["step_summary"]["d_mpl"] for i in infos) == pytest.approx(ep["mpl_episode"])
 
 
-def test_reward_builder_reads_step_and_episode_summaries():
-    vector = [1.0, 2.0, 3.0, 4.0, 0.0]
+def test_reward_builder_step_rewards_are_incremental_terms_of_the_step_summaries():
+    vector = [1.0, 2.0, 3.0, 4.0, 0.5]
     params = EconParams.preset("toy")
     infos, rewards, ep = random_episode(DishwashingEnv(params, reward_mode="reward_builder",
                                                        objective_vector=vector), 2)
+    replay = IncrementalRewardTerms()
     for info, r in zip(infos, rewards, strict=True):
         s = info["step_summary"]
-        terms = build_reward_terms(s, params)
-        assert terms["r_mpl"] == s["mpl_t"]
-        assert terms["r_error"] == -s["error_rate_t"]
+        terms = replay.step(s, params)
         assert terms["r_energy"] == -s["Wh"]  # toy has no electricity price: energy term is -Wh
-        assert terms["r_safety"] == (-1.0 if s["catastrophic"] else 0.0)
         assert r == pytest.approx(combine_reward(vector, terms))
     ep_terms = build_reward_terms(ep, params)
     assert ep_terms["r_mpl"] == ep["mpl_episode"]
     assert ep_terms["r_error"] == -ep["error_rate_episode"]
     assert ep_terms["r_energy"] == -ep["energy_Wh"]
     assert ep_terms["r_safety"] == (-1.0 if ep["termination_reason"] == "catastrophic_error" else 0.0)
+
+
+@pytest.mark.parametrize("price", [None, 0.3])
+def test_reward_builder_episode_return_is_the_episode_objective(price):
+    """DESIGN §3: the step rewards of an episode sum to combine_reward(w, terms of the episode)."""
+    params = EconParams.preset("toy").with_overrides({"energy_price_usd_per_kwh": price})
+    vector = [1.0, 0.2, 0.1, 0.05, 0.3]
+    env = DishwashingEnv(params, reward_mode="reward_builder", objective_vector=vector)
+    reasons = set()
+    for seed in range(12):  # the env is reused: the running terms must restart at every reset
+        _, rewards, ep = random_episode(env, seed)
+        reasons.add(ep["termination_reason"])
+        expected = combine_reward(vector, build_reward_terms(ep, params))
+        assert sum(rewards) == pytest.approx(expected, rel=1e-6), seed
+        assert ep["return"] == pytest.approx(sum(rewards))
+    assert len(reasons) >= 2  # failures (r_safety) and full shifts both covered
+    # a full shift's return is about the episode MPL, not MPL x episode length
+    _, rewards, ep = random_episode(DishwashingEnv(params, reward_mode="reward_builder",
+                                                   objective_vector=[1, 0, 0, 0, 0]), 0)
+    assert sum(rewards) == pytest.approx(ep["mpl_episode"], rel=1e-6)
+
+
+def test_step_summary_running_wage_matches_the_episode_summary():
+    infos, _, ep = random_episode(DishwashingEnv(EconParams.preset("toy")), 3)
+    last = infos[-1]["step_summary"]
+    assert last["error_rate_running"] == pytest.approx(ep["error_rate_episode"], rel=1e-9)
+    assert last["implied_wage_running"] == pytest.approx(ep["implied_wage_usd_per_hour"], rel=1e-9)
+    assert last["wage_parity_running"] == pytest.approx(ep["wage_parity"], rel=1e-9)
 
 
 def test_episode_summary_economics_are_consistent():
