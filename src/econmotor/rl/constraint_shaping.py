@@ -3,46 +3,87 @@
 Constraints are defined on episode summaries (``econmotor.valuation.ConstraintSet``),
 but SAC credits rewards per step, and a penalty paid only on the last step of a
 240-step episode reaches the first step discounted by ``0.99**240 ~ 0.09``. So the
-shaping is **spread over the steps**: every step's own summary is checked against
-the same limits (error rate, wage parity and Wh per good unit are rates, so a step's
-value is on the episode's scale; a ``per_episode`` energy budget is split evenly,
-``max_energy_Wh / steps_per_episode`` per step, so the step costs of a full episode
-sum to the episode's).
+shaping is **spread over the steps**, as increments of the *running episode*
+violation, the way :class:`econmotor.valuation.reward_builder.IncrementalRewardTerms`
+spreads the objective terms. After step ``t`` the running episode metrics are
 
-- ``penalty`` (spec §5): ``r_t <- apply_constraint_penalties(r_t, step_summary, constraints)``
-  ``= r_t - 10 * sum_i max(0, violation_i(t))``.
-- ``lagrangian``: ``r_t <- r_t - sum_i lambda_i * g_i(t)`` with signed costs ``g_i``
-  (:func:`econmotor.rl.lagrange.signed_costs`); at the end of each episode the
-  multipliers take a dual-ascent step on the *episode summary's* signed costs
-  (every ``update_every_episodes`` episodes, on their mean).
+- error rate ``E_t / A_t`` (errors and attempts so far, ``0/0 = 0``);
+- wage parity: the step summary's ``wage_parity_running`` (implied wage of the running
+  MPL and error rate / human wage, as the episode summary computes it);
+- energy ``W_t`` Wh so far (``per_episode``) or ``W_t / U_t`` Wh per good unit so far
+  (``per_unit``; no good unit yet counts as one limit's worth of violation, the
+  convention of :func:`econmotor.rl.lagrange.signed_costs`, so the reward stays finite).
 
+With ``v_t = sum_i violation_i(running metrics after t)``, ``v_0 = 0``, and signed costs
+``g_i(t)`` (positive = violated), ``g_i(0) = 0``:
+
+- ``penalty`` (spec §5): ``r_t <- r_t - 10 * (v_t - v_{t-1})``;
+- ``lagrangian``: ``r_t <- r_t - sum_i lambda_i * (g_i(t) - g_i(t-1))``; at the end of
+  each episode the multipliers take a dual-ascent step on the *episode summary's* signed
+  costs (every ``update_every_episodes`` episodes, on their mean), never mid-episode.
+
+**Invariant** (the sums telescope): over the steps of one episode with summary ``S``,
+``sum_t penalty_t == 10 * sum(constraints.violations(S).values())``, i.e. the shaped
+return is ``apply_constraint_penalties(return, S, constraints)``, and in ``lagrangian``
+mode ``sum_t penalty_t == sum_i lambda_i * signed_costs(constraints, S)[i]``: the
+constraint weighs on the episode exactly as the episode-level formula does, on the
+same scale as the episode-sized objective return. (Exception: an episode with no good
+unit under a ``per_unit`` energy limit, whose episode violation is infinite, is
+charged one limit's worth.)
+
+The running state restarts at :meth:`ConstraintShaper.reset`, after
+:meth:`ConstraintShaper.end_episode`, and on a step summary with ``t == 1``.
 Either way, the episode-level violations are reported per episode.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Mapping
 from typing import Any
 
 from econmotor.errors import ConfigError
 from econmotor.rl.lagrange import LagrangeMultipliers, signed_costs
-from econmotor.valuation import ConstraintSet, apply_constraint_penalties
+from econmotor.valuation import ConstraintSet
+from econmotor.valuation.constraints import PENALTY_SCALE
 
 CONSTRAINT_MODES = ("penalty", "lagrangian")
+_COUNT_KEYS = ("errors", "attempts", "units", "Wh")
 
 
-def constraint_view(step_summary: Mapping[str, Any]) -> dict[str, float]:
-    """The fields a ConstraintSet reads, from a step summary (dishwashing key set)."""
-    units = float(step_summary.get("units", 0.0))
-    wh = float(step_summary.get("Wh", 0.0))
-    return {
-        "error_rate": float(step_summary.get("error_rate_t", 0.0)),
-        "wage_parity": float(step_summary.get("wage_parity_t", 0.0)),
-        "energy_Wh": wh,
-        "energy_Wh_per_unit": wh / units if units > 0 else math.inf,
-    }
+class RunningEpisodeView:
+    """The running episode metrics a ConstraintSet reads, from step summaries (stateful)."""
+
+    __slots__ = ("attempts", "errors", "units", "wh")
+
+    def __init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        self.errors = self.attempts = self.units = self.wh = 0.0
+
+    def step(self, step_summary: Mapping[str, Any], need_wage: bool) -> dict[str, float]:
+        """Add one step's counts; return ``error_rate``, ``wage_parity``, ``energy_Wh``,
+        ``energy_Wh_per_unit`` of the episode so far."""
+        try:
+            self.errors += float(step_summary["errors"])
+            self.attempts += float(step_summary["attempts"])
+            self.units += float(step_summary["units"])
+            self.wh += float(step_summary["Wh"])
+        except KeyError as exc:
+            raise ConfigError("<step_summary>", str(exc.args[0]), "constraint shaping needs the step's counts",
+                              _COUNT_KEYS) from None
+        view = {
+            "error_rate": self.errors / self.attempts if self.attempts > 0 else 0.0,
+            "energy_Wh": self.wh,
+            "energy_Wh_per_unit": self.wh / self.units if self.units > 0 else math.inf,
+        }
+        if need_wage:
+            if step_summary.get("wage_parity_running") is None:
+                raise ConfigError("<step_summary>", "wage_parity_running", "min_wage_parity shaping needs the "
+                                  "running episode wage parity in the step summary", ["wage_parity_running"])
+            view["wage_parity"] = float(step_summary["wage_parity_running"])
+        return view
 
 
 class ConstraintShaper:
@@ -51,7 +92,8 @@ class ConstraintShaper:
     Args:
         constraints: the limits.
         mode: ``"penalty"`` or ``"lagrangian"``.
-        steps_per_episode: episode length limit, to split a ``per_episode`` energy budget.
+        steps_per_episode: accepted for call compatibility; unused (a ``per_episode``
+            energy budget is charged when the running total crosses it).
         lagrange_lr: dual learning rate (``lagrangian``).
         lagrange_init: starting multipliers (``lagrangian``).
         update_every_episodes: episodes averaged per dual step (``lagrangian``).
@@ -65,23 +107,47 @@ class ConstraintShaper:
             raise ConfigError(constraints.name, None, "the constraint set has no active constraint",
                               ["min_wage_parity", "max_error_rate", "max_energy_Wh"])
         self.constraints, self.mode = constraints, mode
-        self.step_constraints = constraints
-        if constraints.max_energy_Wh is not None and constraints.energy_basis == "per_episode":
-            self.step_constraints = dataclasses.replace(
-                constraints, max_energy_Wh=constraints.max_energy_Wh / max(1, int(steps_per_episode)))
         self.multipliers = LagrangeMultipliers(tuple(constraints.active()), lr=lagrange_lr, init=lagrange_init)
         self.update_every = max(1, int(update_every_episodes))
         self._episodes = 0
+        self._view = RunningEpisodeView()
+        self.reset()
+
+    def reset(self) -> None:
+        """Start a new episode: running metrics and the previous violation / costs back to 0."""
+        self._view.reset()
+        self._prev_violation = 0.0
+        self._prev_costs = dict.fromkeys(self.constraints.active(), 0.0)
+
+    def running_violation(self, view: Mapping[str, float]) -> float:
+        """``sum_i violation_i`` of the running metrics (an infinite one counts as its limit)."""
+        out = 0.0
+        for name, value in self.constraints.violations(view).items():
+            out += value if math.isfinite(value) else float(getattr(self.constraints, name))
+        return out
+
+    def step_penalty(self, step_summary: Mapping[str, Any]) -> float:
+        """The amount this step's reward loses (an increment: it may be negative)."""
+        if step_summary.get("t") == 1:
+            self.reset()
+        view = self._view.step(step_summary, self.constraints.min_wage_parity is not None)
+        if self.mode == "penalty":
+            violation = self.running_violation(view)
+            delta, self._prev_violation = violation - self._prev_violation, violation
+            return PENALTY_SCALE * delta
+        costs = signed_costs(self.constraints, view)
+        delta = {k: v - self._prev_costs[k] for k, v in costs.items()}
+        self._prev_costs = costs
+        return self.multipliers.penalty(delta)
 
     def step_reward(self, reward: float, step_summary: Mapping[str, Any]) -> float:
         """The learner's step reward after the constraint shaping."""
-        view = constraint_view(step_summary)
-        if self.mode == "penalty":
-            return apply_constraint_penalties(reward, view, self.step_constraints)
-        return reward - self.multipliers.penalty(signed_costs(self.step_constraints, view))
+        return reward - self.step_penalty(step_summary)
 
     def end_episode(self, episode_summary: Mapping[str, Any]) -> dict[str, Any]:
-        """Report the episode's violations; in ``lagrangian`` mode, record and maybe update."""
+        """Report the episode's violations; in ``lagrangian`` mode, record and maybe update.
+        The running state restarts for the next episode."""
+        self.reset()
         costs = signed_costs(self.constraints, episode_summary)
         out: dict[str, Any] = {
             "violations": self.constraints.violations(episode_summary),

@@ -11,6 +11,8 @@ tally around each step and writes ``info["step_summary"]``:
   over an episode is the episode MPL), ``mpl_step = units / dt_h``;
 - ``error_rate_t = errors / attempts`` (0 with no attempt), ``implied_wage_t =
   p * mpl_step - c_d * error_rate_t * mpl_step``, ``wage_human``, ``wage_parity_t``;
+- ``wage_parity_running``: the implied wage of the running MPL and error rate / human wage
+  (what the episode would report if it ended now; constraint shaping reads it);
 - ``catastrophic`` (a fall), ``novelty`` (this step's novelty bonus), ``novelty_running``
   (the running episode novelty score, the mean bonus so far, as the episode reports it),
   ``termination_reason``.
@@ -69,6 +71,10 @@ class MujocoStepSummaryWrapper(gym.Wrapper):
             "mpl_t": mpl, "d_mpl": mpl - self._prev_mpl, "mpl_step": mpl_step,
             "error_rate_t": err, "implied_wage_t": wage, "wage_human": econ.wage_human_usd_per_hour,
             "wage_parity_t": labour.wage_parity(wage, econ.wage_human_usd_per_hour),
+            "wage_parity_running": labour.wage_parity(
+                labour.implied_wage(econ.value_per_unit, mpl, econ.damage_cost_usd_per_error,
+                                    labour.error_rate(t.errors, t.units + t.errors)),
+                econ.wage_human_usd_per_hour),
             "catastrophic": bool(terminated), "novelty": t.novelty_sum - novelty0,
             "novelty_running": t.novelty_score(),
             "termination_reason": reason,

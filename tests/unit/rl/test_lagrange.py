@@ -54,22 +54,3 @@ def test_bad_settings_are_config_errors():
         ConstraintShaper(ConstraintSet(), "penalty")
     with pytest.raises(ConfigError, match="lagrangian"):
         ConstraintShaper(ConstraintSet(max_error_rate=0.1), "dual")
-
-
-def test_shaper_penalty_is_the_spec_formula_on_the_step_and_splits_episode_budgets():
-    step = {"error_rate_t": 0.25, "wage_parity_t": 0.5, "Wh": 0.2, "units": 2}
-    shaper = ConstraintShaper(ConstraintSet(max_error_rate=0.05, min_wage_parity=0.9), "penalty")
-    assert shaper.step_reward(1.0, step) == pytest.approx(1.0 - 10 * (0.20 + 0.40))
-    budget = ConstraintShaper(ConstraintSet(max_energy_Wh=12.0, energy_basis="per_episode"), "penalty",
-                              steps_per_episode=240)
-    assert budget.step_reward(0.0, step) == pytest.approx(-10 * (0.2 - 12.0 / 240))
-
-
-def test_shaper_lagrangian_updates_on_episode_summaries_and_shapes_steps():
-    shaper = ConstraintShaper(ConstraintSet(max_error_rate=0.05), "lagrangian", lagrange_lr=10.0)
-    step = {"error_rate_t": 0.15, "units": 3}
-    assert shaper.step_reward(1.0, step) == 1.0  # multiplier starts at 0
-    report = shaper.end_episode({"error_rate_episode": 0.10})
-    assert report["satisfied"] is False
-    assert report["multipliers"]["max_error_rate"] == pytest.approx(0.5)
-    assert shaper.step_reward(1.0, step) == pytest.approx(1.0 - 0.5 * 0.10)
