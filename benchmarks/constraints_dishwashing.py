@@ -4,8 +4,11 @@ All arms train flipped (the learner sees the RewardBuilder reward) under the
 ``throughput`` preset with dollar-consistent (``analytic``) reward weights. The
 unconstrained arm runs first; ``max_error_rate`` is then set to 60% of the error
 rate it reached (never below 0.025, the model's floor being p_min = 0.02), so the
-limit binds. The workcell runs 5-minute steps (see WORKCELL) so a step's error rate is
-not dominated by Poisson noise. Printed per arm: error rate and MPL of deterministic evaluation
+limit binds. The shaping charges increments of the running episode violation, so an
+episode's step penalties sum to the spec §5 penalty of the episode (10 * violation;
+lambda * signed cost in lagrangian mode), on the scale of the episode-sized objective
+return. The workcell runs 5-minute steps (see WORKCELL) so error rates are less
+dominated by Poisson noise. Printed per arm: error rate and MPL of deterministic evaluation
 episodes (mean over seeds), the share of episodes meeting the limit and the MPL
 lost against the unconstrained arm. Goal: lagrangian meets the limit with the least
 MPL lost.
