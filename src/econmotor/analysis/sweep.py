@@ -202,7 +202,7 @@ def _run_here(registry: Any, cells: Sequence[SweepCell], output_dir: str, outcom
         except (KeyboardInterrupt, SystemExit) as exc:
             registry.mark_run(run_id, "interrupted", f"{type(exc).__name__}: {exc}")
             raise
-        except Exception as exc:  # noqa: BLE001 - a failed cell is recorded; the sweep goes on
+        except Exception as exc:
             _finish(registry, cell, run_id, None, exc, outcomes)
         else:
             _finish(registry, cell, run_id, result, None, outcomes)
@@ -236,7 +236,7 @@ def _run_on_ray(registry: Any, cells: Sequence[SweepCell], output_dir: str, outc
             cell, run_id = in_flight.pop(ref)
             try:
                 result = ray.get(ref)
-            except Exception as exc:  # noqa: BLE001 - RayTaskError wraps the cell's exception
+            except Exception as exc:
                 _finish(registry, cell, run_id, None, getattr(exc, "cause", None) or exc, outcomes)
             else:
                 _finish(registry, cell, run_id, result, None, outcomes)

@@ -58,7 +58,7 @@ class ShadowRecorder:
         self._file = None
         if self.out_dir is not None:
             self.out_dir.mkdir(parents=True, exist_ok=True)
-            self._file = open(self.out_dir / EPISODES_FILE, "w", encoding="utf-8")  # noqa: SIM115
+            self._file = open(self.out_dir / EPISODES_FILE, "w", encoding="utf-8")
 
     def add_step(self, legacy: float, objective: float) -> None:
         self.steps.add(legacy, objective)

@@ -1,7 +1,7 @@
 """Arbitrary YAML into every loader: a valid result or a ConfigError, nothing else."""
 
-from pathlib import Path
 import tempfile
+from pathlib import Path
 
 import yaml
 from hypothesis import HealthCheck, given, settings

@@ -254,7 +254,7 @@ def main(argv: list[str]) -> int:
 
         torch.set_num_threads(int(os.environ.get("OMP_NUM_THREADS", "1")))
         result = actions[job["action"]](job)
-    except Exception as exc:  # noqa: BLE001 - the parent turns this into a BackendError with the text
+    except Exception as exc:
         emit("error", text=f"{type(exc).__name__}: {exc}", traceback=traceback.format_exc())
         return 1
     emit("result", **result)
