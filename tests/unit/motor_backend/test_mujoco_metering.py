@@ -124,3 +124,64 @@ def test_every_courier_builds_its_metered_env(task_id):
     raw = infos[-1]["econ_episode"]
     assert raw["energy_wh"] > 0 and raw["length_steps"] == len(rewards)
     assert described["overlay_references"] == {"mpl_per_hour": 468.0, "error_rate": 0.002}
+
+
+def reference_episode(env, seed, counts, tilt_margin, fall_tilt, novelty_bin=0.25, dims=5):
+    """One episode through ``env`` (a bare meter) with energy, risk and novelty recomputed per step
+    from MjData the plain way: power over *all* dofs, tilt via acos, visit counts in ``counts``."""
+    base = env.unwrapped
+    data, free_root = base.data, base.model.jnt_type[0] == 0  # mjJNT_FREE
+    obs, _ = env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    wh = risk = novelty = 0.0
+    while True:
+        obs, _, terminated, truncated, info = env.step(rng.uniform(-0.4, 0.4, env.action_space.shape))
+        wh += (float(np.sum(np.abs(data.qfrc_actuator * data.qvel))) / 0.6 + 20.0) * base.dt / 3600
+        q = data.qpos
+        tilt = (np.arccos(np.clip(1 - 2 * (q[4] ** 2 + q[5] ** 2), -1, 1)) if free_root else abs(q[2]))
+        risk += float(np.clip((tilt - tilt_margin) / (fall_tilt - tilt_margin), 0, 1))
+        cell = tuple(int(np.floor(v / novelty_bin)) for v in obs[:dims])
+        counts[cell] = counts.get(cell, 0) + 1
+        novelty += counts[cell] ** -0.5
+        if terminated or truncated:
+            steps = info["econ_episode"]["length_steps"]
+            return info["econ_episode"], {"energy_wh": wh, "risk_score": risk / steps, "novelty_score": novelty / steps}
+
+
+@pytest.mark.parametrize(("env_id", "span", "margin"), [("Hopper-v5", (3, 6), 0.05), ("Humanoid-v5", (6, 23), 0.1)])
+def test_meter_matches_a_plain_per_step_recomputation(env_id, span, margin):
+    """Energy over the actuated dof span, risk (acos skipped inside the margin) and novelty (visits
+    queued, counted on read) agree with the plain per-step formulas, over episodes sharing counts."""
+    from econmotor.motor_backend.mujoco.metering import actuated_dof_span
+
+    env = EconomicMeteringWrapper(gym.make(env_id, max_episode_steps=80), tilt_margin_rad=margin, fall_tilt_rad=0.5)
+    assert actuated_dof_span(env.unwrapped.model) == span
+    counts: dict = {}
+    risky = False
+    for seed in range(3):
+        raw, expected = reference_episode(env, seed, counts, margin, 0.5)
+        for key, value in expected.items():
+            assert raw[key] == pytest.approx(value, rel=1e-9, abs=1e-15), (key, seed)
+        risky |= raw["risk_score"] > 0
+    assert risky  # the tilt branch past the margin ran
+    assert env.visit_counts == counts  # float cell indices equal (and hash as) the int ones
+
+
+def test_overlay_step_reward_is_the_change_of_the_weighted_running_metrics():
+    """Per step (not only summed): r_t - r_task_t = sum_k factor_k (m_k(t) - m_k(t-1))."""
+    scales = {key: 0.5 + i for i, key in enumerate(k for k in TERM_METRICS if k != "pose_tracking")}
+    refs = {"mpl_per_hour": 468.0, "error_rate": 0.002, "energy_kwh": 4e-5}
+    meter = EconomicMeteringWrapper(gym.make("Hopper-v5"), leg_distance_m=0.05)
+    env = EconomicOverlayWrapper(meter, scales, references=refs)
+    tally, steps = meter.tally, 0
+    for seed in range(2):
+        env.reset(seed=seed)
+        rng, prev, prev_return, done = np.random.default_rng(seed), dict.fromkeys(scales, 0.0), 0.0, False
+        while not done:
+            _, reward, terminated, truncated, _ = env.step(rng.uniform(-1, 1, 3))
+            now = {k: getattr(tally, k)() for k in scales}
+            expected = sum(s / refs.get(k, 1.0) * (now[k] - prev[k]) for k, s in scales.items())
+            task_reward = tally.task_return - prev_return
+            assert reward - task_reward == pytest.approx(expected, rel=1e-9, abs=1e-9)
+            prev, prev_return, done, steps = now, tally.task_return, terminated or truncated, steps + 1
+    assert steps > 10

@@ -29,22 +29,52 @@ pose-tracking wrapper reports ``info["pose_tracking"]``.
 from __future__ import annotations
 
 import math
+from operator import mul
 from typing import Any
 
 import gymnasium as gym
 import mujoco
+import numpy as np
 
 from econmotor.errors import ConfigError
 
 
+class VisitNovelty:
+    """Visit counts over coarse cells: the n-th visit to cell ``floor(x * inv_bin)`` scores ``1 / sqrt(n)``."""
+
+    __slots__ = ("counts", "inv_bin")
+
+    def __init__(self, novelty_bin: float) -> None:
+        self.counts: dict[tuple[float, ...], int] = {}  # cell -> visits, kept across episodes
+        self.inv_bin = 1.0 / float(novelty_bin)
+
+    def visit_all(self, points: list[list[float]], total: float) -> float:
+        """Count ``points`` in order; ``total`` plus their scores, added one by one."""
+        inv, counts = self.inv_bin, self.counts
+        for point in points:
+            # x // 1.0 is floor(x) as a float: equal to (and hashing as) the int cell index
+            key = tuple([v * inv // 1.0 for v in point])
+            n = counts.get(key, 0) + 1
+            counts[key] = n
+            total += n ** -0.5
+        return total
+
+
 class EpisodeTally:
-    """Running sums of one episode; the overlay reads the running episode metrics from here."""
+    """Running sums of one episode; the overlay reads the running episode metrics from here.
+
+    The meter queues each step's novelty point in ``pending_visits``; reading ``novelty_sum``
+    counts the queued points first (in step order, so the sum is the same as counting at each
+    step), which keeps the hashing off the step path when nobody reads novelty every step.
+    """
 
     __slots__ = (
+        "_novelty",
+        "_novelty_sum",
         "dt_s",
         "energy_wh",
         "errors",
-        "novelty_sum",
+        "pending_visits",
         "pose_sum",
         "risk_sum",
         "steps",
@@ -52,14 +82,32 @@ class EpisodeTally:
         "units",
     )
 
-    def __init__(self, dt_s: float) -> None:
+    def __init__(self, dt_s: float, novelty: VisitNovelty | None = None) -> None:
         self.dt_s = dt_s
+        self._novelty = novelty
+        self.pending_visits: list[list[float]] = []
         self.reset()
 
     def reset(self) -> None:
+        if self.pending_visits:
+            self.flush_visits()  # the cells' counts outlive the episode
         self.steps = 0
         self.units = self.errors = self.energy_wh = 0.0
-        self.risk_sum = self.novelty_sum = self.pose_sum = self.task_return = 0.0
+        self.risk_sum = self._novelty_sum = self.pose_sum = self.task_return = 0.0
+
+    def flush_visits(self) -> None:
+        """Count the queued novelty points into the visit counts and ``novelty_sum``."""
+        if self._novelty is None:
+            raise ValueError("EpisodeTally has queued visits but no VisitNovelty to count them")
+        self._novelty_sum = self._novelty.visit_all(self.pending_visits, self._novelty_sum)
+        self.pending_visits.clear()
+
+    @property
+    def novelty_sum(self) -> float:
+        """Sum over this episode's steps of the novelty bonus ``1 / sqrt(n)``."""
+        if self.pending_visits:
+            self.flush_visits()
+        return self._novelty_sum
 
     # running episode metrics (the values the episode would report if it ended now)
     def mpl_per_hour(self) -> float:
@@ -97,6 +145,32 @@ class EpisodeTally:
 RUNNING_METRIC_KEYS = ("mpl_per_hour", "error_rate", "energy_kwh", "risk_score", "novelty_score", "pose_tracking")
 
 
+#: at most this many actuated dofs: power summed over Python floats; more: one numpy dot.
+_SMALL_DOFS = 8
+_absolute = np.absolute
+#: queued novelty points are counted at the latest after this many steps (episodes without an end)
+_MAX_PENDING_VISITS = 4096
+
+
+def actuated_dof_span(model: Any) -> tuple[int, int]:
+    """``(lo, hi)``: the smallest dof range holding every joint-driven actuator's dof.
+
+    Power is summed over ``qfrc_actuator[lo:hi] * qvel[lo:hi]``; unactuated dofs inside the
+    range read ``qfrc_actuator = 0`` and add nothing. Any non-joint transmission (tendon,
+    site, ...) can push force onto any dof, so then the range is all ``nv`` dofs.
+    """
+    joint_types = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT))
+    gravcomp = getattr(model, "jnt_actgravcomp", None)  # actuator gravity compensation also lands there
+    if (model.nu == 0 or any(int(t) not in joint_types for t in model.actuator_trntype)
+            or (gravcomp is not None and bool(np.any(gravcomp)))):
+        return 0, int(model.nv)
+    joints = [int(j) for j in model.actuator_trnid[:, 0]]
+    ndof = {int(mujoco.mjtJoint.mjJNT_FREE): 6, int(mujoco.mjtJoint.mjJNT_BALL): 3}
+    lo = min(int(model.jnt_dofadr[j]) for j in joints)
+    hi = max(int(model.jnt_dofadr[j]) + ndof.get(int(model.jnt_type[j]), 1) for j in joints)
+    return lo, hi
+
+
 class EconomicMeteringWrapper(gym.Wrapper):
     """Meter units, energy, falls, risk and novelty of a Gymnasium MuJoCo env (see module doc).
 
@@ -131,8 +205,14 @@ class EconomicMeteringWrapper(gym.Wrapper):
         if not hasattr(base, "data") or not hasattr(base, "model"):
             raise ConfigError(where, "env", f"{base!r} is not a MuJoCo env (no model/data)")
         self._data = base.data
-        # views into MjData's fixed buffers, read every step
-        self._qfrc, self._qvel = base.data.qfrc_actuator, base.data.qvel
+        # views into MjData's fixed buffers, read every step (MjData never reallocates them)
+        # (memoryviews index to Python floats without numpy's per-call cost)
+        self._qpos = memoryview(base.data.qpos)
+        lo, hi = actuated_dof_span(base.model)
+        self._qfrc, self._qvel = base.data.qfrc_actuator[lo:hi], base.data.qvel[lo:hi]
+        self._qfrc_mv, self._qvel_mv = memoryview(self._qfrc), memoryview(self._qvel)
+        self._small_power = hi - lo <= _SMALL_DOFS
+        self._absf, self._absv = np.empty(hi - lo), np.empty(hi - lo)
         self.dt_s = float(base.dt)
         self.leg_distance_m = float(leg_distance_m)
         self._inv_eff = 1.0 / float(drivetrain_efficiency)
@@ -140,12 +220,21 @@ class EconomicMeteringWrapper(gym.Wrapper):
         self._tilt_margin = float(tilt_margin_rad)
         self._tilt_span = float(fall_tilt_rad - tilt_margin_rad)
         self._novelty_dims = int(novelty_dims)
-        self._inv_bin = 1.0 / float(novelty_bin)
         self._free_root = int(base.model.jnt_type[0]) == int(mujoco.mjtJoint.mjJNT_FREE)
+        # free root: tilt > margin <=> cos(tilt) < cos(margin), so acos runs only near or past the
+        # margin (the 1e-9 slack keeps every step acos would have scored > 0)
+        self._cos_margin = math.cos(self._tilt_margin) + 1e-9
         self._wh_per_w = self.dt_s / 3600.0
-        self.visit_counts: dict[tuple[int, ...], int] = {}  # cell -> visits
-        self.tally = EpisodeTally(self.dt_s)
+        self._novelty = VisitNovelty(novelty_bin)
+        self.tally = EpisodeTally(self.dt_s, self._novelty)
+        self._pending_visits = self.tally.pending_visits  # the same list object for the env's life
         self._x0 = self._best_x = 0.0
+
+    @property
+    def visit_counts(self) -> dict[tuple[float, ...], int]:
+        """Visits per novelty cell ``floor(obs[:novelty_dims] / novelty_bin)``, across episodes."""
+        self.tally.flush_visits()
+        return self._novelty.counts
 
     def tilt_rad(self) -> float:
         """The torso's angle from upright, rad."""
@@ -163,25 +252,35 @@ class EconomicMeteringWrapper(gym.Wrapper):
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
-        data, tally = self._data, self.tally
+        tally, qpos = self.tally, self._qpos
         tally.steps += 1
         tally.task_return += float(reward)
-        x = float(data.qpos[0])
+        x = qpos[0]
         if x > self._best_x:
             tally.units += (x - self._best_x) / self.leg_distance_m
             self._best_x = x
-        mech_w = sum(map(abs, (self._qfrc * self._qvel).tolist()))  # faster than np.abs(...).sum() here
+        if self._small_power:  # a few dofs: Python floats beat numpy's per-call cost
+            mech_w = sum(map(abs, map(mul, self._qfrc_mv, self._qvel_mv)))
+        else:  # sum_j |f_j v_j| = |f| . |v|
+            absf, absv = self._absf, self._absv
+            _absolute(self._qfrc, absf)
+            _absolute(self._qvel, absv)
+            mech_w = float(absf.dot(absv))
         tally.energy_wh += (mech_w * self._inv_eff + self._idle_w) * self._wh_per_w
         if terminated:
             tally.errors += 1.0
-        excess = (self.tilt_rad() if self._free_root else abs(float(data.qpos[2]))) - self._tilt_margin
+        if self._free_root:
+            qx, qy = qpos[4], qpos[5]
+            c = 1.0 - 2.0 * (qx * qx + qy * qy)
+            excess = math.acos(max(-1.0, c)) - self._tilt_margin if c < self._cos_margin else 0.0
+        else:
+            excess = abs(qpos[2]) - self._tilt_margin
         if excess > 0:
             tally.risk_sum += min(1.0, excess / self._tilt_span)
-        inv = self._inv_bin
-        key = tuple([math.floor(v * inv) for v in obs[: self._novelty_dims].tolist()])
-        count = self.visit_counts.get(key, 0) + 1
-        self.visit_counts[key] = count
-        tally.novelty_sum += count ** -0.5
+        pending = self._pending_visits
+        pending.append(obs[: self._novelty_dims].tolist())  # counted when novelty_sum is read
+        if len(pending) >= _MAX_PENDING_VISITS:
+            tally.flush_visits()
         pose = info.get("pose_tracking")
         if pose is not None:
             tally.pose_sum += pose

@@ -23,8 +23,11 @@ With per-key references ``ref_k`` (``overlay_normalization: human_baseline``, se
 of 1 is then "one human baseline's worth" of that metric, so an objective's weights compare
 like with like (throughput in legs/h is ~100x the task reward's scale, the error rate ~1/100).
 
-At an episode's end ``info["overlay_terms"] = {key: {"raw": sum term, "weighted": scale * sum / ref}}``
-and ``info["overlay_return"]`` (the overlay's part of the return) are added.
+Per step the overlay reward is computed as one difference, ``J(t) - J(t-1)`` with
+``J(t) = sum_k (scale_k / ref_k) * m_k(t)`` (the same sum regrouped). At an episode's end
+``info["overlay_terms"] = {key: {"raw": m_k(T), "weighted": scale_k * m_k(T) / ref_k}}`` (``m_k(T)``
+is the term's episode sum, telescoped) and ``info["overlay_return"]`` (the overlay's part of the
+return, ``J(T)``) are added.
 """
 
 from __future__ import annotations
@@ -105,28 +108,42 @@ class EconomicOverlayWrapper(gym.Wrapper):
         self.keep_task_reward = bool(keep_task_reward)
         self._tally: EpisodeTally = meter.tally
         self._keys = list(self.factors)
-        self._fns = [(i, self.factors[k], RUNNING_METRIC_KEYS.index(k)) for i, k in enumerate(self._keys)]
-        self._prev = [0.0] * len(self._keys)  # running metric at the previous step, per key
-        self._sums = [0.0] * len(self._keys)  # episode sum of each term
+        # sum_k factor_k * term_k(t) = J(t) - J(t-1) with J(t) = sum_k factor_k * m_k(t), so one
+        # scalar per step; J's coefficients on the tally's running sums (m_k as in EpisodeTally):
+        f = self.factors
+        self._coef = (
+            f.get("mpl_per_hour", 0.0) * 3600.0 / meter.dt_s,  # x units / steps
+            f.get("risk_score", 0.0),  # x risk_sum / steps
+            f.get("novelty_score", 0.0),  # x novelty_sum / steps
+            f.get("error_rate", 0.0),  # x errors / (units + errors)
+            f.get("energy_kwh", 0.0) / 1000.0,  # x energy_wh
+            f.get("pose_tracking", 0.0),  # x pose_sum
+        )
+        self._metric_index = [RUNNING_METRIC_KEYS.index(k) for k in self._keys]
+        self._prev_j = 0.0  # J at the previous step (J(0) = 0: every running metric is 0 after reset)
 
     def reset(self, **kwargs: Any):
-        for i in range(len(self._keys)):
-            self._prev[i] = self._sums[i] = 0.0
+        self._prev_j = 0.0
         return self.env.reset(**kwargs)
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
-        total = float(reward) if self.keep_task_reward else 0.0
-        tally, prev, sums = self._tally, self._prev, self._sums
-        metrics = tally.running_metrics()
-        for i, factor, m in self._fns:
-            value = metrics[m]
-            term = value - prev[i]
-            prev[i] = value
-            sums[i] += term
-            total += factor * term
-        if terminated or truncated:
-            info["overlay_terms"] = {k: {"raw": sums[i], "weighted": self.factors[k] * sums[i]}
-                                     for i, k in enumerate(self._keys)}
-            info["overlay_return"] = sum(self.factors[k] * sums[i] for i, k in enumerate(self._keys))
+        t = self._tally
+        c_units, c_risk, c_novelty, c_error, c_energy, c_pose = self._coef
+        steps = t.steps
+        per_step = c_units * t.units + c_risk * t.risk_sum
+        if c_novelty:  # reading novelty_sum counts the meter's queued visits
+            per_step += c_novelty * t.novelty_sum
+        j = (per_step / steps if steps else 0.0) + c_energy * t.energy_wh + c_pose * t.pose_sum
+        errors = t.errors
+        if errors and c_error:
+            j += c_error * errors / (t.units + errors)
+        overlay_r = j - self._prev_j
+        self._prev_j = j
+        total = float(reward) + overlay_r if self.keep_task_reward else overlay_r
+        if terminated or truncated:  # each term's episode sum telescopes to the episode's metric m_k(T)
+            metrics = t.running_metrics()
+            raw = {k: metrics[i] for k, i in zip(self._keys, self._metric_index, strict=True)}
+            info["overlay_terms"] = {k: {"raw": raw[k], "weighted": self.factors[k] * raw[k]} for k in self._keys}
+            info["overlay_return"] = sum(self.factors[k] * raw[k] for k in self._keys)
         return obs, total, terminated, truncated, info
