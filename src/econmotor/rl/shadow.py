@@ -110,6 +110,8 @@ class ShadowRewardWrapper(gym.Wrapper):
         self.legacy_sum = self.objective_sum = self.learner_sum = 0.0
         self.term_sums = dict.fromkeys(REWARD_TERM_NAMES, 0.0)
         self.incremental.reset()
+        if self.constraints is not None:  # a reset mid-episode must not carry the running violation over
+            self.constraints.reset()
         self.steps = 0
 
     def reset(self, **kwargs: Any):

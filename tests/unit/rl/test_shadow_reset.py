@@ -1,0 +1,55 @@
+"""A reset in the middle of a dishwashing episode restarts the constraint shaping's running
+state, so the next episode's step penalties still sum to 10 * that episode's violations."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from econmotor.config.econ_params import EconParams
+from econmotor.config.objective_profile import ObjectiveVector
+from econmotor.envs.dishwashing import DishwashingEnv
+from econmotor.networks.econ_objective_net import identity_reward_weights
+from econmotor.rl.constraint_shaping import ConstraintShaper
+from econmotor.rl.shadow import ShadowRewardWrapper
+from econmotor.tasks import get_task
+from econmotor.valuation import ConstraintSet
+
+
+class WithoutStepCounter(gym.Wrapper):
+    """Drop ``t`` from the step summary (as MuJoCo step summaries have none), so the shaper's own
+    ``t == 1`` restart cannot hide a missing reset: only the shadow wrapper's reset remains."""
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        info["step_summary"] = {k: v for k, v in info["step_summary"].items() if k != "t"}
+        return obs, reward, terminated, truncated, info
+
+
+@pytest.mark.parametrize("keep_step_counter", [False, True], ids=["no_t", "with_t"])
+def test_mid_episode_reset_does_not_carry_the_running_violation_over(keep_step_counter):
+    params = EconParams.preset("toy").with_overrides({"max_error_rate_sla": 10.0, "max_catastrophic_errors": 1000})
+    base = DishwashingEnv(params, reward_mode="legacy", max_steps=80)
+    inner = base if keep_step_counter else WithoutStepCounter(base)
+    shaper = ConstraintShaper(ConstraintSet(max_error_rate=0.02), "penalty")
+    env = ShadowRewardWrapper(inner, economics=get_task("dishwashing").economics, reward_params=base.params,
+                              weights_for=identity_reward_weights, objective=ObjectiveVector.from_preset("throughput"),
+                              constraints=shaper)
+    env.reset(seed=1)
+    carried = 0.0
+    for _ in range(25):  # a fast, careless partial episode above the cap, then an early reset
+        _, _, terminated, truncated, info = env.step(np.array([0.9, 0.1], dtype=np.float32))
+        assert not (terminated or truncated)
+        carried += info["shadow"]["legacy"] - info["shadow"]["learner"]
+    assert carried > 0.1  # the abandoned episode had built up a running violation
+
+    env.reset(seed=2)
+    penalties, done = [], False
+    while not done:  # a full episode, carefuller but still above the cap
+        _, _, terminated, truncated, info = env.step(np.array([0.6, 0.5], dtype=np.float32))
+        penalties.append(info["shadow"]["legacy"] - info["shadow"]["learner"])
+        done = terminated or truncated
+    violation = info["shadow_episode"]["constraints"]["violations"]["max_error_rate"]
+    assert violation > 0
+    assert sum(penalties) == pytest.approx(10.0 * violation, rel=1e-6, abs=1e-9)
