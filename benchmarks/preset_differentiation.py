@@ -114,7 +114,8 @@ def main() -> None:
     rows["random"] = [random_row(args.task, args.eval_episodes, s) for s in range(args.seeds)]
     total_s = time.perf_counter() - started
 
-    print(f"\nPreset differentiation on '{args.task}': SAC {args.steps} steps on {args.num_envs} envs x {args.seeds} seeds per preset, "
+    print(f"\nPreset differentiation on '{args.task}': SAC {args.steps} steps on {args.num_envs} envs "
+          f"x {args.seeds} seeds per preset, "
           f"{args.eval_episodes} deterministic evaluation episodes per policy (same seeds), {total_s:.0f} s\n")
     header = (f"{'preset':<13}{'MPL units/h':>16}{'Wh/unit':>16}{'error rate':>18}{'Wh/h':>14}"
               f"{'speed, care':>14}   episode ends")

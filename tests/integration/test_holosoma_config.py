@@ -135,7 +135,8 @@ def _recording(path: Path, steps: int, fall_at: int) -> None:
         "dof_pos": np.zeros((steps, 2)), "torques_substep": np.full((steps, 4, 2), 10.0),
         "dof_vel_substep": np.full((steps, 4, 2), 1.0), "root_quat_xyzw": np.tile([0.0, 0.0, 0.0, 1.0], (steps, 1)),
         "reset": reset, "time_out": np.zeros(steps, bool), "reward": np.ones(steps),
-        "base_lin_vel": np.tile([0.5, 0.0, 0.0], (steps, 1)), "commanded_velocity": np.tile([0.5, 0.0, 0.0], (steps, 1)),
+        "base_lin_vel": np.tile([0.5, 0.0, 0.0], (steps, 1)),
+        "commanded_velocity": np.tile([0.5, 0.0, 0.0], (steps, 1)),
         "_metadata_json": np.array(json.dumps({"dt": 0.02})),
     }
     np.savez(path, **arrays)

@@ -67,7 +67,8 @@ def shadow_command(
         result = train_sac_objective(config, progress)
     s = result.summary
     console.print(f"[bold]shadow run[/] {env}, objective {label} {vector.normalize().to_list()}, "
-                  f"learner reward: {'objective' if use_objective_reward else 'legacy'}, {result.steps_per_s:.0f} steps/s")
+                  f"learner reward: {'objective' if use_objective_reward else 'legacy'}, "
+                  f"{result.steps_per_s:.0f} steps/s")
     console.print(f"correlation legacy vs objective: step Pearson {_fmt(s.get('step_pearson'))}, "
                   f"Spearman {_fmt(s.get('step_spearman'))}; episode Pearson {_fmt(s.get('episode_pearson'))}, "
                   f"Spearman {_fmt(s.get('episode_spearman'))}; legacy sum vs episode J Pearson "

@@ -110,7 +110,7 @@ class EconomicMeter:
         """Return the econ metrics (keys in :data:`ECON_METRIC_KEYS`) of ``raw_metrics``."""
         if not isinstance(raw_metrics, Mapping):
             raise ConfigError(source, None, f"expected a mapping, got {type(raw_metrics).__name__}")
-        get = lambda key: read_raw(raw_metrics, key, source)  # noqa: E731
+        get = lambda key: read_raw(raw_metrics, key, source)
         econ = self.economics
 
         seconds = get("episode_length_s")

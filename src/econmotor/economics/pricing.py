@@ -25,7 +25,8 @@ not competitive: the price is its unit cost and the customer saving is negative.
 Break-even hours are the operating hours after which the price's margin over
 operating cost has repaid the capex (``inf`` when the margin is not positive); compare
 them with ``robot_lifetime_h``. A robot that completes nothing has an infinite unit
-cost and price (per unit and per hour) and saves the customer nothing (0). The formulas themselves live in :mod:`econmotor.economics.labour`.
+cost and price (per unit and per hour) and saves the customer nothing (0). The formulas
+themselves live in :mod:`econmotor.economics.labour`.
 """
 
 from __future__ import annotations
@@ -151,7 +152,9 @@ def price_from_metrics(economics: TaskEconomics, econ_metrics: Mapping[str, Any]
         err = float(econ_metrics["error_rate"])
         kwh_per_hour = float(econ_metrics["energy_kwh_per_hour"])
     except KeyError as exc:
-        raise ConfigError("<econ metrics>", str(exc.args[0]), "missing; expected EconomicMeter.summarize keys") from None
+        raise ConfigError(
+            "<econ metrics>", str(exc.args[0]), "missing; expected EconomicMeter.summarize keys"
+        ) from None
     return price_task(economics, mpl, err, kwh_per_hour, policy)
 
 

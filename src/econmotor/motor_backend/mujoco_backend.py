@@ -216,5 +216,6 @@ class MujocoBackend:
     def _onnx_metadata(config: dict[str, Any]) -> dict[str, Any]:
         if "task_id" not in config:
             raise BackendError("run config has no task_id; cannot describe the ONNX policy")
-        return {key: config.get(key) for key in ("task_id", "overlay", "overlay_references", "objective", "datapack_ids", "economics",
-                                                   "algorithm", "obs_layout", "action_layout", "seed")}
+        keys = ("task_id", "overlay", "overlay_references", "objective", "datapack_ids", "economics",
+                "algorithm", "obs_layout", "action_layout", "seed")
+        return {key: config.get(key) for key in keys}

@@ -92,7 +92,7 @@ def unit_costs(doc: dict[str, Any]) -> bytes | None:
     fig = Figure(figsize=(6, 3.4))
     ax = fig.add_subplot(1, 1, 1)
     drawn = [b for b in bars if b[1] is not None]
-    for i, (label, value, band, color) in enumerate(drawn):
+    for i, (_, value, band, color) in enumerate(drawn):
         ax.bar(i, value, color=color, width=0.6)
         if band is not None:
             ax.errorbar(i, value, yerr=[[max(value - band[0], 0)], [max(band[1] - value, 0)]], color="black",

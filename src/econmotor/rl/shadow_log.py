@@ -2,7 +2,8 @@
 
 Per step it feeds both rewards into a :class:`RunningCorrelation`; per episode it
 feeds the two episode sums into another (and the legacy sum against the
-episode J, the RewardBuilder scalarisation of the episode summary, into a third) and writes one JSON line with the episode's
+episode J, the RewardBuilder scalarisation of the episode summary, into a third) and
+writes one JSON line with the episode's
 record (both sums, per-term totals, episode J, econ summary, constraint state) plus
 the running correlations: step Pearson over all steps (exact, streaming), step
 Spearman over the last ``window`` steps, episode Pearson and Spearman over all

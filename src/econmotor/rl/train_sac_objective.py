@@ -154,8 +154,8 @@ def make_weights_fn(mode: str, task: TaskEnv, net: EconObjectiveNet | None):
     :func:`fit_net_on_records`.
     """
     econ = EconFeatures.from_economics(task.economics)
-    energy = EnergyResponse(task.max_episode_steps * task.dt_s / 3600.0, getattr(task.reward_params, "energy_price_usd_per_kwh", None)
-                            is not None)
+    has_energy_price = getattr(task.reward_params, "energy_price_usd_per_kwh", None) is not None
+    energy = EnergyResponse(task.max_episode_steps * task.dt_s / 3600.0, has_energy_price)
     if mode == "identity":
         return identity_reward_weights
     if mode == "analytic":

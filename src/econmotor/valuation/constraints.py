@@ -84,7 +84,7 @@ def parse_constraint_set(data: Any, source: str | Path = "<constraints>", prefix
     """Validate one constraint-set mapping."""
     data = require_mapping(data, source, prefix)
     check_keys(data, _KEYS, source, prefix)
-    key = lambda k: f"{prefix}.{k}" if prefix else k  # noqa: E731
+    key = lambda k: f"{prefix}.{k}" if prefix else k
     values: dict[str, Any] = {}
     if data.get("min_wage_parity") is not None:
         values["min_wage_parity"] = as_float(data["min_wage_parity"], source, key("min_wage_parity"))

@@ -39,7 +39,8 @@ def test_from_list_rejects_bad_vectors(values):
 def test_econ_context_defaults():
     ctx = EconContext()
     assert (ctx.wage_human, ctx.energy_price_kWh, ctx.market_region, ctx.task_family, ctx.customer_segment,
-            ctx.baseline_mpl_human, ctx.baseline_error_human) == (18.0, 0.12, "US", "dishwashing", "balanced", 60.0, 0.05)
+            ctx.baseline_mpl_human, ctx.baseline_error_human) == (
+        18.0, 0.12, "US", "dishwashing", "balanced", 60.0, 0.05)
     with pytest.raises(ConfigError, match="wage_human"):
         EconContext(wage_human=-1.0)
 

@@ -92,7 +92,7 @@ def test_zero_throughput_is_reachable():
 def test_max_steps_is_a_truncation():
     env = DishwashingEnv(EconParams.preset("toy"), max_steps=7)
     env.reset(seed=0)
-    for i in range(7):
+    for _ in range(7):
         _, _, term, trunc, info = env.step(np.array([0.6, 1.0], dtype=np.float32))
         if term:
             pytest.skip("terminated early with this seed")

@@ -39,7 +39,8 @@ def random_episode(env: DishwashingEnv, seed: int):
 @pytest.mark.parametrize("seed", range(6))
 def test_overlay_terms_sum_to_the_episode_metrics(seed):
     objective = EconomicObjectiveSpec(mpl_weight=2.0, energy_weight=50.0, error_weight=30.0,
-                                      novelty_weight=0.5, risk_weight=3.0, extra_weights={"profit_usd": 0.1, "energy_kwh_per_hour": -2.0})
+                                      novelty_weight=0.5, risk_weight=3.0,
+                                      extra_weights={"profit_usd": 0.1, "energy_kwh_per_hour": -2.0})
     refs = {"mpl_per_hour": 60.0, "error_rate": 0.05}
     env = DishwashingEnv(EconParams.preset("toy"), objective=objective, term_references=refs)
     infos, rewards, ep = random_episode(env, seed)

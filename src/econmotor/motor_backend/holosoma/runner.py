@@ -192,7 +192,8 @@ def train(job: dict[str, Any]) -> dict[str, Any]:
     onnx = checkpoint.with_suffix(".onnx") if checkpoint is not None else None
     terms_module = sys.modules.get("econmotor.motor_backend.holosoma_reward_terms")
     timer = dict(terms_module.TIMER) if terms_module is not None else {"seconds": 0.0, "calls": 0}
-    return {"econ_term_seconds": timer["seconds"], "econ_term_calls": timer["calls"],"experiment_dir": str(exp_dir), "checkpoint": str(checkpoint) if checkpoint else None,
+    return {"econ_term_seconds": timer["seconds"], "econ_term_calls": timer["calls"],
+            "experiment_dir": str(exp_dir), "checkpoint": str(checkpoint) if checkpoint else None,
             "onnx": str(onnx) if onnx is not None and onnx.exists() else None,
             "reward_terms": sorted(cfg.reward.terms), "episode_length_s": cfg.simulator.config.sim.max_episode_length_s,
             "control_dt_s": cfg.simulator.config.sim.control_decimation_steps / cfg.simulator.config.sim.fps}
