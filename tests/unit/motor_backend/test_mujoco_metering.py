@@ -164,7 +164,7 @@ def test_meter_matches_a_plain_per_step_recomputation(env_id, span, margin):
             assert raw[key] == pytest.approx(value, rel=1e-9, abs=1e-15), (key, seed)
         risky |= raw["risk_score"] > 0
     assert risky  # the tilt branch past the margin ran
-    assert env.visit_counts == counts  # float cell indices equal (and hash as) the int ones
+    assert env.visit_counts == counts
 
 
 def test_overlay_step_reward_is_the_change_of_the_weighted_running_metrics():

@@ -7,14 +7,17 @@ Per control step (duration ``dt = frame_skip * timestep`` s), from ``env.unwrapp
   ``units_t = (max_{s<=t} x_s - x_0) / leg_distance_m`` (fractional legs).
 - electrical energy, Wh: mechanical power ``P_mech = sum_j |qfrc_actuator_j * qvel_j|`` W over
   the degrees of freedom (``qfrc_actuator`` is the actuator force *after* the gear; unactuated
-  dofs read 0), electrical ``P_el = P_mech / drivetrain_efficiency + idle_power_w``,
+  dofs read 0, so the sum runs over :func:`actuated_dof_span` only), electrical
+  ``P_el = P_mech / drivetrain_efficiency + idle_power_w``,
   ``energy_wh += P_el * dt / 3600``. Power is sampled at the end of each control step.
 - falls: the env's own unhealthy termination (``terminated=True``) is one fall = one error.
 - risk in [0, 1]: ``clip((tilt - tilt_margin_rad) / (fall_tilt_rad - tilt_margin_rad), 0, 1)``,
   tilt = the torso's angle from upright (planar robots: the root hinge; free-floating robots:
   from the root quaternion, ``cos(tilt) = 1 - 2 (qx^2 + qy^2)``).
 - novelty: ``1 / sqrt(n(s))`` where ``n`` counts visits (kept across episodes of this env) to
-  the cell ``floor(obs[:novelty_dims] / novelty_bin)``.
+  the cell ``floor(obs[:novelty_dims] / novelty_bin)``. The step only queues ``obs[:novelty_dims]``;
+  the visits are counted, in step order, when ``tally.novelty_sum`` is read (by the overlay when
+  it weights novelty, at the episode's end, or every 4096 steps), which gives the same numbers.
 
 Episode raw metrics (``info["econ_episode"]`` on the last step) use the keys
 :class:`~econmotor.economics.EconomicMeter` reads: ``units_completed``, ``units_attempted``
@@ -29,6 +32,7 @@ pose-tracking wrapper reports ``info["pose_tracking"]``.
 from __future__ import annotations
 
 import math
+from math import floor
 from operator import mul
 from typing import Any
 
@@ -45,15 +49,14 @@ class VisitNovelty:
     __slots__ = ("counts", "inv_bin")
 
     def __init__(self, novelty_bin: float) -> None:
-        self.counts: dict[tuple[float, ...], int] = {}  # cell -> visits, kept across episodes
+        self.counts: dict[tuple[int, ...], int] = {}  # cell -> visits, kept across episodes
         self.inv_bin = 1.0 / float(novelty_bin)
 
     def visit_all(self, points: list[list[float]], total: float) -> float:
         """Count ``points`` in order; ``total`` plus their scores, added one by one."""
         inv, counts = self.inv_bin, self.counts
         for point in points:
-            # x // 1.0 is floor(x) as a float: equal to (and hashing as) the int cell index
-            key = tuple([v * inv // 1.0 for v in point])
+            key = tuple([floor(v * inv) for v in point])
             n = counts.get(key, 0) + 1
             counts[key] = n
             total += n ** -0.5
@@ -148,6 +151,7 @@ RUNNING_METRIC_KEYS = ("mpl_per_hour", "error_rate", "energy_kwh", "risk_score",
 #: at most this many actuated dofs: power summed over Python floats; more: one numpy dot.
 _SMALL_DOFS = 8
 _absolute = np.absolute
+
 #: queued novelty points are counted at the latest after this many steps (episodes without an end)
 _MAX_PENDING_VISITS = 4096
 
@@ -205,8 +209,8 @@ class EconomicMeteringWrapper(gym.Wrapper):
         if not hasattr(base, "data") or not hasattr(base, "model"):
             raise ConfigError(where, "env", f"{base!r} is not a MuJoCo env (no model/data)")
         self._data = base.data
-        # views into MjData's fixed buffers, read every step (MjData never reallocates them)
-        # (memoryviews index to Python floats without numpy's per-call cost)
+        # views into MjData's fixed buffers, read every step (MjData never reallocates them);
+        # memoryviews index to Python floats without numpy's per-call cost
         self._qpos = memoryview(base.data.qpos)
         lo, hi = actuated_dof_span(base.model)
         self._qfrc, self._qvel = base.data.qfrc_actuator[lo:hi], base.data.qvel[lo:hi]
@@ -231,7 +235,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
         self._x0 = self._best_x = 0.0
 
     @property
-    def visit_counts(self) -> dict[tuple[float, ...], int]:
+    def visit_counts(self) -> dict[tuple[int, ...], int]:
         """Visits per novelty cell ``floor(obs[:novelty_dims] / novelty_bin)``, across episodes."""
         self.tally.flush_visits()
         return self._novelty.counts
@@ -247,7 +251,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
     def reset(self, **kwargs: Any):
         obs, info = self.env.reset(**kwargs)
         self.tally.reset()
-        self._x0 = self._best_x = float(self._data.qpos[0])
+        self._x0 = self._best_x = self._qpos[0]
         return obs, info
 
     def step(self, action):
