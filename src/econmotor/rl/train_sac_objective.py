@@ -88,6 +88,7 @@ class ShadowConfig:
     gamma: float = 0.99
     train_freq: int = 1
     gradient_steps: int = 1
+    ent_coef: str | float = "auto"  # SB3 SAC entropy coefficient ("auto_0.01": auto-tuned from 0.01)
     net_arch: tuple[int, ...] = (256, 256)
 
     def __post_init__(self) -> None:
@@ -196,7 +197,7 @@ def train_sac_objective(config: ShadowConfig, progress: ProgressFn = no_progress
     env.action_space.seed(config.seed)
     model = SAC("MlpPolicy", env, learning_rate=config.learning_rate, buffer_size=config.buffer_size,
                 batch_size=config.batch_size, learning_starts=config.learning_starts, gamma=config.gamma,
-                train_freq=config.train_freq, gradient_steps=config.gradient_steps,
+                train_freq=config.train_freq, gradient_steps=config.gradient_steps, ent_coef=config.ent_coef,
                 policy_kwargs={"net_arch": list(config.net_arch)}, seed=config.seed, verbose=0, device="cpu")
     callbacks = [ProgressFnCallback(progress, config.total_steps, label="shadow SAC")]
     if config.shadow:
