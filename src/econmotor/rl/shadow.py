@@ -165,7 +165,7 @@ class ShadowRewardWrapper(gym.Wrapper):
             "objective_sum": self.objective_sum,
             "learner_sum": self.learner_sum,
             "term_totals": dict(self.term_sums),
-            "term_totals_weighted": {k: w * self.term_sums[k] for k, w in zip(REWARD_TERM_NAMES, self._w)},
+            "term_totals_weighted": {k: w * self.term_sums[k] for k, w in zip(REWARD_TERM_NAMES, self._w, strict=True)},
             "episode_terms": ep_terms,
             "episode_J": combine_reward(vector, ep_terms),
             "episode_objective": combine_reward(self._w, ep_terms),

@@ -91,7 +91,9 @@ def test_episode_record_sums_terms_and_episode_j_by_hand():
     assert record["steps"] == len(steps)
     assert record["legacy_sum"] == pytest.approx(sum(s["info"]["shadow"]["legacy"] for s in steps))
     assert record["objective_sum"] == pytest.approx(sum(s["info"]["shadow"]["objective"] for s in steps))
-    units, errors, attempts = (sum(s["info"]["step_summary"][k] for s in steps) for k in ("units", "errors", "attempts"))
+    units, errors, attempts = (
+        sum(s["info"]["step_summary"][k] for s in steps) for k in ("units", "errors", "attempts")
+    )
     hours = len(steps) * 60.0 / 3600.0
     assert record["term_totals"]["r_mpl"] == pytest.approx(units / hours, rel=1e-9)
     assert record["term_totals"]["r_error"] == pytest.approx(-errors / attempts, rel=1e-9)
