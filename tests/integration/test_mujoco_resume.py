@@ -56,3 +56,27 @@ def test_resume_after_kill_continues_from_the_last_checkpoint(tmp_path):
     model = PPO.load(run_dir / "policy.zip", device="cpu")
     assert target <= model.num_timesteps < target + 2 * 128 * 2  # continued, not restarted from zero
     assert zipfile.is_zipfile(run_dir / "policy.zip") and (run_dir / "policy.onnx").is_file()
+
+
+def test_resume_refuses_a_different_algorithm_or_hyperparameter(tmp_path):
+    from econmotor.errors import ConfigError
+    from econmotor.motor_backend.mujoco_backend import MujocoBackend
+    from econmotor.objectives import EconomicObjectiveSpec
+
+    run_dir = tmp_path / "run"
+    hp = {"n_steps": 64, "batch_size": 64, "n_epochs": 1, "policy_kwargs": {"net_arch": (16, 16)}}
+    backend = MujocoBackend()
+    backend.train_policy("hopper_courier", EconomicObjectiveSpec(), [], 1, 64, 0, output_dir=run_dir,
+                         eval_episodes=0, hyperparameters=hp)
+    before = (run_dir / "run_config.json").read_text()
+    with pytest.raises(ConfigError, match=r"hyperparameters\.n_steps.*trained with 64"):
+        backend.train_policy("hopper_courier", EconomicObjectiveSpec(), [], 1, 256, 0, output_dir=run_dir,
+                             eval_episodes=0, resume=True, hyperparameters={**hp, "n_steps": 128})
+    with pytest.raises(ConfigError, match="'ppo'.*cannot switch to 'sac'"):
+        backend.train_policy("hopper_courier", EconomicObjectiveSpec(), [], 1, 256, 0, output_dir=run_dir,
+                             eval_episodes=0, resume=True, algorithm="sac")
+    assert (run_dir / "run_config.json").read_text() == before  # nothing recorded was touched
+    # the same request (tuples and all) resumes
+    backend.train_policy("hopper_courier", EconomicObjectiveSpec(), [], 1, 128, 0, output_dir=run_dir,
+                         eval_episodes=0, resume=True, hyperparameters=hp)
+    assert read_run_config(run_dir)["max_steps"] == 128

@@ -136,6 +136,7 @@ class MujocoBackend:
             algorithm=algorithm or settings.algorithm, hyperparameters=hyperparameters,
             num_envs=num_envs if num_envs > 0 else settings.num_envs, max_steps=int(max_steps), seed=int(seed),
             vec_env=self.vec_env, checkpoint_every_steps=checkpoint_every_steps or settings.checkpoint_every_steps,
+            requested_algorithm=algorithm,
         )
         model, curve = run.train(resume=resume, progress=progress)
         artifacts = {"policy": str(run.run_dir / "policy.zip"), "tensorboard": str(run.run_dir / "tb"),

@@ -70,6 +70,7 @@ class TrainingRun:
     seed: int
     vec_env: str = "dummy"
     checkpoint_every_steps: int = 20_000
+    requested_algorithm: str | None = None
     config: dict[str, Any] = field(default_factory=dict)
 
     def _hyperparameters(self) -> dict[str, Any]:
@@ -77,6 +78,19 @@ class TrainingRun:
         if self.algorithm == "sac":  # a replay buffer larger than the run only costs memory and checkpoints
             hp["buffer_size"] = int(min(hp.get("buffer_size", 1_000_000), max(self.max_steps, 1000)))
         return hp
+
+    def _check_resume_request(self, previous: dict[str, Any]) -> None:
+        """A resumed run continues with its recorded algorithm and hyperparameters; an explicit
+        request for different ones is an error (start a new run directory to change them)."""
+        source = str(self.run_dir / RUN_CONFIG_FILE)
+        if self.requested_algorithm and self.requested_algorithm != previous.get("algorithm"):
+            raise ConfigError(source, "algorithm", f"the run was trained with {previous.get('algorithm')!r}; "
+                              f"resume cannot switch to {self.requested_algorithm!r} (use a new --output-dir)")
+        recorded = previous.get("hyperparameters") or {}
+        for key, value in (self.hyperparameters or {}).items():
+            if key in recorded and recorded[key] != json.loads(json.dumps(value, default=str)):
+                raise ConfigError(source, f"hyperparameters.{key}", f"the run was trained with {recorded[key]!r}; "
+                                  f"resume keeps the recorded value, not {value!r} (use a new --output-dir)")
 
     def train(self, resume: bool = False, progress: ProgressFn = no_progress) -> tuple[Any, list[dict[str, float]]]:
         """Train to ``max_steps`` total environment steps; returns (model, training curve)."""
@@ -87,6 +101,7 @@ class TrainingRun:
             if previous.get("task_id") != self.described["task_id"]:
                 raise ConfigError(str(self.run_dir / RUN_CONFIG_FILE), "task_id",
                                   f"cannot resume a '{previous.get('task_id')}' run as '{self.described['task_id']}'")
+            self._check_resume_request(previous)
             self.algorithm = previous["algorithm"]
         hp = previous["hyperparameters"] if resume else self._hyperparameters()
         venv = make_vec_env(self.recipe, self.num_envs, self.seed, self.vec_env)
