@@ -12,12 +12,17 @@ floor, the others ceilings)::
 
     HV(P, r) = vol( union_{p in P} [p_1, r_1] x ... x [p_d, r_d] )   (minimisation form)
 
-computed *exactly* by slicing objectives (HSO, While et al. 2006): sort the
-points by the last coordinate; between consecutive values the slab's volume is
-its depth times the (d-1)-dimensional hypervolume of the points already
-passed; recurse down to a 2-D sweep. Cost O(n^(d-1) log n): in 4-D, measured
-0.04 s for 50 mutually non-dominated runs, 0.2 s for 100, 0.8 s for 200, 4 s for 400
-(fronts of recorded runs are usually far smaller). Points not strictly better than the
+computed *exactly*. In 3-D and 4-D on a grid: the distinct x and y coordinates
+of the points cut the (x, y) box into cells; ``Z[i, j]``, the lowest z of a point
+dominating cell ``(i, j)``, is a 2-D prefix minimum (``np.minimum.accumulate`` along
+both axes) of the points' z placed on the grid, and the 3-D volume is
+``sum(cell area * (r_z - Z))``. In 4-D the points are swept by the last coordinate
+(HSO slicing, While et al. 2006): each point lowers ``Z`` on the quarter-plane it
+dominates, and the slab to the next point adds its depth times the 3-D volume so far.
+Cost O(n^3) array operations in 4-D with no Python loop deeper than one level:
+0.1 s for 400 mutually non-dominated runs, 13-19x faster than the recursive HSO
+it replaces (``benchmarks/hypervolume.py``). Other dimensions use HSO slicing down to a 2-D sweep.
+Points not strictly better than the
 reference in every coordinate contribute nothing and are dropped first.
 The default reference (:func:`default_reference_point`) is MPL 0 units/h,
 error rate 1, risk 1 (or the worst observed risk if larger), and 1.1 x the
@@ -72,8 +77,40 @@ def hypervolume(points_min: np.ndarray, reference_min: Sequence[float]) -> float
     return float(_hso(pts[pareto_mask(pts)], ref))
 
 
+def _grid(pts: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Cell areas of the (x, y) grid cut by the points' coordinates, and each point's cell."""
+    xs, ix = np.unique(pts[:, 0], return_inverse=True)
+    ys, iy = np.unique(pts[:, 1], return_inverse=True)
+    area = np.diff(np.r_[xs, ref[0]])[:, None] * np.diff(np.r_[ys, ref[1]])[None, :]
+    return area, ix.reshape(-1), iy.reshape(-1), np.full(area.shape, ref[2])
+
+
+def _hv3(pts: np.ndarray, ref: np.ndarray) -> float:
+    area, ix, iy, z = _grid(pts, ref)
+    np.minimum.at(z, (ix, iy), pts[:, 2])
+    z = np.minimum.accumulate(np.minimum.accumulate(z, axis=0), axis=1)
+    return float(np.sum(area * (ref[2] - z)))
+
+
+def _hv4(pts: np.ndarray, ref: np.ndarray) -> float:
+    pts = pts[np.argsort(pts[:, 3], kind="stable")]
+    depths = np.diff(np.r_[pts[:, 3], ref[3]])
+    area, ix, iy, z = _grid(pts, ref)
+    volume = 0.0
+    for i in range(len(pts)):
+        block = z[ix[i]:, iy[i]:]
+        np.minimum(block, pts[i, 2], out=block)
+        if depths[i] > 0:
+            volume += depths[i] * float(np.sum(area * (ref[2] - z)))
+    return volume
+
+
 def _hso(pts: np.ndarray, ref: np.ndarray) -> float:
     d = pts.shape[1]
+    if d == 3:
+        return _hv3(pts, ref)
+    if d == 4:
+        return _hv4(pts, ref)
     if d == 1:
         return float(ref[0] - pts[:, 0].min())
     if d == 2:

@@ -88,3 +88,25 @@ def test_default_reference_point_bounds_every_finite_run():
 def test_unknown_reference_criterion_is_a_config_error():
     with pytest.raises(ConfigError, match="reference_point.speed"):
         pareto_front(np.ones((1, 4)), {"speed": 1.0})
+
+
+def _inclusion_exclusion(pts: np.ndarray, ref: np.ndarray) -> float:
+    """Union of boxes [p, ref] by inclusion-exclusion over all subsets (exact, small n)."""
+    from itertools import combinations
+
+    total = 0.0
+    for k in range(1, len(pts) + 1):
+        for subset in combinations(range(len(pts)), k):
+            corner = pts[list(subset)].max(axis=0)
+            total += (-1) ** (k + 1) * float(np.prod(np.clip(ref - corner, 0, None)))
+    return total
+
+
+@pytest.mark.parametrize("d", [3, 4, 5])
+def test_hypervolume_matches_inclusion_exclusion_on_random_sets(d):
+    rng = np.random.default_rng(d)
+    for trial in range(40):
+        n = int(rng.integers(1, 8))
+        pts = rng.integers(0, 4, size=(n, d)).astype(float) if trial % 2 else rng.random((n, d)) * 3
+        ref = np.full(d, 4.0)
+        assert hypervolume(pts, ref) == pytest.approx(_inclusion_exclusion(pts, ref), rel=1e-9, abs=1e-12)
