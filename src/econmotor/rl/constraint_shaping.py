@@ -31,6 +31,13 @@ same scale as the episode-sized objective return. (Exception: an episode with no
 unit under a ``per_unit`` energy limit, whose episode violation is infinite, is
 charged one limit's worth.)
 
+**Off-policy relabelling** (``lagrangian``): the step's signed-cost increments
+``g_i(t) - g_i(t-1)`` are kept in :attr:`ConstraintShaper.last_increments`; the shadow
+wrapper puts them with the unshaped reward into ``info`` so that
+:class:`econmotor.rl.relabel_buffer.LagrangeRelabelReplayBuffer` can recompute a replayed
+step's reward with the multipliers current at sample time (SAC replays transitions long
+after the multipliers they were shaped with have moved).
+
 The running state restarts at :meth:`ConstraintShaper.reset`, after
 :meth:`ConstraintShaper.end_episode`, and on a step summary with ``t == 1``.
 Either way, the episode-level violations are reported per episode.
@@ -118,6 +125,7 @@ class ConstraintShaper:
         self._view.reset()
         self._prev_violation = 0.0
         self._prev_costs = dict.fromkeys(self.constraints.active(), 0.0)
+        self.last_increments: dict[str, float] = {}
 
     def running_violation(self, view: Mapping[str, float]) -> float:
         """``sum_i violation_i`` of the running metrics (an infinite one counts as its limit)."""
@@ -137,7 +145,7 @@ class ConstraintShaper:
             return PENALTY_SCALE * delta
         costs = signed_costs(self.constraints, view)
         delta = {k: v - self._prev_costs[k] for k, v in costs.items()}
-        self._prev_costs = costs
+        self._prev_costs, self.last_increments = costs, delta
         return self.multipliers.penalty(delta)
 
     def step_reward(self, reward: float, step_summary: Mapping[str, Any]) -> float:

@@ -12,7 +12,10 @@ the episodes since the last update::
 so a multiplier rises while its constraint is violated on average and falls back
 (to 0 at the floor) once it is met, as OmniSafe's ``update_lagrange_multiplier``
 does with ``Jc - cost_limit`` followed by a clamp at 0. The learner's reward is
-``r - sum_i lambda_i * g_i`` (see :mod:`econmotor.rl.shadow`).
+``r - sum_i lambda_i * g_i`` (see :mod:`econmotor.rl.shadow`), spread over the steps as
+increments (:mod:`econmotor.rl.constraint_shaping`); SAC's replay buffer re-shapes replayed
+steps with the current ``values`` (:mod:`econmotor.rl.relabel_buffer`), so a multiplier
+update reaches every stored transition at once.
 """
 
 from __future__ import annotations

@@ -17,7 +17,11 @@ dishwashing key set: ``d_mpl``, ``error_rate_t``, ``implied_wage_t``,
   episode J, as the legacy ``alpha*dMP`` term sums to the episode MPL.
 
 The learner sees ``legacy`` unless ``use_objective_reward`` (the flip), then the
-constraint shaping (:mod:`econmotor.rl.constraint_shaping`) if any. Nothing else
+constraint shaping (:mod:`econmotor.rl.constraint_shaping`) if any; in ``lagrangian``
+mode ``info["lagrange_relabel"]`` carries the step's unshaped learner reward and its
+signed-cost increments, which
+:class:`~econmotor.rl.relabel_buffer.LagrangeRelabelReplayBuffer` uses to re-shape
+replayed steps with the current multipliers (the returned reward is unchanged). Nothing else
 changes with the flip: the same summaries, sums and logs. At the end of an episode
 the wrapper builds the record (both sums, learner sum, per-term totals raw and
 weighted, episode J = ``combine_reward(vector, build_reward_terms(episode_summary))``,
@@ -40,6 +44,7 @@ from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import episode_summary
 from econmotor.rl.conditioning import ObjectiveConditioningWrapper
 from econmotor.rl.constraint_shaping import ConstraintShaper
+from econmotor.rl.relabel_buffer import RELABEL_INFO_KEY
 from econmotor.rl.shadow_log import ShadowRecorder
 from econmotor.valuation.reward_builder import (
     REWARD_TERM_NAMES,
@@ -130,7 +135,11 @@ class ShadowRewardWrapper(gym.Wrapper):
         objective = combine_reward(self._w, terms)
         reward = objective if self.use_objective_reward else legacy
         if self.constraints is not None:
+            unshaped = reward
             reward = self.constraints.step_reward(reward, summary)
+            if self.constraints.mode == "lagrangian":  # for the relabelling replay buffer
+                info[RELABEL_INFO_KEY] = {"reward_unshaped": unshaped,
+                                          "cost_increments": dict(self.constraints.last_increments)}
         self.steps += 1
         self.legacy_sum += legacy
         self.objective_sum += objective

@@ -7,7 +7,8 @@ The whole training loop, top to bottom (SB3 SAC; wrappers and callbacks, no fork
     env   = ShadowRewardWrapper(env, ...)             # legacy and objective reward from the same summary;
                                                       # the learner sees legacy unless flipped; constraints
     env   = Monitor(env)
-    model = SAC("MlpPolicy", env, **hyperparameters)
+    model = SAC("MlpPolicy", env, **hyperparameters)  # lagrangian: LagrangeRelabelReplayBuffer, replayed
+                                                      # rewards re-shaped with the current multipliers
     model.learn(total_steps, callback=[ShadowCallback, ProgressFnCallback])
     recorder.finish()                                  # JSONL + summary JSON + plot
     evaluate(model, every requested preset / vector)   # deterministic episodes, J per vector
@@ -47,6 +48,7 @@ from econmotor.networks.econ_objective_net import (
 )
 from econmotor.rl.conditioning import ObjectiveConditioningWrapper
 from econmotor.rl.constraint_shaping import ConstraintShaper
+from econmotor.rl.relabel_buffer import LagrangeRelabelReplayBuffer
 from econmotor.rl.shadow import ShadowRewardWrapper
 from econmotor.rl.shadow_log import ShadowRecorder, json_safe
 from econmotor.rl.task_env import TaskEnv, make_task_env
@@ -79,6 +81,7 @@ class ShadowConfig:
     lagrange_lr: float = 1.0
     lagrange_init: float = 0.0
     lagrange_update_every: int = 1
+    lagrange_relabel: bool = True  # lagrangian: replayed rewards re-shaped with the current multipliers
     eval_episodes: int = 5
     eval_objectives: Mapping[str, tuple[float, ...]] = field(default_factory=dict)
     learning_rate: float = 3e-4
@@ -195,10 +198,15 @@ def train_sac_objective(config: ShadowConfig, progress: ProgressFn = no_progress
     env, task, shaper = build_env(config, recorder, net)
     env.reset(seed=config.seed)
     env.action_space.seed(config.seed)
+    buffer: dict[str, Any] = {}
+    if shaper is not None and shaper.mode == "lagrangian" and config.lagrange_relabel:
+        buffer = {"replay_buffer_class": LagrangeRelabelReplayBuffer,
+                  "replay_buffer_kwargs": {"multipliers": shaper.multipliers}}
     model = SAC("MlpPolicy", env, learning_rate=config.learning_rate, buffer_size=config.buffer_size,
                 batch_size=config.batch_size, learning_starts=config.learning_starts, gamma=config.gamma,
                 train_freq=config.train_freq, gradient_steps=config.gradient_steps, ent_coef=config.ent_coef,
-                policy_kwargs={"net_arch": list(config.net_arch)}, seed=config.seed, verbose=0, device="cpu")
+                policy_kwargs={"net_arch": list(config.net_arch)}, seed=config.seed, verbose=0, device="cpu",
+                **buffer)
     callbacks = [ProgressFnCallback(progress, config.total_steps, label="shadow SAC")]
     if config.shadow:
         callbacks.insert(0, ShadowCallback())
