@@ -23,7 +23,10 @@ Measured (cap 0.0605, lr 5, 3 seeds): without relabelling (collection-time multi
 the buffer) the lagrangian arm over-satisfied the cap, err 0.041 and 12.5% MPL lost
 (penalty: 0.046, 9.0%); with it err 0.036 (3/3 seeds within the cap) and 7.5% MPL lost,
 the least MPL lost of the constrained arms (lr 1: err 0.044, 3/3, 7.9%, its seed 2 at
-0.060, just under the cap; so lr 5 stays the default). Evaluation: 20 deterministic episodes per run
+0.060, just under the cap; so lr 5 stays the default). Averaging episodes per dual step
+(OmniSafe's per-epoch update) did not clearly help: every 5 episodes err 0.047, 6.4% MPL
+lost; every 10: 0.038, 7.8%; lr 1 every 5: 0.042, 6.2% (all 3/3 within the cap) -- no
+trend beyond the seed-to-seed spread of 3 seeds, so the default stays every episode. Evaluation: 20 deterministic episodes per run
 on held-out seeds (``seed + 10_000 + i``; training episodes continue one RNG stream
 seeded with the run seed), with the constraint shaping off. Printed per arm: mean evaluation error rate and MPL over
 seeds, per-seed error rates, the share of seeds whose mean evaluation error rate is
