@@ -26,12 +26,13 @@ the least MPL lost of the constrained arms (lr 1: err 0.044, 3/3, 7.9%, its seed
 0.060, just under the cap; so lr 5 stays the default). Averaging episodes per dual step
 (OmniSafe's per-epoch update) did not clearly help: every 5 episodes err 0.047, 6.4% MPL
 lost; every 10: 0.038, 7.8%; lr 1 every 5: 0.042, 6.2% (all 3/3 within the cap) -- no
-trend beyond the seed-to-seed spread of 3 seeds, so the default stays every episode. Evaluation: 20 deterministic episodes per run
-on held-out seeds (``seed + 10_000 + i``; training episodes continue one RNG stream
-seeded with the run seed), with the constraint shaping off. Printed per arm: mean evaluation error rate and MPL over
-seeds, per-seed error rates, the share of seeds whose mean evaluation error rate is
-within the limit, the MPL lost against the unconstrained arm and the final
-multiplier. Goal: lagrangian meets the limit with the least MPL lost.
+trend beyond the seed-to-seed spread of 3 seeds, so the default stays every episode.
+Evaluation: 20 deterministic episodes per run on held-out seeds (``seed + 10_000 + i``;
+training episodes continue one RNG stream seeded with the run seed), with the constraint
+shaping off. Printed per arm: mean evaluation error rate and MPL over seeds, per-seed
+error rates, the share of seeds whose mean evaluation error rate is within the limit,
+the MPL lost against the unconstrained arm and the final multiplier. Goal: lagrangian
+meets the limit with the least MPL lost.
 About 4-5 minutes on 2 shared cores.
 
     .venv/bin/python benchmarks/constraints_dishwashing.py [--steps 12000] [--seeds 3] [--lagrange-lr 5]
