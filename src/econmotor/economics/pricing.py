@@ -16,6 +16,9 @@ Inputs per evaluation (aggregate, or one episode): ``MP_r`` good units per hour,
     customer_saving_per_hour = (human_unit_cost - price_per_unit) * MP_r           USD/h
                              = (1 - s) * max(spread, 0) * MP_r  (when competitive)
     break_even_hours         = capex / (price_per_robot_hour - robot_operating_per_hour)   h
+    damage_per_unit          = c_d * e_r                                           USD/unit
+    customer_saving_after_damage_per_hour
+                             = (human_unit_cost + c_d*e_h - price_per_unit - c_d*e_r) * MP_r   USD/h
     energy_productivity      = MP_r / E_r                                          units/kWh
 
 ``s`` is the seller's share of the spread (``spread_share``, default 0.5): at 0 the
@@ -27,6 +30,14 @@ operating cost has repaid the capex (``inf`` when the margin is not positive); c
 them with ``robot_lifetime_h``. A robot that completes nothing has an infinite unit
 cost and price (per unit and per hour) and saves the customer nothing (0). The formulas
 themselves live in :mod:`econmotor.economics.labour`.
+
+The unit costs count the robot's own cost only (DESIGN.md §3); damage from errors is
+priced beside them: ``damage_per_unit`` is the expected damage per good unit (the
+convention of the implied wage, whose damage per hour is ``c_d*e_r*MP_r``), and the
+customer saving after damage compares what the customer pays per good unit, price plus
+damage, with what a human costs, wage plus the human's damage ``c_d*e_h`` (who bears
+the damage is the contract's business; this is the customer bearing it, as with a
+human worker).
 """
 
 from __future__ import annotations
@@ -77,6 +88,8 @@ class TaskPrice:
     recommended_price_usd_per_unit: float
     recommended_price_usd_per_robot_hour: float
     customer_saving_usd_per_hour: float
+    damage_usd_per_unit: float
+    customer_saving_after_damage_usd_per_hour: float
     break_even_hours: float
     energy_productivity_units_per_kwh: float
     competitive: bool
@@ -100,6 +113,8 @@ PRICE_UNITS: dict[str, str] = {
     "recommended_price_usd_per_unit": "USD/unit",
     "recommended_price_usd_per_robot_hour": "USD/h",
     "customer_saving_usd_per_hour": "USD/h",
+    "damage_usd_per_unit": "USD/unit",
+    "customer_saving_after_damage_usd_per_hour": "USD/h",
     "break_even_hours": "h",
     "energy_productivity_units_per_kwh": "units/kWh",
 }
@@ -123,6 +138,9 @@ def price_task(economics: TaskEconomics, mpl_units_per_hour: float, error_rate: 
     saving = (human_cost - price) * mpl if math.isfinite(price) else (0.0 if mpl == 0 else -math.inf)
     margin = price_per_hour - operating
     wage = labour.implied_wage(econ.value_per_unit, mpl, econ.damage_cost_usd_per_error, error_rate)
+    damage = econ.damage_cost_usd_per_error * error_rate
+    human_damage = econ.damage_cost_usd_per_error * econ.error_rate_human
+    saving_after_damage = (human_cost + human_damage - price - damage) * mpl if math.isfinite(price) else saving
     return TaskPrice(
         mpl_units_per_hour=mpl,
         error_rate=error_rate,
@@ -137,6 +155,8 @@ def price_task(economics: TaskEconomics, mpl_units_per_hour: float, error_rate: 
         recommended_price_usd_per_unit=price,
         recommended_price_usd_per_robot_hour=price_per_hour,
         customer_saving_usd_per_hour=saving,
+        damage_usd_per_unit=damage,
+        customer_saving_after_damage_usd_per_hour=saving_after_damage,
         break_even_hours=econ.robot_capex_usd / margin if math.isfinite(margin) and margin > 0
         else (0.0 if econ.robot_capex_usd == 0 else math.inf),
         energy_productivity_units_per_kwh=labour.energy_productivity(mpl, energy_kwh_per_hour),

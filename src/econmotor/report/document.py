@@ -31,7 +31,7 @@ from econmotor.objectives import compile_economic_overlay
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 
 REPORT_SCHEMA = "econmotor.task_pricing_report"
-REPORT_SCHEMA_VERSION = 1
+REPORT_SCHEMA_VERSION = 2  # 2: TaskPrice gained damage_usd_per_unit, customer_saving_after_damage_usd_per_hour
 
 #: per-episode fields copied into the document (and its episode table).
 EPISODE_FIELDS = ("episode_index", "termination_reason", "units_completed", "errors", "episode_length_s",

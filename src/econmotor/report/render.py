@@ -35,6 +35,8 @@ PRICE_ROWS = (
     ("recommended_price_usd_per_unit", "recommended price per unit"),
     ("recommended_price_usd_per_robot_hour", "recommended price per robot-hour"),
     ("customer_saving_usd_per_hour", "customer saving per hour"),
+    ("damage_usd_per_unit", "expected damage per unit"),
+    ("customer_saving_after_damage_usd_per_hour", "customer saving after damage"),
     ("break_even_hours", "break-even hours of capex"),
 )
 STAT_COLUMNS = ("aggregate", "mean", "p10", "p50", "p90")
@@ -80,8 +82,20 @@ def headline(doc: Mapping[str, Any]) -> str:
     if (agg.get("implied_wage_usd_per_hour") or 0.0) < 0:
         text += (f" Warning: at error rate {fmt(agg['error_rate'])} the damage from errors exceeds the value of "
                  f"the work (implied wage {fmt(agg['implied_wage_usd_per_hour'])} USD/h); the unit cost "
-                 "counts good units only.")
+                 "counts the robot's own cost only.")
+    after = agg.get("customer_saving_after_damage_usd_per_hour")
+    if after is not None and after < 0:
+        text += (f" With damage of {fmt(agg.get('damage_usd_per_unit'))} USD per {unit} (human: "
+                 f"{fmt(task_damage_per_unit(doc))} USD) the customer loses {fmt(-after)} USD/h against a human "
+                 "worker at this price.")
     return text
+
+
+def task_damage_per_unit(doc: Mapping[str, Any]) -> float | None:
+    """The human's expected damage per unit, ``c_d * e_h``, from the report's inputs."""
+    inputs = {i["name"]: i["value"] for i in doc.get("inputs", [])}
+    c_d, e_h = inputs.get("damage_cost_usd_per_error"), inputs.get("error_rate_human")
+    return None if c_d is None or e_h is None else c_d * e_h
 
 
 def _md_table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> str:

@@ -51,6 +51,22 @@ def test_worked_example_competitive_robot():
     assert p.competitive is True
 
 
+def test_damage_is_priced_beside_the_unit_cost():
+    # worked example above, e_h 0.05 (default), c_d 1.0: damage/unit = 1.0*0.04 = 0.04 (human 0.05);
+    #   saving after damage = (0.30 + 0.05 - 0.19662 - 0.04) * 50 = 0.11338*50 = 5.669 USD/h
+    p = price_task(ECON, 50.0, 0.04, 0.1, PricingPolicy(0.5))
+    assert p.damage_usd_per_unit == pytest.approx(0.04)
+    assert p.customer_saving_after_damage_usd_per_hour == pytest.approx(5.669)
+    # a robot that falls a third of the time with 5 USD per error: cheap per unit, dear after damage
+    #   unit cost 4.662/800 = 0.0058275; price = 0.0058275 + 0.5*(0.30 - 0.0058275) = 0.15291375
+    #   damage/unit 5*0.33 = 1.65 (human 5*0.05 = 0.25); saving after damage = (0.55 - 1.80291375)*800
+    costly = TaskEconomics(**{**ECON.__dict__, "damage_cost_usd_per_error": 5.0})
+    q = price_task(costly, 800.0, 0.33, 0.1, PricingPolicy(0.5))
+    assert q.competitive and q.customer_saving_usd_per_hour > 0
+    assert q.damage_usd_per_unit == pytest.approx(1.65)
+    assert q.customer_saving_after_damage_usd_per_hour == pytest.approx((0.55 - 1.80291375) * 800)
+
+
 @pytest.mark.parametrize("share, price", [(0.0, 0.09324), (1.0, 0.30), (0.25, 0.09324 + 0.25 * 0.20676)])
 def test_spread_share_moves_the_price_between_cost_and_the_human_unit_cost(share, price):
     p = price_task(ECON, 50.0, 0.04, 0.1, PricingPolicy(share))

@@ -79,6 +79,10 @@ def test_table_rows_and_headline_read_the_document():
     assert rows["human unit cost"][1:] == ("0.3",) * 5 + ("USD/unit",)
     assert rows["robot unit cost"][5] == "n/a"  # p90 is infinite
     assert "Charge " in headline(doc) and "cheaper than a human" in headline(doc)
+    assert "customer loses" not in headline(doc)  # 5 errors in 55 attempts still beat a human after damage
+    assert rows["expected damage per unit"][1] == fmt(5 / 55)  # c_d 1.0 x pooled error rate
+    doc["pricing"]["aggregate"].update(damage_usd_per_unit=1.65, customer_saving_after_damage_usd_per_hour=-12.5)
+    assert "With damage of 1.65 USD per" in headline(doc) and "the customer loses 12.5 USD/h" in headline(doc)
     assert fmt(None) == "n/a" and fmt(math.inf) == "n/a" and fmt(12345.6) == "12,346" and fmt(0.123456) == "0.1235"
 
 
