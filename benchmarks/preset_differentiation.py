@@ -23,8 +23,12 @@ the same optimum (speed 0, care 1: error rate at ``p_min``, the fewest attempts 
 between those two the error-rate and energy orderings the spec expects are ties at the
 optimum and what a finite SAC run shows there is convergence noise.
 
-Run: ``OMP_NUM_THREADS=1 .venv/bin/python benchmarks/preset_differentiation.py [--steps 20000]``
-(about 7 minutes on an idle core; the random policy's "speed, care" column is its mean, 0.5).
+Run: ``OMP_NUM_THREADS=1 .venv/bin/python benchmarks/preset_differentiation.py [--steps 60000]``
+(about 11 minutes on an idle core; the random policy's "speed, care" column is its mean, 0.5).
+Measured: at 20,000 steps per run the energy_saver and safety policies had not left the middle
+of the action box (Wh/h ratio 1.028, one throughput seed at speed 0.31); at 60,000 throughput
+has the highest MPL (1.136), energy_saver the lowest Wh/h (0.919) and safety's error rate ties
+the lowest (1.006: every preset sits at the p_min floor, 0.021 +- 0.001).
 """
 
 from __future__ import annotations
@@ -117,7 +121,7 @@ def row_of(econ: dict, episodes: list[dict], mean_action: np.ndarray) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", default="dishwashing")
-    parser.add_argument("--steps", type=int, default=20_000, help="SAC environment steps per run")
+    parser.add_argument("--steps", type=int, default=60_000, help="SAC environment steps per run")
     parser.add_argument("--num-envs", type=int, default=4)
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--eval-episodes", type=int, default=30)
