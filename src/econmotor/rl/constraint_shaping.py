@@ -38,8 +38,8 @@ wrapper puts them with the unshaped reward into ``info`` so that
 step's reward with the multipliers current at sample time (SAC replays transitions long
 after the multipliers they were shaped with have moved).
 
-The running state restarts at :meth:`ConstraintShaper.reset`, after
-:meth:`ConstraintShaper.end_episode`, and on a step summary with ``t == 1``.
+The running state restarts at :meth:`ConstraintShaper.reset` (the shadow wrapper calls it
+at every env reset) and after :meth:`ConstraintShaper.end_episode`.
 Either way, the episode-level violations are reported per episode.
 """
 
@@ -99,14 +99,12 @@ class ConstraintShaper:
     Args:
         constraints: the limits.
         mode: ``"penalty"`` or ``"lagrangian"``.
-        steps_per_episode: accepted for call compatibility; unused (a ``per_episode``
-            energy budget is charged when the running total crosses it).
         lagrange_lr: dual learning rate (``lagrangian``).
         lagrange_init: starting multipliers (``lagrangian``).
         update_every_episodes: episodes averaged per dual step (``lagrangian``).
     """
 
-    def __init__(self, constraints: ConstraintSet, mode: str = "penalty", steps_per_episode: int = 1,
+    def __init__(self, constraints: ConstraintSet, mode: str = "penalty",
                  lagrange_lr: float = 1.0, lagrange_init: float = 0.0, update_every_episodes: int = 1) -> None:
         if mode not in CONSTRAINT_MODES:
             raise ConfigError("--constraint-mode", None, f"unknown mode {mode!r}", CONSTRAINT_MODES)
@@ -136,8 +134,6 @@ class ConstraintShaper:
 
     def step_penalty(self, step_summary: Mapping[str, Any]) -> float:
         """The amount this step's reward loses (an increment: it may be negative)."""
-        if step_summary.get("t") == 1:
-            self.reset()
         view = self._view.step(step_summary, self.constraints.min_wage_parity is not None)
         if self.mode == "penalty":
             violation = self.running_violation(view)

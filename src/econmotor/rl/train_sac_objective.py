@@ -176,8 +176,9 @@ def build_env(config: ShadowConfig, recorder: ShadowRecorder | None, net: EconOb
     shaper = None
     if config.shadow:
         if constraints and config.constraints is not None:
-            shaper = ConstraintShaper(config.constraints, config.constraint_mode, task.max_episode_steps,
-                                      config.lagrange_lr, config.lagrange_init, config.lagrange_update_every)
+            shaper = ConstraintShaper(config.constraints, config.constraint_mode, lagrange_lr=config.lagrange_lr,
+                                      lagrange_init=config.lagrange_init,
+                                      update_every_episodes=config.lagrange_update_every)
         env = ShadowRewardWrapper(env, economics=task.economics, reward_params=task.reward_params,
                                   weights_for=make_weights_fn(config.reward_weights, task, net),
                                   objective=objective, use_objective_reward=config.use_objective_reward,

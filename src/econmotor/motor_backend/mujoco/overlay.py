@@ -145,5 +145,5 @@ class EconomicOverlayWrapper(gym.Wrapper):
             metrics = t.running_metrics()
             raw = {k: metrics[i] for k, i in zip(self._keys, self._metric_index, strict=True)}
             info["overlay_terms"] = {k: {"raw": raw[k], "weighted": self.factors[k] * raw[k]} for k in self._keys}
-            info["overlay_return"] = sum(self.factors[k] * raw[k] for k in self._keys)
+            info["overlay_return"] = j  # J(T) = sum_k factor_k * m_k(T), the weighted terms' sum
         return obs, total, terminated, truncated, info
