@@ -3,13 +3,22 @@
 Two presets ship: ``toy`` and ``realistic`` (``EconParams.preset(name)``).
 Units: money in USD, energy in Wh, time in seconds unless the name says otherwise;
 rates (``base_rate``) are attempts per minute.
+
+:func:`load_econ_params` (spec §3: ``econ_params = load_econ_params(args.config)``) takes a
+preset name or a YAML file::
+
+    preset: realistic            # optional base (default toy)
+    base_rate: 1.8               # any EconParams field overrides it
+    energy_price_usd_per_kwh: null
 """
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
 from typing import Any
 
+from econmotor.config.loading import as_float, as_int, as_str, check_keys, read_yaml_mapping
 from econmotor.errors import ConfigError, UnknownNameError
 
 
@@ -35,8 +44,9 @@ class EconParams:
         zero_throughput_patience: steps without any completed unit before termination.
         wage_human: human wage, USD/h (EconContext default).
         mpl_human: human throughput, units/h (EconContext default).
-        energy_price_usd_per_kwh: electricity price, USD/kWh; ``None`` means the
-            RewardBuilder energy term is ``-Wh`` rather than a dollar cost.
+        energy_price_usd_per_kwh: electricity price, USD/kWh, in the workcell's step profit;
+            ``None``: energy is free there. The RewardBuilder energy term is ``-Wh`` either way
+            (spec §1, §7); only an objective with ``energy_term="usd"`` prices it.
     """
 
     price_per_unit: float = 0.30
@@ -88,3 +98,37 @@ ECON_PRESETS: dict[str, EconParams] = {
         energy_Wh_per_attempt=0.08,
     ),
 }
+
+
+def load_econ_params(path_or_preset: str | Path | EconParams) -> EconParams:
+    """EconParams from a preset name (``toy``, ``realistic``) or a YAML file (module docstring).
+
+    An :class:`EconParams` is returned as is. A string that names an existing file is read
+    as YAML; any other string must be a preset name. Every field is validated (numbers
+    finite, integers integral, prices and costs not negative); unknown keys are a
+    ConfigError naming the file, the key and the allowed names.
+    """
+    if isinstance(path_or_preset, EconParams):
+        return path_or_preset
+    path = Path(path_or_preset)
+    if isinstance(path_or_preset, str) and not path.is_file():
+        if path_or_preset in ECON_PRESETS:
+            return ECON_PRESETS[path_or_preset]
+        if path.suffix not in (".yaml", ".yml"):
+            raise UnknownNameError("EconParams preset", path_or_preset, ECON_PRESETS)
+    data = read_yaml_mapping(path)
+    names = [f.name for f in fields(EconParams)]
+    check_keys(data, ("preset", *names), path)
+    base = ECON_PRESETS[as_str(data.pop("preset", "toy"), path, "preset", ECON_PRESETS)]
+    values: dict[str, Any] = {}
+    for f in fields(EconParams):
+        if f.name not in data:
+            continue
+        value = data[f.name]
+        if f.name == "energy_price_usd_per_kwh" and value is None:
+            values[f.name] = None
+        elif isinstance(getattr(base, f.name), int) and not isinstance(getattr(base, f.name), bool):
+            values[f.name] = as_int(value, path, f.name, min_value=0)
+        else:
+            values[f.name] = as_float(value, path, f.name, allow_negative=False)
+    return replace(base, **values)

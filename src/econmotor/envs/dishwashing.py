@@ -37,11 +37,12 @@ Rewards (``reward_mode``):
 - ``"legacy"``: :func:`econmotor.economics.compute_econ_reward` on the step summary
   (``d_mpl``, ``error_rate_t``, ``implied_wage_t``, ``wage_human``).
 - ``"reward_builder"``: ``combine_reward(objective_vector, IncrementalRewardTerms.step(step_summary,
-  econ_params))`` — change of the running MPL, minus the change of the running error rate,
-  minus the step's Wh (or its cost), -1 once on a catastrophic end, the step's novelty
-  increment. The terms are increments of the running episode metrics (reset at every
-  ``reset``), so the episode return is the episode J:
-  ``sum_t r_t == combine_reward(objective_vector, build_reward_terms(episode_summary, econ_params))``.
+  econ_params, energy_term))`` — change of the running MPL, minus the change of the running error
+  rate, minus the step's Wh (its cost in USD only when ``objective_vector`` is an ObjectiveVector
+  with ``energy_term="usd"``, at ``econ_params.energy_price_usd_per_kwh``), -1 once on a
+  catastrophic end, the step's novelty increment. The terms are increments of the running
+  episode metrics (reset at every ``reset``), so the episode return is the episode J:
+  ``sum_t r_t == episode_j(episode_summary, objective_vector, econ_params)``.
 
 The step summary also carries the running episode values a constraint reads
 (``error_rate_running``, ``implied_wage_running``, ``wage_parity_running``), computed
@@ -70,6 +71,7 @@ from econmotor.valuation.reward_builder import (
     IncrementalRewardTerms,
     combine_reward,
     default_objective_vector,
+    energy_term_of,
 )
 
 REWARD_MODES = ("overlay", "legacy", "reward_builder")
@@ -109,7 +111,7 @@ class DishwashingEnv(gym.Env):
         reward_mode: ``"overlay"``, ``"legacy"`` or ``"reward_builder"``.
         objective: the objective compiled into the overlay (``overlay`` mode; default:
             built from ``objective_vector`` if given, else ``mpl_weight=1``).
-        objective_vector: ``[mpl, error, energy, safety, novelty]`` weights
+        objective_vector: ``[mpl, error, energy, safety, novelty]`` weights or an ObjectiveVector
             (``reward_builder`` mode; default :func:`default_objective_vector`).
         legacy_weights: alpha, beta, gamma (``legacy`` mode).
         max_steps: episode length limit; default ``econ_params.max_steps``.
@@ -126,7 +128,7 @@ class DishwashingEnv(gym.Env):
         econ_params: EconParams | None = None,
         reward_mode: str = "overlay",
         objective: EconomicObjectiveSpec | None = None,
-        objective_vector: Sequence[float] | None = None,
+        objective_vector: Sequence[float] | ObjectiveVector | None = None,
         legacy_weights: LegacyRewardWeights | None = None,
         max_steps: int | None = None,
         render_mode: str | None = None,
@@ -147,6 +149,9 @@ class DishwashingEnv(gym.Env):
         self.render_mode = render_mode
         self.randomization = randomization
         self.legacy_weights = legacy_weights or LegacyRewardWeights()
+        self.energy_term = energy_term_of(objective_vector)
+        if isinstance(objective_vector, ObjectiveVector):
+            objective_vector = objective_vector.to_list()
         self.objective_vector = list(objective_vector) if objective_vector is not None else default_objective_vector()
         if len(self.objective_vector) != 5:
             raise ConfigError("<DishwashingEnv>", "objective_vector",
@@ -314,7 +319,8 @@ class DishwashingEnv(gym.Env):
         if self.reward_mode == "legacy":
             return compute_econ_reward(summary["d_mpl"], summary["error_rate_t"], summary["implied_wage_t"],
                                        summary["wage_human"], self.legacy_weights)
-        return combine_reward(self.objective_vector, self.incremental_terms.step(summary, self.params))
+        return combine_reward(self.objective_vector,
+                              self.incremental_terms.step(summary, self.params, self.energy_term))
 
     def episode_summary(self, termination_reason: str | None = None) -> dict[str, Any]:
         """The episode so far: the meter's raw keys plus the RewardBuilder fields.

@@ -1,5 +1,8 @@
 """EconObjectiveNet: (objective vector, EconContext features, energy response) -> RewardWeights.
 
+The output is RewardWeights in the spec's §4 order ``[alpha_mpl, alpha_ep, alpha_error,
+alpha_energy, alpha_safety]`` followed by ``alpha_novelty`` (six per row).
+
 The ``analytic`` mapping
 ------------------------
 An objective vector ``w = [w_mpl, w_error, w_energy, w_safety, w_novelty]`` says
@@ -13,9 +16,13 @@ wage* (USD/h divided by ``w_h``, dimensionless), using the task economics:
 term               unit of ``r_k``          ``alpha_k``
 =================  ======================  ==================================================
 ``r_mpl``          units/h                 ``w_mpl * p / w_h`` (value of the output rate)
+``r_ep``           units/kWh               ``0``: an objective vector has no EP weight and the
+                                           energy term already carries the energy (EP on top
+                                           would count it twice)
 ``r_error``        -errors / attempt       ``w_error * c_d * MP_h / w_h`` (damage at human pace)
-``r_energy``       -USD (priced) or -Wh    ``w_energy * u_E / (h * w_h)`` with ``u_E = 1`` when
-                   over the summary        the term is already USD, ``pi_e / 1000`` USD/Wh else
+``r_energy``       -Wh (default) or -USD   ``w_energy * u_E / (h * w_h)`` with ``u_E = pi_e / 1000``
+                   over the summary        USD/Wh for the Wh term, ``1`` when the objective
+                                           prices it (``energy_term="usd"``)
 ``r_safety``       -1 per catastrophe      ``w_safety * C_cat / (h * w_h)``, ``C_cat = w_h * 1 h``
                                            (a catastrophe costs one human hour: stop, clean, restart)
 ``r_novelty``      novelty score           ``w_novelty`` (novelty has no price)
@@ -33,7 +40,8 @@ The network
 ``alpha(x) = analytic(x) * exp(g(x))`` where ``g`` is a small MLP over the
 concatenated (log-scaled) inputs whose last layer starts at zero: after
 initialisation the net reproduces the analytic mapping exactly, its weights stay
-non-negative (positive wherever ``w_k > 0``), and :meth:`EconObjectiveNet.fit`
+non-negative (positive wherever ``w_k > 0``; ``alpha_ep`` stays 0, the analytic
+mapping's value), and :meth:`EconObjectiveNet.fit`
 learns a bounded multiplicative correction from recorded data: for each recorded
 summary, the objective vector, its reward terms and a realised outcome ``y`` (e.g.
 the episode's net dollar rate over the human wage), it minimises
@@ -50,7 +58,7 @@ from pathlib import Path
 import torch
 from torch import nn
 
-from econmotor.config.objective_profile import EconContext, ObjectiveVector, RewardWeights
+from econmotor.config.objective_profile import REWARD_WEIGHT_NAMES, EconContext, ObjectiveVector, RewardWeights
 from econmotor.config.task_economics import TaskEconomics
 from econmotor.errors import ConfigError
 
@@ -94,7 +102,8 @@ class EnergyResponse:
 
     Attributes:
         summary_hours: hours one summary covers (step ``dt_s / 3600`` or episode hours), > 0.
-        energy_term_is_usd: True when ``r_energy`` is already a cost in USD (a price was set).
+        energy_term_is_usd: True when ``r_energy`` is already a cost in USD (the objective's
+            ``energy_term="usd"`` option), False for the default Wh term.
     """
 
     summary_hours: float
@@ -109,18 +118,20 @@ class EnergyResponse:
 
 
 def _analytic(objective: torch.Tensor, econ: torch.Tensor, energy: torch.Tensor) -> torch.Tensor:
-    """Batched analytic mapping (see module docstring); shapes [B,5], [B,6], [B,2] -> [B,5]."""
+    """Batched analytic mapping (see module docstring); shapes [B,5], [B,6], [B,2] -> [B,6] in the
+    RewardWeights order ``[mpl, ep, error, energy, safety, novelty]``."""
     w_h, pi_e, mp_h, _e_h, p, c_d = econ.unbind(-1)
     hours, is_usd = energy.unbind(-1)
     usd_per_energy_unit = is_usd + (1.0 - is_usd) * pi_e / 1000.0
-    scale = torch.stack([
-        p / w_h,
-        c_d * mp_h / w_h,
-        usd_per_energy_unit / (hours * w_h),
-        CATASTROPHE_COST_HUMAN_HOURS * w_h / (hours * w_h),
-        torch.ones_like(w_h),
+    w_mpl, w_error, w_energy, w_safety, w_novelty = objective.unbind(-1)
+    return torch.stack([
+        w_mpl * p / w_h,
+        torch.zeros_like(w_mpl),
+        w_error * c_d * mp_h / w_h,
+        w_energy * usd_per_energy_unit / (hours * w_h),
+        w_safety * CATASTROPHE_COST_HUMAN_HOURS * w_h / (hours * w_h),
+        w_novelty,
     ], dim=-1)
-    return objective * scale
 
 
 def analytic_reward_weights(vector: ObjectiveVector | Sequence[float], econ: EconFeatures,
@@ -133,9 +144,8 @@ def analytic_reward_weights(vector: ObjectiveVector | Sequence[float], econ: Eco
 
 
 def identity_reward_weights(vector: ObjectiveVector | Sequence[float]) -> RewardWeights:
-    """``alpha = w``: the plain ``combine_reward(vector, terms)`` of the spec."""
-    values = vector.to_list() if isinstance(vector, ObjectiveVector) else list(vector)
-    return RewardWeights.from_list(values)
+    """``alpha = w`` (``alpha_ep = 0``): the plain ``combine_reward(vector, terms)`` of the spec."""
+    return RewardWeights.from_objective(vector)
 
 
 class EconObjectiveNet(nn.Module):
@@ -152,18 +162,18 @@ class EconObjectiveNet(nn.Module):
         self.hidden, self.max_log_correction = int(hidden), float(max_log_correction)
         n_in = 5 + len(ECON_FEATURE_NAMES) + len(ENERGY_FEATURE_NAMES)
         self.correction = nn.Sequential(nn.Linear(n_in, hidden), nn.Tanh(), nn.Linear(hidden, hidden), nn.Tanh(),
-                                        nn.Linear(hidden, 5))
+                                        nn.Linear(hidden, len(REWARD_WEIGHT_NAMES)))
         nn.init.zeros_(self.correction[-1].weight)
         nn.init.zeros_(self.correction[-1].bias)
         self.double()
 
     def log_correction(self, objective: torch.Tensor, econ: torch.Tensor, energy: torch.Tensor) -> torch.Tensor:
-        """``g(x)``: bounded log-multiplier per term, shape [B, 5]."""
+        """``g(x)``: bounded log-multiplier per weight, shape [B, 6]."""
         x = torch.cat([objective, torch.log1p(econ.abs()), torch.log(energy[..., :1]), energy[..., 1:]], dim=-1)
         return self.max_log_correction * torch.tanh(self.correction(x) / self.max_log_correction)
 
     def forward(self, objective: torch.Tensor, econ: torch.Tensor, energy: torch.Tensor) -> torch.Tensor:
-        """RewardWeights as a [B, 5] tensor (order of :data:`REWARD_TERM_NAMES`)."""
+        """RewardWeights as a [B, 6] tensor (order of :data:`REWARD_WEIGHT_NAMES`: §4's five, then novelty)."""
         return _analytic(objective, econ, energy) * torch.exp(self.log_correction(objective, econ, energy))
 
     def reward_weights(self, vector: ObjectiveVector | Sequence[float], econ: EconFeatures,
@@ -184,7 +194,8 @@ class EconObjectiveNet(nn.Module):
             objectives: objective vectors, [N, 5].
             econ: EconFeatures per row.
             energy: EnergyResponse per row.
-            terms: the recorded RewardBuilder terms per row, [N, 5] in term order.
+            terms: the recorded RewardBuilder terms per row, [N, 6] in RewardWeights order
+                (``r_mpl, r_ep, r_error, r_energy, r_safety, r_novelty``).
             outcomes: the realised outcome per row (same dimensionless dollar rate as the
                 analytic mapping, e.g. net USD/h over ``w_h``).
             epochs: full-batch Adam steps.

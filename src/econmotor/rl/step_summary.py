@@ -13,6 +13,8 @@ tally around each step and writes ``info["step_summary"]``:
   p * mpl_step - c_d * error_rate_t * mpl_step``, ``wage_human``, ``wage_parity_t``;
 - ``wage_parity_running``: the implied wage of the running MPL and error rate / human wage
   (what the episode would report if it ended now; constraint shaping reads it);
+- ``ep_t``: the running energy productivity, good units per kWh so far (``EP = MP_r / E_r``,
+  as the episode summary reports it);
 - ``catastrophic`` (a fall), ``novelty`` (this step's novelty bonus), ``novelty_running``
   (the running episode novelty score, the mean bonus so far, as the episode reports it),
   ``termination_reason``.
@@ -75,6 +77,7 @@ class MujocoStepSummaryWrapper(gym.Wrapper):
                 labour.implied_wage(econ.value_per_unit, mpl, econ.damage_cost_usd_per_error,
                                     labour.error_rate(t.errors, t.units + t.errors)),
                 econ.wage_human_usd_per_hour),
+            "ep_t": labour.energy_productivity(t.units, t.energy_wh / 1000.0),
             "catastrophic": bool(terminated), "novelty": t.novelty_sum - novelty0,
             "novelty_running": t.novelty_score(),
             "termination_reason": reason,

@@ -2,8 +2,9 @@
 
 :func:`make_task_env` returns a :class:`TaskEnv`: the env (whose ``info`` carries a
 ``step_summary`` every step and an episode summary on the last), the task's
-economics, the object ``build_reward_terms`` reads the energy price from, the
-seconds per step and the episode length limit.
+economics from the catalog (what every J is computed with, see
+``econmotor.valuation.episode_j``), the seconds per step, the episode length limit and
+the task id.
 """
 
 from __future__ import annotations
@@ -28,17 +29,18 @@ class TaskEnv:
 
     Attributes:
         env: the Gymnasium env (``info["step_summary"]`` every step).
-        economics: the task economics from the catalog.
-        reward_params: passed to ``build_reward_terms`` (EconParams or TaskEconomics).
+        economics: the task economics from the catalog (the same object ``econmotor solve``
+            prices a recorded episode with).
         dt_s: seconds per env step.
         max_episode_steps: episode length limit, steps.
+        task_id: the catalog id.
     """
 
     env: gym.Env
     economics: TaskEconomics
-    reward_params: Any
     dt_s: float
     max_episode_steps: int
+    task_id: str = ""
 
 
 def make_task_env(task_id: str, max_episode_steps: int | None = None,
@@ -59,7 +61,7 @@ def make_task_env(task_id: str, max_episode_steps: int | None = None,
         if econ_overrides:
             params = params.with_overrides(dict(econ_overrides), source="--econ-override")
         env = DishwashingEnv(params, reward_mode="legacy", max_steps=max_episode_steps)
-        return TaskEnv(env, spec.economics, params, params.time_step_s, env.max_steps)
+        return TaskEnv(env, spec.economics, params.time_step_s, env.max_steps, task_id)
     if "mujoco" not in spec.backends:
         raise ConfigError("--env", task_id, "the task has neither a dishwashing nor a mujoco backend entry",
                           ["dishwashing", "mujoco"])
@@ -81,4 +83,4 @@ def make_task_env(task_id: str, max_episode_steps: int | None = None,
                                   novelty_bin=settings.novelty_bin)
     env = MujocoStepSummaryWrapper(env, spec.economics)
     limit = env.spec.max_episode_steps if env.spec is not None and env.spec.max_episode_steps else 1000
-    return TaskEnv(env, spec.economics, spec.economics, float(env.unwrapped.dt), int(limit))
+    return TaskEnv(env, spec.economics, float(env.unwrapped.dt), int(limit), task_id)

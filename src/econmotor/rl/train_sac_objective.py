@@ -18,7 +18,9 @@ terms: ``identity`` (``combine_reward(w, terms)``, the spec's form), ``analytic`
 (dollar-consistent, :mod:`econmotor.networks.econ_objective_net`) or ``net``
 (EconObjectiveNet, which starts equal to ``analytic`` or to a saved net, is fitted after
 training and evaluation on the run's episodes and saved with the run). The objective vector is always normalised
-onto the simplex, for the observation and for the reward alike.
+onto the simplex, for the observation and for the reward alike. ``energy_term`` is the objective option of
+:mod:`econmotor.config.objective_profile`: ``"wh"`` (default, spec §7: ``r_energy = -Wh``) or ``"usd"``
+(priced with the catalog's electricity price), for every episode J, step reward and evaluation of the run.
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ from stable_baselines3 import SAC
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.monitor import Monitor
 
-from econmotor.config.objective_profile import OBJECTIVE_PRESETS, ObjectiveVector
+from econmotor.config.objective_profile import OBJECTIVE_PRESETS, ObjectiveVector, check_energy_term
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import ProgressFn, no_progress
 from econmotor.motor_backend.sb3_callbacks import ProgressFnCallback
@@ -53,7 +55,7 @@ from econmotor.rl.shadow import ShadowRewardWrapper
 from econmotor.rl.shadow_log import ShadowRecorder, json_safe
 from econmotor.rl.task_env import TaskEnv, make_task_env
 from econmotor.valuation import ConstraintSet
-from econmotor.valuation.reward_builder import REWARD_TERM_NAMES
+from econmotor.valuation.reward_builder import WEIGHTED_TERM_NAMES
 
 REWARD_WEIGHT_MODES = ("identity", "analytic", "net")
 NET_FILE = "econ_objective_net.pt"
@@ -66,6 +68,7 @@ class ShadowConfig:
     env: str = "dishwashing"
     objective: tuple[float, ...] = (1.0, 0.2, 0.1, 0.05, 0.0)
     objective_label: str = "default"
+    energy_term: str = "wh"  # the objective option: "wh" (spec §7) or "usd" (priced; off by default)
     total_steps: int = 20_000
     use_objective_reward: bool = False
     constraints: ConstraintSet | None = None
@@ -100,6 +103,7 @@ class ShadowConfig:
         if self.total_steps < 1:
             raise ConfigError("--total-steps", None, f"must be >= 1, got {self.total_steps}")
         ObjectiveVector.from_list(list(self.objective), source="--objective-vector").normalize()
+        check_energy_term(self.energy_term, "--energy-term")
         if not self.shadow and (self.use_objective_reward or self.constraints is not None):
             raise ConfigError("<ShadowConfig>", "shadow", "the flip and constraints need the shadow wrapper; "
                               "set shadow=True")
@@ -149,7 +153,7 @@ class ShadowCallback(BaseCallback):
         return True
 
 
-def make_weights_fn(mode: str, task: TaskEnv, net: EconObjectiveNet | None):
+def make_weights_fn(mode: str, task: TaskEnv, net: EconObjectiveNet | None, energy_term: str = "wh"):
     """Objective vector -> RewardWeights for the step terms of ``task`` (identity / analytic / net).
 
     The shadow wrapper's step terms are increments whose episode sums are the episode's
@@ -158,8 +162,7 @@ def make_weights_fn(mode: str, task: TaskEnv, net: EconObjectiveNet | None):
     :func:`fit_net_on_records`.
     """
     econ = EconFeatures.from_economics(task.economics)
-    has_energy_price = getattr(task.reward_params, "energy_price_usd_per_kwh", None) is not None
-    energy = EnergyResponse(task.max_episode_steps * task.dt_s / 3600.0, has_energy_price)
+    energy = EnergyResponse(task.max_episode_steps * task.dt_s / 3600.0, energy_term == "usd")
     if mode == "identity":
         return identity_reward_weights
     if mode == "analytic":
@@ -171,7 +174,7 @@ def build_env(config: ShadowConfig, recorder: ShadowRecorder | None, net: EconOb
               constraints: bool = True):
     """The wrapped env of a run (see the module docstring); returns (env, task, shaper)."""
     task = make_task_env(config.env, config.max_episode_steps, config.econ_overrides)
-    objective = ObjectiveVector.from_list(list(config.objective))
+    objective = ObjectiveVector.from_list(list(config.objective), energy_term=config.energy_term)
     env = ObjectiveConditioningWrapper(task.env, objective, config.objective_sampling)
     shaper = None
     if config.shadow:
@@ -179,10 +182,10 @@ def build_env(config: ShadowConfig, recorder: ShadowRecorder | None, net: EconOb
             shaper = ConstraintShaper(config.constraints, config.constraint_mode, lagrange_lr=config.lagrange_lr,
                                       lagrange_init=config.lagrange_init,
                                       update_every_episodes=config.lagrange_update_every)
-        env = ShadowRewardWrapper(env, economics=task.economics, reward_params=task.reward_params,
-                                  weights_for=make_weights_fn(config.reward_weights, task, net),
+        env = ShadowRewardWrapper(env, economics=task.economics,
+                                  weights_for=make_weights_fn(config.reward_weights, task, net, config.energy_term),
                                   objective=objective, use_objective_reward=config.use_objective_reward,
-                                  constraints=shaper, recorder=recorder)
+                                  constraints=shaper, recorder=recorder, task_id=task.task_id)
     return Monitor(env), task, shaper
 
 
@@ -294,7 +297,6 @@ def fit_net_on_records(net: EconObjectiveNet, records: Sequence[Mapping[str, Any
     hours, its RewardBuilder terms and the realised net dollar rate over the human wage.
     """
     econ = EconFeatures.from_economics(task.economics)
-    priced = getattr(task.reward_params, "energy_price_usd_per_kwh", None) is not None
     rows = [r for r in records if (r["econ"].get("episode_length_s") or 0) > 0]
     if not rows:
         return []
@@ -304,8 +306,8 @@ def fit_net_on_records(net: EconObjectiveNet, records: Sequence[Mapping[str, Any
                         for r, h in zip(rows, hours, strict=True)]
     outcomes = [(r["econ"].get("wage_parity") or 0.0) - e / w_h for r, e in zip(rows, energy_usd_per_h, strict=True)]
     return net.fit([r["objective_vector"] for r in rows], [econ] * len(rows),
-                   [EnergyResponse(h, priced) for h in hours],
-                   [[r["episode_terms"][k] for k in REWARD_TERM_NAMES] for r in rows], outcomes)
+                   [EnergyResponse(h, r.get("energy_term") == "usd") for r, h in zip(rows, hours, strict=True)],
+                   [[r["episode_terms"][k] for k in WEIGHTED_TERM_NAMES] for r in rows], outcomes)
 
 
 def save_run(save_dir: Path, model: Any, config: ShadowConfig, summary: Mapping[str, Any],

@@ -1,4 +1,4 @@
-"""Valuation: RewardBuilder terms and constraint sets."""
+"""Valuation: RewardBuilder terms, an episode's J (:func:`episode_j`) and constraint sets."""
 
 from econmotor.valuation.constraints import (
     ConstraintSet,
@@ -12,6 +12,8 @@ from econmotor.valuation.reward_builder import (
     build_reward_terms,
     combine_reward,
     default_objective_vector,
+    episode_j,
+    extract_step_summary,
 )
 
 __all__ = [
@@ -21,6 +23,8 @@ __all__ = [
     "build_reward_terms",
     "combine_reward",
     "default_objective_vector",
+    "episode_j",
+    "extract_step_summary",
     "load_constraint_set",
     "load_constraint_sets",
     "parse_constraint_set",

@@ -25,3 +25,38 @@ def test_unknown_preset_and_override():
     with pytest.raises(ConfigError, match="base_rat"):
         EconParams().with_overrides({"base_rat": 1.0})
     assert EconParams().with_overrides({"base_rate": 3.0}).base_rate == 3.0
+
+
+def test_load_econ_params_from_a_preset_name_and_from_yaml(tmp_path):
+    from econmotor.config.econ_params import load_econ_params
+
+    assert load_econ_params("realistic") == EconParams.preset("realistic")
+    assert load_econ_params(EconParams.preset("toy")) == EconParams()
+    path = tmp_path / "econ.yaml"
+    path.write_text("preset: realistic\nbase_rate: 1.8\nmax_steps: 120\nenergy_price_usd_per_kwh: 0.2\n")
+    params = load_econ_params(path)
+    assert params == EconParams.preset("realistic").with_overrides(
+        {"base_rate": 1.8, "max_steps": 120, "energy_price_usd_per_kwh": 0.2})
+    assert load_econ_params(str(path)) == params
+
+
+@pytest.mark.parametrize("text, key", [("base_rat: 1.0\n", "base_rat"), ("max_steps: 1.5\n", "max_steps"),
+                                       ("damage_cost: -1\n", "damage_cost"), ("preset: huge\n", "preset"),
+                                       ("p_min: .nan\n", "p_min")])
+def test_load_econ_params_rejects_bad_yaml_naming_file_and_key(tmp_path, text, key):
+    from econmotor.config.econ_params import load_econ_params
+
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=key) as err:
+        load_econ_params(path)
+    assert "bad.yaml" in str(err.value)
+
+
+def test_load_econ_params_unknown_preset_lists_the_presets():
+    from econmotor.config.econ_params import load_econ_params
+
+    with pytest.raises(UnknownNameError, match="realistic"):
+        load_econ_params("fancy")
+    with pytest.raises(ConfigError, match="not found"):
+        load_econ_params("missing.yaml")

@@ -45,6 +45,26 @@ def test_econ_context_defaults():
         EconContext(wage_human=-1.0)
 
 
-def test_reward_weights_round_trip():
+def test_reward_weights_follow_the_spec_order_with_alpha_ep():
+    # spec §4: [alpha_mpl, alpha_ep, alpha_error, alpha_energy, alpha_safety]; novelty comes after
     w = RewardWeights.from_list([1, 2, 3, 4, 5])
-    assert w.to_list() == [1, 2, 3, 4, 5]
+    assert (w.alpha_mpl, w.alpha_ep, w.alpha_error, w.alpha_energy, w.alpha_safety, w.alpha_novelty) == (
+        1, 2, 3, 4, 5, 0)
+    assert w.to_list() == [1, 2, 3, 4, 5, 0]
+    assert RewardWeights.from_list(w.to_list()) == w
+    assert RewardWeights().alpha_ep == 0.0
+    identity = RewardWeights.from_objective(ObjectiveVector.from_preset("energy_saver"))
+    assert identity.to_list() == [1, 0, 1, 3, 1, 0]
+    with pytest.raises(ConfigError, match="alpha_ep"):
+        RewardWeights.from_list([1, 2, 3])
+    with pytest.raises(ConfigError, match="alpha_ep"):
+        RewardWeights(alpha_ep=float("nan"))
+
+
+def test_energy_term_option_is_wh_by_default_and_validated():
+    assert ObjectiveVector().energy_term == "wh"
+    assert ObjectiveVector.from_preset("energy_saver").energy_term == "wh"
+    priced = ObjectiveVector.from_preset("energy_saver", energy_term="usd")
+    assert priced.to_list() == [1, 1, 3, 1, 0] and priced.normalize().energy_term == "usd"
+    with pytest.raises(ConfigError, match="energy_term"):
+        ObjectiveVector(energy_term="kwh")

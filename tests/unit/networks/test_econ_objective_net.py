@@ -24,7 +24,9 @@ def test_analytic_mapping_matches_hand_computed_dollar_scales():
     step = EnergyResponse(summary_hours=1 / 60, energy_term_is_usd=False)
     alpha = analytic_reward_weights(ObjectiveVector(2.0, 1.0, 0.5, 1.0, 0.25), econ, step).to_list()
     w_h, p, c_d, mp_h, pi_e, h = 18.0, 0.30, 1.0, 60.0, 0.12, 1 / 60
-    expected = [2.0 * p / w_h, 1.0 * c_d * mp_h / w_h, 0.5 * (pi_e / 1000) / (h * w_h), 1.0 * w_h / (h * w_h), 0.25]
+    # spec §4 order [alpha_mpl, alpha_ep, alpha_error, alpha_energy, alpha_safety], then alpha_novelty
+    expected = [2.0 * p / w_h, 0.0, 1.0 * c_d * mp_h / w_h, 0.5 * (pi_e / 1000) / (h * w_h), 1.0 * w_h / (h * w_h),
+                0.25]
     assert alpha == pytest.approx(expected, rel=1e-12)
 
 
@@ -58,8 +60,10 @@ def test_net_weights_are_positive_where_the_objective_weight_is(tmp_path):
     net = EconObjectiveNet()
     econ = EconFeatures.from_economics(TOY)
     for preset in OBJECTIVE_PRESETS.values():
-        alpha = net.reward_weights(list(preset), econ, EnergyResponse(0.5)).to_list()
-        assert all((a > 0) == (w > 0) for a, w in zip(alpha, preset, strict=True))
+        alpha = net.reward_weights(list(preset), econ, EnergyResponse(0.5))
+        assert alpha.alpha_ep == 0.0  # the analytic mapping puts no weight on EP (the energy term has it)
+        per_term = [alpha.alpha_mpl, alpha.alpha_error, alpha.alpha_energy, alpha.alpha_safety, alpha.alpha_novelty]
+        assert all((a > 0) == (w > 0) for a, w in zip(per_term, preset, strict=True))
 
 
 def _synthetic_rows(n: int, true_mpl_factor: float, seed: int = 1):
@@ -68,7 +72,9 @@ def _synthetic_rows(n: int, true_mpl_factor: float, seed: int = 1):
     rng = np.random.default_rng(seed + 1)
     terms, outcomes = [], []
     for v, e, en in zip(vectors, econs, energies, strict=True):
-        r = [rng.uniform(0, 120), -rng.uniform(0, 0.3), -rng.uniform(0, 5), -float(rng.random() < 0.1), 0.0]
+        # [r_mpl, r_ep, r_error, r_energy, r_safety, r_novelty] (RewardWeights order)
+        r = [rng.uniform(0, 120), rng.uniform(0, 5e4), -rng.uniform(0, 0.3), -rng.uniform(0, 5),
+             -float(rng.random() < 0.1), 0.0]
         alpha = analytic_reward_weights(v, e, en).to_list()
         alpha[0] *= true_mpl_factor
         terms.append(r)

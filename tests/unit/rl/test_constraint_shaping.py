@@ -127,7 +127,7 @@ def test_mujoco_step_summaries_telescope_to_the_metered_episode_violations(seed)
     invariant, against the episode summary the meter builds from the raw episode."""
     constraints = ConstraintSet(max_error_rate=0.01, min_wage_parity=0.5)
     task = make_task_env("hopper_courier")
-    env = ShadowRewardWrapper(task.env, economics=task.economics, reward_params=task.reward_params,
+    env = ShadowRewardWrapper(task.env, economics=task.economics,
                               weights_for=identity_reward_weights,
                               objective=ObjectiveVector.from_list([1, 0, 0, 0, 0]),
                               constraints=ConstraintShaper(constraints, "penalty"))

@@ -27,7 +27,7 @@ CLUMSY = EconParams.preset("toy").with_overrides({"k_err": 0.6, "max_error_rate_
 def make_env(flip=False, constraints=None, recorder=None, conditioned=False, params=None, objective=THROUGHPUT):
     base = DishwashingEnv(params or EconParams.preset("toy"), reward_mode="legacy")
     env = ObjectiveConditioningWrapper(base, objective, "fixed") if conditioned else base
-    return ShadowRewardWrapper(env, economics=get_task("dishwashing").economics, reward_params=base.params,
+    return ShadowRewardWrapper(env, economics=get_task("dishwashing").economics,
                                weights_for=identity_reward_weights, objective=objective,
                                use_objective_reward=flip, constraints=constraints, recorder=recorder)
 
@@ -70,7 +70,7 @@ def test_both_rewards_equal_hand_computed_values_on_recorded_steps():
         mpl_step = s["units"] / dt_h
         wage = 0.30 * mpl_step - 1.0 * err * mpl_step  # p*MP - c_d*e*MP, toy prices
         legacy = (mpl_run - mpl_prev) - 1.0 * err - 0.1 * abs(wage / 18.0 - 1.0)
-        wh = s["attempts"] * 0.05  # no electricity price in 'toy': r_energy = -Wh
+        wh = s["attempts"] * 0.05  # r_energy = -Wh (spec §7; the catalog's price is not used by default)
         ends_in_catastrophe = 1.0 if t == len(steps) else 0.0  # once, on the step that ends the shift
         speed, care = (float(x) for x in step["action"])
         cell = (min(int(speed * 5), 4), min(int(care * 5), 4))
@@ -106,13 +106,15 @@ def test_episode_record_sums_terms_and_episode_j_by_hand():
 
 
 PRICED = EconParams.preset("realistic").with_overrides({"energy_price_usd_per_kwh": 0.12})
+ALL_TERMS_USD = ObjectiveVector.from_list(ALL_TERMS.to_list(), energy_term="usd")
 
 
-@pytest.mark.parametrize("params", [EconParams.preset("toy"), CLUMSY, PRICED],
-                         ids=["toy", "catastrophe_prone", "realistic_priced"])
-def test_step_objective_rewards_sum_to_the_episode_j(params):
+@pytest.mark.parametrize("params, objective", [(EconParams.preset("toy"), ALL_TERMS), (CLUMSY, ALL_TERMS),
+                                               (PRICED, ALL_TERMS), (PRICED, ALL_TERMS_USD)],
+                         ids=["toy", "catastrophe_prone", "realistic_priced", "priced_energy_term_usd"])
+def test_step_objective_rewards_sum_to_the_episode_j(params, objective):
     """The invariant: sum_t objective_t == combine_reward(w, build_reward_terms(episode summary))."""
-    env = make_env(params=params, objective=ALL_TERMS)
+    env = make_env(params=params, objective=objective)
     for episode in range(3):
         _, steps = rollout(env, actions(300, seed=episode), seed=episode)
         record = steps[-1]["info"]["shadow_episode"]

@@ -21,7 +21,7 @@ def test_mid_episode_reset_does_not_carry_the_running_violation_over():
     params = EconParams.preset("toy").with_overrides({"max_error_rate_sla": 10.0, "max_catastrophic_errors": 1000})
     base = DishwashingEnv(params, reward_mode="legacy", max_steps=80)
     shaper = ConstraintShaper(ConstraintSet(max_error_rate=0.02), "penalty")
-    env = ShadowRewardWrapper(base, economics=get_task("dishwashing").economics, reward_params=base.params,
+    env = ShadowRewardWrapper(base, economics=get_task("dishwashing").economics,
                               weights_for=identity_reward_weights, objective=ObjectiveVector.from_preset("throughput"),
                               constraints=shaper)
     env.reset(seed=1)

@@ -32,10 +32,10 @@ def test_step_summaries_add_up_to_the_metered_episode():
     assert info["step_summary"]["catastrophic"] == (raw["termination_reason"] == "fall")
 
 
-def shadow_episode(vector, seed):
+def shadow_episode(vector, seed, energy_term="wh"):
     task = make_task_env("hopper_courier")
-    env = ShadowRewardWrapper(task.env, economics=task.economics, reward_params=task.reward_params,
-                              weights_for=identity_reward_weights, objective=ObjectiveVector.from_list(vector))
+    env = ShadowRewardWrapper(task.env, economics=task.economics, weights_for=identity_reward_weights,
+                              objective=ObjectiveVector.from_list(vector, energy_term=energy_term))
     env.reset(seed=seed)
     env.action_space.seed(seed)
     steps = []
@@ -47,8 +47,10 @@ def shadow_episode(vector, seed):
     return task, steps
 
 
-def test_shadow_wrapper_runs_on_a_mujoco_task_with_priced_energy():
-    task, steps = shadow_episode([1.0, 1.0, 1.0, 1.0, 0.0], seed=0)
+@pytest.mark.parametrize("energy_term", ["wh", "usd"])
+def test_shadow_wrapper_runs_on_a_mujoco_task_with_priced_energy(energy_term):
+    task, steps = shadow_episode([1.0, 1.0, 1.0, 1.0, 0.0], seed=0, energy_term=energy_term)
+    usd_per_wh = task.economics.energy_price_usd_per_kwh / 1000.0 if energy_term == "usd" else 1.0
     units = errors = novelty = 0.0
     mpl_prev = err_prev = 0.0
     dt_h = task.dt_s / 3600.0
@@ -57,9 +59,9 @@ def test_shadow_wrapper_runs_on_a_mujoco_task_with_priced_energy():
         units, errors, novelty = units + s["units"], errors + s["errors"], novelty + s["novelty"]
         mpl, err = units / (t * dt_h), (errors / (units + errors) if units + errors > 0 else 0.0)
         fell = 1.0 if s["termination_reason"] == "fall" else 0.0
-        # increments of the running episode metrics; r_energy priced in USD: -(pi_e * Wh / 1000)
-        expected = ((mpl - mpl_prev) - (err - err_prev) - task.economics.energy_price_usd_per_kwh * s["Wh"] / 1000.0
-                    - fell) / 4.0
+        # increments of the running episode metrics; r_energy is -Wh on this priced task (spec §7), and
+        # -(pi_e * Wh / 1000) USD only under the objective option energy_term="usd"
+        expected = ((mpl - mpl_prev) - (err - err_prev) - usd_per_wh * s["Wh"] - fell) / 4.0
         assert info["shadow"]["objective"] == pytest.approx(expected, rel=1e-9, abs=1e-12)
         assert s["novelty_running"] == pytest.approx(novelty / t, rel=1e-12)
         assert reward == info["shadow"]["legacy"]
@@ -80,3 +82,5 @@ def test_step_objective_rewards_sum_to_the_episode_j_on_hopper_courier():
         assert record["term_totals"][name] == pytest.approx(value, rel=1e-6, abs=1e-9), name
     assert record["term_totals"]["r_safety"] == (-1.0 if record["econ"]["termination_reason"] == "fall" else 0.0)
     assert record["episode_terms"]["r_novelty"] > 0
+    assert record["episode_terms"]["r_ep"] == pytest.approx(record["econ"]["energy_productivity_units_per_kwh"])
+    assert record["episode_terms"]["r_ep"] > 0

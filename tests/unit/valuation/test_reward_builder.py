@@ -18,11 +18,20 @@ def test_spec_sanity_check_good_and_bad_episode():
     assert combine_reward(default_objective_vector(), build_reward_terms(BAD)) == pytest.approx(15.89)
 
 
-def test_terms_with_an_electricity_price():
+def test_the_energy_term_is_wh_on_a_priced_task_and_usd_only_when_the_objective_asks():
     params = EconParams(energy_price_usd_per_kwh=0.12)
-    terms = build_reward_terms({**GOOD, "novelty": 0.5}, params)
-    assert terms == pytest.approx({"r_mpl": 60.0, "r_error": -0.02, "r_energy": -0.0018, "r_safety": 0.0,
-                                   "r_novelty": 0.5})
+    terms = build_reward_terms({**GOOD, "novelty": 0.5, "ep_episode": 400.0}, params)
+    assert terms == pytest.approx({"r_mpl": 60.0, "r_ep": 400.0, "r_error": -0.02, "r_energy": -15.0,
+                                   "r_safety": 0.0, "r_novelty": 0.5})
+    priced = build_reward_terms({**GOOD, "novelty": 0.5}, params, energy_term="usd")
+    assert priced["r_energy"] == pytest.approx(-0.0018)
+    # spec §7 check 1 holds on a priced task too (the price no longer enters by default)
+    assert combine_reward(default_objective_vector(), build_reward_terms(GOOD, params)) == pytest.approx(58.496)
+    assert combine_reward(default_objective_vector(), build_reward_terms(BAD, params)) == pytest.approx(15.89)
+    with pytest.raises(ValueError, match="energy_price_usd_per_kwh"):
+        build_reward_terms(GOOD, EconParams(), energy_term="usd")  # no price to price it with
+    with pytest.raises(ValueError, match="energy_term"):
+        build_reward_terms(GOOD, params, energy_term="kwh")
 
 
 def test_episode_field_names_and_objects_are_read():
@@ -34,7 +43,8 @@ def test_episode_field_names_and_objects_are_read():
         novelty_score = 0.25
 
     terms = build_reward_terms(Summary())
-    assert terms == {"r_mpl": 30.0, "r_error": -0.1, "r_energy": -2.0, "r_safety": -1.0, "r_novelty": 0.25}
+    assert terms == {"r_mpl": 30.0, "r_ep": 0.0, "r_error": -0.1, "r_energy": -2.0, "r_safety": -1.0,
+                     "r_novelty": 0.25}
 
 
 def test_presets_order_good_over_bad_and_accept_objective_vectors():
@@ -56,19 +66,21 @@ def test_incremental_terms_sum_to_the_episode_terms_of_recorded_counts():
     reasons = [None, None, "catastrophic_error"]
     novelty_running = [0.5, 0.25, 0.5]
     price = EconParams(energy_price_usd_per_kwh=0.12)
-    incremental, sums, units = IncrementalRewardTerms(), {}, 0
-    for t, ((u, e, wh), reason, nov) in enumerate(zip(counts, reasons, novelty_running, strict=True), start=1):
-        units += u
-        step = {"mpl_t": units / (t / 60.0), "errors": e, "attempts": u + e, "Wh": wh,
-                "termination_reason": reason, "novelty_running": nov, "catastrophic": e > 0 and u == 0}
-        for name, value in incremental.step(step, price).items():
-            sums[name] = sums.get(name, 0.0) + value
-    # the episode by hand: 3 units in 3 minutes, 2 errors in 5 attempts, 0.3 Wh at $0.12/kWh
-    assert sums == pytest.approx({"r_mpl": 60.0, "r_error": -0.4, "r_energy": -0.3 * 0.12 / 1000.0,
-                                  "r_safety": -1.0, "r_novelty": 0.5})
-    episode = {"mpl": 60.0, "error_rate": 0.4, "energy_Wh": 0.3, "termination_reason": "catastrophic_error",
-               "novelty": 0.5}
-    assert sums == pytest.approx(build_reward_terms(episode, price))
+    for energy_term, r_energy in (("wh", -0.3), ("usd", -0.3 * 0.12 / 1000.0)):
+        incremental, sums, units, wh_so_far = IncrementalRewardTerms(), {}, 0, 0.0
+        for t, ((u, e, wh), reason, nov) in enumerate(zip(counts, reasons, novelty_running, strict=True), start=1):
+            units, wh_so_far = units + u, wh_so_far + wh
+            step = {"mpl_t": units / (t / 60.0), "errors": e, "attempts": u + e, "Wh": wh,
+                    "ep_t": units / (wh_so_far / 1000.0),
+                    "termination_reason": reason, "novelty_running": nov, "catastrophic": e > 0 and u == 0}
+            for name, value in incremental.step(step, price, energy_term).items():
+                sums[name] = sums.get(name, 0.0) + value
+        # the episode by hand: 3 units in 3 minutes, 2 errors in 5 attempts, 0.3 Wh (10,000 units/kWh)
+        assert sums == pytest.approx({"r_mpl": 60.0, "r_ep": 10_000.0, "r_error": -0.4, "r_energy": r_energy,
+                                      "r_safety": -1.0, "r_novelty": 0.5})
+        episode = {"mpl": 60.0, "error_rate": 0.4, "energy_Wh": 0.3, "termination_reason": "catastrophic_error",
+                   "novelty": 0.5, "ep_episode": 10_000.0}
+        assert sums == pytest.approx(build_reward_terms(episode, price, energy_term))
 
 
 def test_incremental_safety_fires_once_and_reset_starts_a_new_episode():
@@ -80,8 +92,46 @@ def test_incremental_safety_fires_once_and_reset_starts_a_new_episode():
     first, second = incremental.step(step), incremental.step(step)
     assert (first["r_safety"], second["r_safety"]) == (-1.0, 0.0)
     assert (first["r_mpl"], second["r_mpl"]) == (30.0, 0.0)
-    assert first["r_energy"] == -2.0 and first["r_novelty"] == 0.04  # no price: Wh; overlay novelty increment
+    assert first["r_energy"] == -2.0 and first["r_novelty"] == 0.04  # Wh; overlay novelty increment
     incremental.reset()
     assert incremental.step({**step, "errors": 0})["r_safety"] == -1.0
     with pytest.raises(ValueError, match="attempts"):
         incremental.step({"mpl_t": 1.0, "errors": 0})
+
+
+def test_episode_j_is_combine_reward_of_the_terms_under_the_objective_option():
+    from econmotor.config.task_economics import TaskEconomics
+    from econmotor.valuation import episode_j
+
+    economics = TaskEconomics(energy_price_usd_per_kwh=0.12)
+    assert episode_j(GOOD, default_objective_vector(), economics) == pytest.approx(58.496)
+    assert episode_j(BAD, ObjectiveVector(), economics) == pytest.approx(15.89)
+    priced = ObjectiveVector(energy_term="usd")
+    assert episode_j(GOOD, priced, economics) == pytest.approx(60.0 - 0.2 * 0.02 - 0.1 * 15 * 0.12 / 1000)
+    assert episode_j(GOOD, priced, economics, energy_term="wh") == pytest.approx(58.496)  # explicit override
+    assert priced.normalize().energy_term == "usd"
+
+
+def test_reward_weights_scale_energy_productivity_with_alpha_ep():
+    from econmotor.config.objective_profile import RewardWeights
+
+    terms = build_reward_terms({**GOOD, "ep_episode": 400.0})
+    identity = RewardWeights.from_objective(default_objective_vector())
+    assert identity.alpha_ep == 0.0
+    assert combine_reward(identity, terms) == pytest.approx(58.496)
+    with_ep = RewardWeights.from_list([1.0, 0.01, 0.2, 0.1, 0.05])  # spec §4 order: mpl, ep, error, energy, safety
+    assert combine_reward(with_ep, terms) == pytest.approx(58.496 + 0.01 * 400.0)
+
+
+def test_extract_step_summary_reads_the_info_of_a_real_step():
+    from econmotor.envs import DishwashingEnv
+    from econmotor.valuation import extract_step_summary
+
+    env = DishwashingEnv()
+    env.reset(seed=0)
+    _, _, _, _, info = env.step([0.5, 0.5])
+    summary = extract_step_summary(info)
+    assert summary == info["step_summary"] and summary is not info["step_summary"]
+    assert build_reward_terms(summary)["r_energy"] == -summary["Wh"]
+    with pytest.raises(ValueError, match="step_summary"):
+        extract_step_summary({"episode": 1})
