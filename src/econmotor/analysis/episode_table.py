@@ -19,11 +19,15 @@ JSONL export format (``econmotor solve --export-jsonl``), one episode per line::
      "catastrophic": false,                    # episode ended in a catastrophe
      "termination_reason": "max_steps",
      "novelty_score": 0.0, "risk_score": 0.0,
-     "energy_price_usd_per_kwh": 0.12}         # null = unknown (r_energy = -Wh)
+     "energy_price_usd_per_kwh": 0.12}         # USD/kWh, null = unknown; read only by
+                                               # objectives that price energy (energy_term: usd)
 
 Lines are self-contained (run fields repeat), so files concatenate. Reading
 also accepts the summary names of ``econmotor.motor_backend.base.episode_summary``
-(``mpl_episode``, ``error_rate_episode``, ``energy_Wh``, ``energy_Wh_per_unit``).
+(``mpl_episode``, ``error_rate_episode``, ``energy_Wh``, ``energy_Wh_per_unit``), and
+the episode records of a shadow run (``shadow_episodes.jsonl``, format
+:data:`SHADOW_EPISODE_FORMAT`): their ``econ`` summary is the episode, the run id is
+the record's ``run_id`` or else the name of the run directory (the file's folder).
 """
 
 from __future__ import annotations
@@ -41,6 +45,8 @@ from econmotor.errors import ConfigError
 from econmotor.valuation.reward_builder import SUMMARY_ALIASES, is_catastrophic
 
 EPISODE_FORMAT = "econmotor-episode/1"
+#: the ``format`` of a shadow-mode episode record (``econmotor.rl.shadow``).
+SHADOW_EPISODE_FORMAT = "econmotor-shadow-episode/1"
 #: numeric episode columns (float64), in the order of :attr:`EpisodeTable.metric_matrix`.
 METRIC_COLUMNS: tuple[str, ...] = (
     "mpl_units_per_hour", "error_rate", "energy_wh", "energy_wh_per_unit", "wage_parity",
@@ -147,8 +153,12 @@ class EpisodeTable:
 
     @classmethod
     def from_records(cls, records: Iterable[Mapping[str, Any]], source: str = "<episodes>",
-                     default_price_usd_per_kwh: float | None = None) -> EpisodeTable:
-        """Build from episode records (JSONL lines or summaries carrying the run fields)."""
+                     default_price_usd_per_kwh: float | None = None,
+                     default_run_id: str | None = None) -> EpisodeTable:
+        """Build from episode records (JSONL lines, shadow records or summaries carrying the run fields).
+
+        ``default_run_id`` names the run of shadow records that carry none (their run directory).
+        """
         runs: dict[str, RunInfo] = {}
         positions: dict[str, int] = {}
         index: list[int] = []
@@ -158,8 +168,11 @@ class EpisodeTable:
         for line, rec in enumerate(records, 1):
             where = f"{source}:{line}"
             fmt = rec.get("format", EPISODE_FORMAT)
-            if fmt != EPISODE_FORMAT:
-                raise ConfigError(where, "format", f"unsupported episode format {fmt!r}", [EPISODE_FORMAT])
+            if fmt == SHADOW_EPISODE_FORMAT:
+                rec = {"run_id": default_run_id, **shadow_episode_record(rec, where)}
+            elif fmt != EPISODE_FORMAT:
+                raise ConfigError(where, "format", f"unsupported episode format {fmt!r}",
+                                  [EPISODE_FORMAT, SHADOW_EPISODE_FORMAT])
             run_id = rec.get("run_id")
             if run_id is None:
                 raise ConfigError(where, "run_id", "every episode record needs the id of its run")
@@ -193,6 +206,21 @@ class EpisodeTable:
             rec["energy_price_usd_per_kwh"] = finite_or_none(self.energy_price_usd_per_kwh[i])
             out.append(rec)
         return out
+
+
+def shadow_episode_record(rec: Mapping[str, Any], where: str = "<shadow episode>") -> dict[str, Any]:
+    """A shadow-mode episode record as an episode record: its econ summary plus the run fields."""
+    econ = rec.get("econ")
+    if not isinstance(econ, Mapping):
+        raise ConfigError(where, "econ", "a shadow episode record needs its econ summary")
+    vector = rec.get("objective_vector") or []
+    out = {**econ, "task_id": rec.get("task_id") or "", "backend": "shadow",
+           "objective": "w[" + ",".join(f"{float(v):g}" for v in vector) + "]",
+           "episode_index": rec.get("episode"),
+           "energy_price_usd_per_kwh": rec.get("energy_price_usd_per_kwh")}
+    if rec.get("run_id") is not None:
+        out["run_id"] = rec["run_id"]
+    return out
 
 
 def finite_or_none(value: float) -> float | None:
@@ -257,7 +285,8 @@ def read_episodes_jsonl(path: str | Path, default_price_usd_per_kwh: float | Non
                     raise ConfigError(f"{path}:{number}", None, "each line must be a JSON object")
                 yield rec
 
-    return EpisodeTable.from_records(lines(), str(path), default_price_usd_per_kwh)
+    return EpisodeTable.from_records(lines(), str(path), default_price_usd_per_kwh,
+                                     default_run_id=path.resolve().parent.name)
 
 
 def write_episodes_jsonl(table: EpisodeTable, path: str | Path) -> Path:

@@ -3,12 +3,16 @@
 For episodes ``i`` of runs ``r``, objectives ``k`` (weight vectors on
 ``[mpl, error, energy, safety, novelty]``) and constraint sets ``c``:
 
-- reward terms (RewardBuilder, DESIGN.md §3), matrix ``T`` (N x 5)::
+- reward terms (RewardBuilder, DESIGN.md §3), matrix ``T`` (N x 5), built by
+  :func:`econmotor.valuation.reward_builder.reward_terms_from_metrics` (the formulas
+  :func:`~econmotor.valuation.reward_builder.episode_j` uses, vectorised)::
 
-      T[i] = [mpl_i, -error_rate_i, -(pi_e_i * Wh_i / 1000) (or -Wh_i if no price),
-              -1 if catastrophic_i else 0, novelty_i]
+      T[i] = [mpl_i, -error_rate_i, -Wh_i, -1 if catastrophic_i else 0, novelty_i]
 
-- utility of a run under an objective: the mean episodic ``J = combine_reward(w_k, T[i])``.
+  with ``-(pi_e_i * Wh_i / 1000)`` in place of ``-Wh_i`` only for objectives whose
+  ``energy_term`` option is ``"usd"`` (the task's electricity price; an error where unknown).
+- utility of a run under an objective: the mean episodic ``J = episode_j(episode, w_k)``
+  ``= combine_reward(w_k, T[i])``.
   J is linear in T, so ``U = mean_r(T) @ W`` with ``W`` (5 x K): the per-run mean of T
   (``np.add.reduceat`` over run-sorted episodes) times the weight matrix. Identical to
   ``(T @ W)`` averaged per run, at R/N of the cost.
@@ -27,28 +31,39 @@ building their limit vectors.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
 from econmotor.analysis.episode_table import EpisodeTable
-from econmotor.config.objective_profile import OBJECTIVE_PRESETS, ObjectiveVector
+from econmotor.config.objective_profile import OBJECTIVE_PRESETS, ObjectiveVector, check_energy_term
 from econmotor.errors import ConfigError, UnknownNameError
-from econmotor.valuation.constraints import PENALTY_SCALE, ConstraintSet
-from econmotor.valuation.reward_builder import REWARD_TERM_NAMES
+from econmotor.valuation.constraints import PENALTY_SCALE, ConstraintSet, parse_constraint_set
+from econmotor.valuation.reward_builder import REWARD_TERM_NAMES, reward_terms_from_metrics
 
 
 @dataclass(frozen=True)
 class Objective:
-    """A named weight vector on ``[mpl, error, energy, safety, novelty]``."""
+    """A named weight vector on ``[mpl, error, energy, safety, novelty]`` and its energy-term option."""
 
     name: str
     weights: tuple[float, float, float, float, float]
     kind: str = "vector"  # "preset" | "grid" | "vector"
+    energy_term: str = "wh"  # "wh" (spec §7) or "usd" (priced), see econmotor.config.objective_profile
+
+    def __post_init__(self) -> None:
+        check_energy_term(self.energy_term, f"<objective {self.name}>")
 
     def to_dict(self) -> dict:
-        return {"name": self.name, "weights": list(self.weights), "kind": self.kind}
+        return {"name": self.name, "weights": list(self.weights), "kind": self.kind, "energy_term": self.energy_term}
+
+    @classmethod
+    def from_vector(cls, vector: ObjectiveVector, name: str | None = None, kind: str = "vector") -> Objective:
+        """An ObjectiveVector (weights and energy-term option) under a name."""
+        label = name or "w[" + ",".join(f"{v:g}" for v in vector.to_list()) + "]"
+        return cls(label, tuple(vector.to_list()), kind, vector.energy_term)
 
 
 def preset_objectives(names: Sequence[str] | None = None) -> list[Objective]:
@@ -79,14 +94,17 @@ def simplex_grid(divisions: int, include_novelty: bool = False) -> list[Objectiv
     return out
 
 
-def reward_term_matrix(table: EpisodeTable) -> np.ndarray:
-    """The RewardBuilder terms of every episode, (N, 5) in :data:`REWARD_TERM_NAMES` order."""
+def reward_term_matrix(table: EpisodeTable, energy_term: str = "wh") -> np.ndarray:
+    """The RewardBuilder terms of every episode, (N, 5) in :data:`REWARD_TERM_NAMES` order.
+
+    ``energy_term="usd"`` prices ``r_energy`` with each episode's electricity price.
+    """
     cols = table.columns
-    price = table.energy_price_usd_per_kwh
-    wh = cols["energy_wh"]
-    energy_term = np.where(np.isnan(price), -wh, -np.nan_to_num(price) * wh / 1000.0)
-    return np.column_stack([cols["mpl_units_per_hour"], -cols["error_rate"], energy_term,
-                            -table.catastrophic.astype(np.float64), cols["novelty_score"]])
+    terms = reward_terms_from_metrics(cols["mpl_units_per_hour"], cols["error_rate"], cols["energy_wh"],
+                                      table.catastrophic, cols["novelty_score"], energy_term=energy_term,
+                                      energy_price_usd_per_kwh=table.energy_price_usd_per_kwh)
+    return np.column_stack([np.broadcast_to(np.asarray(terms[name], dtype=np.float64), (table.num_episodes,))
+                            for name in REWARD_TERM_NAMES])
 
 
 @dataclass(frozen=True)
@@ -170,6 +188,10 @@ def solve_objective_surface(table: EpisodeTable, objectives: Sequence[Objective]
     run_metrics = {n: means[:, 5 + j] for j, n in enumerate(names)}
     run_metrics["catastrophic_rate"] = -means[:, 3]
     utility = means[:, :5] @ weights                                           # (R, K)
+    priced = np.array([o.energy_term == "usd" for o in objectives])
+    if priced.any():  # the priced option: the same terms with r_energy in USD, for those objectives only
+        priced_means = table.run_means(reward_term_matrix(table, "usd"))
+        utility[:, priced] = priced_means @ weights[:, priced]
 
     limits = ConstraintLimits.from_sets(sets)
     violation = limits.violations(run_metrics["wage_parity"], run_metrics["error_rate"],
@@ -195,13 +217,12 @@ def parse_vector_objective(text: str, source: str = "--vector") -> Objective:
         values = [float(v) for v in text.replace(" ", ",").split(",") if v]
     except ValueError:
         raise ConfigError(source, None, f"expected 5 comma-separated numbers, got {text!r}") from None
-    vector = ObjectiveVector.from_list(values, source)
-    return Objective("w[" + ",".join(f"{v:g}" for v in vector.to_list()) + "]", tuple(vector.to_list()), "vector")
+    return Objective.from_vector(ObjectiveVector.from_list(values, source))
 
 
 def objectives_from_options(presets: Sequence[str] = (), vectors: Sequence[str] = (), grid_divisions: int = 0,
-                            include_novelty: bool = False) -> list[Objective]:
-    """Presets (comma lists allowed), explicit vectors and a simplex grid.
+                            include_novelty: bool = False, energy_term: str = "wh") -> list[Objective]:
+    """Presets (comma lists allowed), explicit vectors and a simplex grid, all with ``energy_term``.
 
     Without presets or vectors all six presets are used (and the grid, if any, is added to them).
     """
@@ -210,4 +231,35 @@ def objectives_from_options(presets: Sequence[str] = (), vectors: Sequence[str] 
     out += [parse_vector_objective(v) for v in vectors]
     if grid_divisions:
         out += simplex_grid(grid_divisions, include_novelty)
-    return out
+    check_energy_term(energy_term, "--energy-term")
+    return [o if o.energy_term == energy_term else replace(o, energy_term=energy_term) for o in out]
+
+
+def evaluate_datapacks_under_constraints(
+    datapacks: EpisodeTable | Iterable[Mapping[str, Any]],
+    objective_vector: ObjectiveVector | Sequence[float] | str,
+    constraint_set: ConstraintSet | Mapping[str, Any] | None,
+) -> tuple[bool, float]:
+    """Spec §5: ``valid, utility = evaluate_datapacks_under_constraints(datapacks, objective_vector,
+    constraint_set)``.
+
+    Scores recorded episodes (the episodes of the datapacks: an :class:`EpisodeTable`, or episode
+    records / summaries as ``EpisodeTable.from_records`` reads them) pooled as one run, with
+    :func:`solve_objective_surface`: ``utility`` is the mean episodic J under the objective
+    (an ObjectiveVector, with its ``energy_term`` option; five weights; or a preset name) and
+    ``valid`` says whether the episodes' mean wage parity, error rate and energy meet the
+    constraint set (a ConstraintSet or the spec's mapping, e.g. ``{"max_error_rate": 0.05}``;
+    ``None``: unconstrained).
+    """
+    if isinstance(objective_vector, str):
+        objective_vector = ObjectiveVector.from_preset(objective_vector)
+    elif not isinstance(objective_vector, ObjectiveVector):
+        objective_vector = ObjectiveVector.from_list(list(objective_vector))
+    if constraint_set is None:
+        constraint_set = ConstraintSet(name="unconstrained")
+    elif not isinstance(constraint_set, ConstraintSet):
+        constraint_set = parse_constraint_set(constraint_set)
+    records = datapacks.records() if isinstance(datapacks, EpisodeTable) else list(datapacks)
+    pooled = EpisodeTable.from_records([{**rec, "run_id": "datapacks"} for rec in records], "<datapacks>")
+    surface = solve_objective_surface(pooled, [Objective.from_vector(objective_vector)], [constraint_set])
+    return bool(surface.valid[0, 0]), float(surface.utility[0, 0])

@@ -3,8 +3,8 @@
 ``episodes_from_registry`` reads the per-episode summaries of completed runs
 (filters: task, backend, datapacks, objective name, run kind) and adds what the
 solver needs from the run: datapacks, seed, the sweep cell key stored in the run's
-config, and the task's electricity price from the task catalog (``r_energy`` is
-``-(pi_e * Wh / 1000)``; a task missing from the catalog falls back to ``-Wh``).
+config, and the task's electricity price from the task catalog (read only by
+objectives that price energy, ``energy_term: usd``; ``r_energy`` is ``-Wh`` otherwise).
 """
 
 from __future__ import annotations

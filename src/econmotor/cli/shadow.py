@@ -22,6 +22,8 @@ def shadow_command(
     objective_vector: tuple[float, float, float, float, float] = typer.Option(
         None, "--objective-vector", help="5 weights: mpl error energy safety novelty."),
     total_steps: int = typer.Option(20_000, "--total-steps", help="SAC environment steps."),
+    energy_term: str = typer.Option("wh", "--energy-term", help="J's energy term: wh (-Wh, the default) or usd "
+                                    "(priced at the task's electricity price)."),
     use_objective_reward: bool = typer.Option(
         False, "--use-objective-reward", help="The flip: the learner sees the RewardBuilder reward, not legacy."),
     constraints: str = typer.Option(None, "--constraints", help="Constraint-set YAML."),
@@ -53,7 +55,8 @@ def shadow_command(
     else:
         vector, label = ObjectiveVector(), "default"
     config = ShadowConfig(
-        env=env, objective=tuple(vector.to_list()), objective_label=label, total_steps=total_steps,
+        env=env, objective=tuple(vector.to_list()), objective_label=label, energy_term=energy_term,
+        total_steps=total_steps,
         use_objective_reward=use_objective_reward,
         constraints=load_constraint_set(Path(constraints)) if constraints else None, constraint_mode=constraint_mode,
         objective_sampling=objective_sampling, reward_weights=reward_weights, reward_net_path=reward_net,

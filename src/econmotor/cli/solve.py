@@ -69,6 +69,8 @@ def solve_command(
     vector: list[str] = typer.Option([], "--vector", help="Objective vector 'mpl,error,energy,safety,novelty'."),
     grid: int = typer.Option(0, "--grid", help="Add every simplex weight vector with step 1/GRID."),
     include_novelty: bool = typer.Option(False, "--include-novelty", help="Let the grid weight novelty too."),
+    energy_term: str = typer.Option("wh", "--energy-term", help="J's energy term: wh (-Wh, the default) or usd "
+                                    "(priced at the task's electricity price)."),
     reference_point: list[str] = typer.Option([], "--reference-point", help="Hypervolume bound, e.g. "
                                               "energy=5 (keys: mpl, energy, error, risk)."),
     output_dir: Path = typer.Option(Path("runs/objective_surface"), "--output-dir", help="Where outputs go."),
@@ -76,7 +78,7 @@ def solve_command(
 ) -> None:
     """Which objective should a customer buy under which constraints? Re-score recorded episodes."""
     sets = load_constraint_sets(constraints) if constraints else [ConstraintSet(name="unconstrained")]
-    objectives = objectives_from_options(preset, vector, grid, include_novelty)
+    objectives = objectives_from_options(preset, vector, grid, include_novelty, energy_term)
     reference = parse_reference(reference_point)
     if episodes_jsonl:
         tables = [read_episodes_jsonl(p) for p in episodes_jsonl]

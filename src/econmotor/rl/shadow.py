@@ -39,6 +39,7 @@ from typing import Any
 
 import gymnasium as gym
 
+from econmotor.analysis.episode_table import SHADOW_EPISODE_FORMAT  # ``econmotor solve`` reads these records
 from econmotor.config.objective_profile import ObjectiveVector, RewardWeights
 from econmotor.config.task_economics import TaskEconomics
 from econmotor.economics.legacy_reward import LegacyRewardWeights, compute_econ_reward
@@ -65,8 +66,7 @@ ECON_SUMMARY_KEYS = ("mpl_episode", "error_rate_episode", "energy_Wh", "energy_W
                      "implied_wage_usd_per_hour", "units_completed", "units_attempted", "errors",
                      "episode_length_s", "termination_reason", "profit", "risk_score", "novelty_score",
                      "ep_episode", "energy_productivity_units_per_kwh")
-#: ``format`` of a shadow episode record; ``econmotor solve --episodes-jsonl`` reads these files.
-SHADOW_EPISODE_FORMAT = "econmotor-shadow-episode/1"
+
 
 
 def legacy_step_reward(step_summary: Mapping[str, Any], weights: LegacyRewardWeights) -> float:

@@ -3,6 +3,9 @@
 import numpy as np
 import pytest
 
+from econmotor.config.objective_profile import ObjectiveVector
+from econmotor.config.task_economics import TaskEconomics
+
 from econmotor.analysis.episode_table import EpisodeTable, RunInfo
 from econmotor.analysis.objective_surface import (
     Objective,
@@ -12,7 +15,8 @@ from econmotor.analysis.objective_surface import (
     solve_objective_surface,
 )
 from econmotor.analysis.surface_report import surface_cells, surface_document, surface_markdown
-from econmotor.valuation import ConstraintSet, build_reward_terms, combine_reward
+from econmotor.valuation import ConstraintSet, build_reward_terms, combine_reward, episode_j
+from econmotor.valuation.reward_builder import REWARD_TERM_NAMES
 
 
 def three_runs() -> EpisodeTable:
@@ -48,10 +52,13 @@ def test_reward_terms_match_reward_builder_episode_by_episode():
     table = three_runs()
     terms = reward_term_matrix(table)
     first = build_reward_terms({"mpl": 100.0, "error_rate": 0.2, "energy_Wh": 30.0, "catastrophic": True})
-    assert terms[0].tolist() == pytest.approx(list(first.values()))
+    assert terms[0].tolist() == pytest.approx([first[name] for name in REWARD_TERM_NAMES])
     priced = EpisodeTable.from_arrays(table.runs, table.run_index, catastrophic=table.catastrophic,
                                       energy_price_usd_per_kwh=0.12, **table.columns)
-    assert reward_term_matrix(priced)[0, 2] == pytest.approx(-0.12 * 30.0 / 1000.0)
+    assert reward_term_matrix(priced)[0, 2] == -30.0  # Wh on a priced task too (spec §7)
+    assert reward_term_matrix(priced, "usd")[0, 2] == pytest.approx(-0.12 * 30.0 / 1000.0)
+    with pytest.raises(ValueError, match="energy_price_usd_per_kwh"):
+        reward_term_matrix(table, "usd")  # the option needs a price
 
 
 def test_utility_is_the_mean_episodic_combine_reward_and_orders_runs():
@@ -126,3 +133,62 @@ def test_simplex_grid_counts_and_sums():
     weights = np.array([o.weights for o in grid])
     assert np.allclose(weights.sum(axis=1), 1.0) and np.all(weights[:, 4] == 0)
     assert len({o.name for o in grid}) == len(grid)
+
+
+def two_runs_on_a_priced_task(price_usd_per_kwh: float = 0.12) -> EpisodeTable:
+    """Two runs that differ only in energy: same MPL, errors, parity; 'frugal' 10 Wh, 'hungry' 40 Wh."""
+    runs = [RunInfo("frugal", task_id="dishwashing"), RunInfo("hungry", task_id="dishwashing")]
+    return EpisodeTable.from_arrays(
+        runs, np.array([0, 0, 1, 1]),
+        mpl_units_per_hour=np.array([60.0, 62.0, 60.0, 62.0]), error_rate=np.array([0.04, 0.02, 0.04, 0.02]),
+        energy_wh=np.array([10.0, 10.0, 40.0, 40.0]), energy_wh_per_unit=np.array([0.2, 0.2, 0.8, 0.8]),
+        wage_parity=np.array([0.9, 0.95, 0.9, 0.95]), energy_price_usd_per_kwh=price_usd_per_kwh)
+
+
+def test_on_a_priced_task_energy_saver_picks_the_frugal_run_by_six_times_throughputs_margin():
+    table = two_runs_on_a_priced_task()
+    surface = solve_objective_surface(table, preset_objectives(["throughput", "energy_saver"]), [])
+    frugal, hungry = surface.utility
+    margin = dict(zip(["throughput", "energy_saver"], frugal - hungry, strict=True))
+    assert surface.best_run[:, 0].tolist() == [0, 0]  # both presets prefer the frugal run
+    # the margin is the energy weight times the 30 Wh saved: 0.5 * 30 and 3 * 30, so six times
+    assert margin == pytest.approx({"throughput": 0.5 * 30.0, "energy_saver": 3.0 * 30.0})
+    assert margin["energy_saver"] == pytest.approx(6.0 * margin["throughput"])
+    # against an MPL term of ~60 the energy difference matters (it did not as 0.0036 USD)
+    assert margin["energy_saver"] / surface.utility[0, 1] > 0.5
+    # the priced option, asked for explicitly, gives the old dollar margins (3 * 0.0036 USD)
+    priced = solve_objective_surface(table, [Objective.from_vector(ObjectiveVector.from_preset(
+        "energy_saver", energy_term="usd"), "energy_saver_usd")], [])
+    assert priced.utility[0, 0] - priced.utility[1, 0] == pytest.approx(3.0 * 30.0 * 0.12 / 1000.0)
+
+
+def test_the_solver_utility_is_the_mean_of_episode_j_for_both_energy_terms():
+    table = two_runs_on_a_priced_task()
+    objectives = [Objective.from_vector(ObjectiveVector.from_preset("energy_saver", energy_term=term), term)
+                  for term in ("wh", "usd")]
+    surface = solve_objective_surface(table, objectives, [])
+    economics = TaskEconomics(energy_price_usd_per_kwh=0.12)
+    for k, term in enumerate(("wh", "usd")):
+        vector = ObjectiveVector.from_preset("energy_saver", energy_term=term)
+        for r, rec_run in enumerate(("frugal", "hungry")):
+            js = [episode_j(rec, vector, economics) for rec in table.records() if rec["run_id"] == rec_run]
+            assert surface.utility[r, k] == pytest.approx(np.mean(js), rel=1e-12)
+
+
+def test_evaluate_datapacks_under_constraints_pools_the_episodes_as_the_spec_calls_it():
+    from econmotor.analysis.objective_surface import evaluate_datapacks_under_constraints
+
+    table = two_runs_on_a_priced_task()
+    records = [r for r in table.records() if r["run_id"] == "frugal"]
+    valid, utility = evaluate_datapacks_under_constraints(records, ObjectiveVector.from_preset("energy_saver"),
+                                                          {"max_error_rate": 0.05, "max_energy_Wh": 20.0,
+                                                           "energy_basis": "per_episode"})
+    assert valid is True
+    assert utility == pytest.approx(np.mean([episode_j(r, ObjectiveVector.from_preset("energy_saver"))
+                                             for r in records]))
+    valid_all, utility_all = evaluate_datapacks_under_constraints(table, "energy_saver",
+                                                                  {"max_energy_Wh": 20.0,
+                                                                   "energy_basis": "per_episode"})
+    assert valid_all is False  # the pooled mean is 25 Wh per episode
+    assert utility_all == pytest.approx(utility - 3.0 * 15.0)
+    assert evaluate_datapacks_under_constraints(records, [1, 0, 0, 0, 0], None) == (True, pytest.approx(61.0))
