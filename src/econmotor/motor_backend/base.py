@@ -88,9 +88,20 @@ class MotorEvalResult:
 
 @runtime_checkable
 class PolicyHandle(Protocol):
-    """A deployed policy: observation(s) in, action(s) out."""
+    """A deployed policy: observation(s) in, action(s) out; ``step(obs)`` is ``act(obs)``
+    (upstream's deployed handles answer both)."""
 
     def act(self, obs: np.ndarray) -> np.ndarray: ...
+
+    def step(self, obs: np.ndarray) -> np.ndarray: ...
+
+
+class StepAlias:
+    """Mixin for policy handles: ``step(obs, ...)`` returns ``act(obs, ...)`` (the upstream name)."""
+
+    def step(self, obs: np.ndarray, *args: Any, **kwargs: Any) -> np.ndarray:
+        """The same action(s) as ``act(obs, ...)``."""
+        return self.act(obs, *args, **kwargs)  # type: ignore[attr-defined]
 
 
 @runtime_checkable

@@ -16,7 +16,8 @@ Schema (spec: motor_backends.md, plus tags)::
     tags: [baseline]
     task_tags: [locomotion]             # tasks this pack is meant for
     robot_families: [humanoid]
-    objective_hint: throughput          # a preset name suggested for this pack
+    objective_hint: throughput          # a preset name, or free text ("prioritise throughput
+                                        # on fragile items"): kept as written, shown in reports
 
 Generic validation happens here (types, weights, difficulty in [0, 1]); each
 backend validates the ``domain_randomization`` and ``curriculum`` keys it supports.
@@ -69,6 +70,11 @@ class DatapackConfig:
     objective_hint: str | None = None
     source: str = "<datapack>"
 
+    @property
+    def objective_hint_preset(self) -> str | None:
+        """The hint when it names an objective preset, else ``None`` (free text, or no hint)."""
+        return hint_preset(self.objective_hint)
+
     def to_dict(self) -> dict[str, Any]:
         """The YAML mapping (without ``source``); ``parse_datapack(to_dict())`` round-trips."""
         out: dict[str, Any] = {"id": self.id}
@@ -106,6 +112,20 @@ class DatapackBundle:
     sources: dict[str, str] = field(default_factory=dict)
     #: motion clip path -> datapack id it came from (for error messages)
     clip_origins: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def objective_hint_preset(self) -> str | None:
+        """The merged hint when it names an objective preset, else ``None``."""
+        return hint_preset(self.objective_hint)
+
+
+def hint_preset(hint: str | None) -> str | None:
+    """``hint`` if it is an objective preset name (``throughput``, ...), else ``None``.
+
+    Upstream datapacks carry free-text hints ("prioritise throughput on fragile items"):
+    those are kept as written (stored, shown in reports), never an error.
+    """
+    return hint if hint in OBJECTIVE_PRESETS else None
 
 
 def _str_list(value: Any, source: str | Path, key: str) -> tuple[str, ...]:
@@ -145,7 +165,8 @@ def parse_datapack(data: Any, source: str | Path = "<datapack>") -> DatapackConf
         raise ConfigError(source, "curriculum.initial_difficulty", "must not exceed max_difficulty")
     hint = data.get("objective_hint")
     if hint is not None:
-        hint = as_str(hint, source, "objective_hint", OBJECTIVE_PRESETS)
+        hint = as_str(hint, source, "objective_hint")  # a preset name or free text, kept as written
+        hint = hint if hint.strip() else None
     return DatapackConfig(
         id=pack_id,
         description=as_str(data.get("description", ""), source, "description"),

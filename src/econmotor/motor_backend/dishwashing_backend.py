@@ -43,6 +43,7 @@ from econmotor.motor_backend.base import (
     MotorEvalResult,
     MotorTrainingResult,
     ProgressFn,
+    StepAlias,
     no_progress,
     summarize_episodes,
 )
@@ -82,8 +83,8 @@ class SACSettings:
     curve_every_steps: int = 500
 
 
-class SACPolicyHandle:
-    """A deployed SAC policy: ``act(obs)`` -> deterministic (speed, care)."""
+class SACPolicyHandle(StepAlias):
+    """A deployed SAC policy: ``act(obs)`` (or ``step(obs)``) -> deterministic (speed, care)."""
 
     def __init__(self, model: Any, policy_id: str) -> None:
         self.model, self.policy_id = model, policy_id

@@ -44,6 +44,7 @@ from econmotor.motor_backend.base import (
     MotorEvalResult,
     MotorTrainingResult,
     ProgressFn,
+    StepAlias,
     no_progress,
     summarize_episodes,
 )
@@ -87,8 +88,9 @@ def find_holosoma_python(venv: str | Path | None = None) -> Path:
     )
 
 
-class HolosomaPolicyHandle:
-    """A Holosoma policy in onnxruntime: ``act(actor_obs) -> actions`` plus both sets of metadata.
+class HolosomaPolicyHandle(StepAlias):
+    """A Holosoma policy in onnxruntime: ``act(actor_obs) -> actions`` (``step`` is the same) plus both
+    sets of metadata.
 
     Attributes:
         dof_names, kp, kd, action_scale: Holosoma's export metadata (joint order, PD gains,

@@ -52,6 +52,17 @@ def objective_from_vector(vector: ObjectiveVector, name: str = "objective",
     )
 
 
+def objective_weights_vector(spec: EconomicObjectiveSpec) -> list[float]:
+    """The ``[mpl, error, energy, safety, novelty]`` weights of a spec (inverse of :func:`objective_from_vector`).
+
+    Penalty weights enter as magnitudes (the overlay uses ``-|w|`` for them), so a spec
+    built from a vector gives that vector back; the RewardBuilder J of a run trained under
+    ``spec`` is ``episode_j(summary, objective_weights_vector(spec), economics)``.
+    """
+    return [spec.mpl_weight, abs(spec.error_weight), abs(spec.energy_weight), abs(spec.risk_weight),
+            spec.novelty_weight]
+
+
 def parse_objective_spec(data: Any, source: str | Path = "<objective>") -> EconomicObjectiveSpec:
     """Validate an already-parsed mapping (any of the three forms)."""
     data = require_mapping(data, source, None)

@@ -4,19 +4,24 @@ Schema ``econmotor.task_pricing_report`` version :data:`REPORT_SCHEMA_VERSION`::
 
     schema, schema_version, generated_at, econmotor_version
     task:        task_id, description, unit, error_definition
-    backend, objective {name, weights..., overlay}, datapacks [ids], notes
+    backend, objective {name, weights..., overlay, J}, datapacks [ids], datapack_objective_hints {id: hint}, notes
     runs:        train {run_id, status, seed, num_envs, max_steps, policy_path, ...} | null,
                  eval {...} | null   (the run whose episodes were priced: ``runs.priced``)
     inputs:      [{name, value, unit, source}]  every number the price depends on
     pricing:     spread_share, aggregate {TaskPrice fields}, distributions {field: {mean, p10, p50, p90, n}},
                  units {field: unit}
     metrics:     raw {..}, econ {..}  (aggregate over the priced episodes)
-    episodes:    [{episode_index, termination_reason, mpl_units_per_hour, ...}]
+    episodes:    [{episode_index, termination_reason, mpl_units_per_hour, ..., J}]
     training_curve: [{timesteps, mean_return}]
     registry:    {db_url, report_id}
 
 JSON has no infinity: non-finite numbers are written as ``null`` (a robot that
 completed nothing has no finite unit cost); ``json_ready`` does that conversion.
+
+``objective.J``: the RewardBuilder J of each priced episode under the run's objective
+(weights ``[mpl, error, energy, safety, novelty]``, energy in Wh), computed by
+``econmotor.valuation.episode_j`` — the same J shadow mode logs and ``econmotor solve``
+ranks runs by. Datapack objective hints are shown as written (a preset name or free text).
 """
 
 from __future__ import annotations
@@ -29,6 +34,8 @@ from typing import Any
 from econmotor.economics.pricing import PricingSummary, pricing_inputs
 from econmotor.objectives import compile_economic_overlay
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
+from econmotor.objectives.loader import objective_weights_vector
+from econmotor.valuation.reward_builder import episode_j
 
 REPORT_SCHEMA = "econmotor.task_pricing_report"
 REPORT_SCHEMA_VERSION = 2  # 2: TaskPrice gained damage_usd_per_unit, customer_saving_after_damage_usd_per_hour
@@ -97,11 +104,20 @@ def _run_facts(run: Any) -> dict[str, Any] | None:
             "finished_at": run.finished_at.isoformat() if run.finished_at else None}
 
 
+def _objective_hints(run: Any) -> dict[str, str]:
+    """Datapack id -> objective hint (a preset name or free text) from the run's recorded datapacks."""
+    packs = (getattr(run, "config", None) or {}).get("datapacks") or []
+    return {str(p["id"]): str(p["objective_hint"]) for p in packs
+            if isinstance(p, dict) and p.get("id") and p.get("objective_hint")}
+
+
 def build_document(ctx: ReportContext, generated_at: dt.datetime | None = None) -> dict[str, Any]:
     """The report document (schema in the module docstring), JSON-ready."""
     import econmotor
 
     priced = ctx.eval_run or ctx.train_run
+    vector = objective_weights_vector(ctx.objective)
+    js = [episode_j(ep, vector, ctx.task.economics) for ep in ctx.episodes]
     source = (f"measured: {priced.kind} run #{priced.id} of the registry, {len(ctx.episodes)} episodes"
               if priced is not None else f"measured: {len(ctx.episodes)} evaluation episodes")
     doc = {
@@ -112,15 +128,18 @@ def build_document(ctx: ReportContext, generated_at: dt.datetime | None = None) 
         "task": {"task_id": ctx.task.task_id, "description": ctx.task.description, "unit": ctx.task.unit,
                  "error_definition": ctx.task.error_definition},
         "backend": ctx.backend,
-        "objective": {**ctx.objective.to_dict(), "overlay": compile_economic_overlay(ctx.objective).to_dict()},
+        "objective": {**ctx.objective.to_dict(), "overlay": compile_economic_overlay(ctx.objective).to_dict(),
+                      "J": {"vector": vector, "energy_term": "wh", "mean": sum(js) / len(js) if js else None}},
         "datapacks": list(ctx.datapack_ids),
+        "datapack_objective_hints": _objective_hints(ctx.train_run or ctx.eval_run),
         "notes": ctx.notes,
         "runs": {"train": _run_facts(ctx.train_run), "eval": _run_facts(ctx.eval_run),
                  "priced": priced.id if priced is not None else None},
         "inputs": pricing_inputs(ctx.task.economics, ctx.pricing.policy, ctx.pricing.aggregate, source),
         "pricing": ctx.pricing.to_dict(),
         "metrics": {"raw": ctx.raw_metrics, "econ": ctx.econ_metrics},
-        "episodes": [{k: ep.get(k) for k in EPISODE_FIELDS if k in ep} for ep in ctx.episodes],
+        "episodes": [{**{k: ep.get(k) for k in EPISODE_FIELDS if k in ep}, "J": j}
+                     for ep, j in zip(ctx.episodes, js, strict=True)],
         "training_curve": list(ctx.training_curve),
         "registry": {"db_url": ctx.db_url, "report_id": None},
     }

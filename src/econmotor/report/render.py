@@ -115,6 +115,17 @@ def _run_line(run: Mapping[str, Any] | None) -> str:
     return f"#{run['run_id']} ({', '.join(facts)}; policy {run['policy_path']})"
 
 
+def _with_hint(pack_id: str, hints: Mapping[str, str]) -> str:
+    return f"{pack_id} (objective hint: {hints[pack_id]})" if pack_id in hints else pack_id
+
+
+def _j_line(j: Mapping[str, Any] | None) -> str:
+    if not j or j.get("mean") is None:
+        return "-"
+    weights = ", ".join(f"{w:g}" for w in j["vector"])
+    return f"{fmt(j['mean'])} mean per episode (weights [{weights}] on mpl, error, energy Wh, safety, novelty)"
+
+
 def _sections(doc: Mapping[str, Any]) -> dict[str, Any]:
     """Shared content of Markdown and HTML."""
     task, obj = doc["task"], doc["objective"]
@@ -122,7 +133,9 @@ def _sections(doc: Mapping[str, Any]) -> dict[str, Any]:
     facts = [("task", f"{task['task_id']} — {task['description']}"), ("unit of work", task["unit"]),
              ("errors", task["error_definition"]), ("backend", doc["backend"]),
              ("objective", f"{obj['name']} (overlay {overlay})"),
-             ("datapacks", ", ".join(doc["datapacks"]) or "none"),
+             ("datapacks", ", ".join(_with_hint(d, doc.get("datapack_objective_hints") or {})
+                                     for d in doc["datapacks"]) or "none"),
+             ("objective J", _j_line(doc["objective"].get("J"))),
              ("training run", _run_line(doc["runs"]["train"])), ("evaluation run", _run_line(doc["runs"]["eval"])),
              ("registry", doc["registry"]["db_url"]), ("generated", doc["generated_at"])]
     if doc.get("notes"):

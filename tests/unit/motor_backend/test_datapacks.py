@@ -73,7 +73,7 @@ def test_unknown_id_lists_known():
     ({"id": "a", "motion_clips": [{"weight": 1}]}, "motion_clips[0].path"),
     ({"id": "a", "curriculum": {"initial_difficulty": 2}}, "curriculum.initial_difficulty"),
     ({"id": "a", "curriculum": {"initial_difficulty": 0.9, "max_difficulty": 0.1}}, "curriculum.initial_difficulty"),
-    ({"id": "a", "objective_hint": "fastest"}, "objective_hint"),
+    ({"id": "a", "objective_hint": 3}, "objective_hint"),
     ({"id": "a", "tags": "x"}, None),
     ({"id": "a", "domain_randomization": [1]}, "domain_randomization"),
 ])
@@ -84,3 +84,16 @@ def test_bad_datapacks(data, key):
     with pytest.raises(ConfigError) as info:
         parse_datapack(data, "dp.yaml")
     assert info.value.key == key and "dp.yaml" in str(info.value)
+
+
+def test_objective_hint_is_a_preset_or_free_text_kept_as_written(tmp_path):
+    preset = parse_datapack({"id": "a", "objective_hint": "safety"})
+    assert (preset.objective_hint, preset.objective_hint_preset) == ("safety", "safety")
+    text = "prioritise throughput on fragile items"
+    upstream = parse_datapack({"id": "b", "objective_hint": text})  # upstream schema: free text, not an error
+    assert (upstream.objective_hint, upstream.objective_hint_preset) == (text, None)
+    (loaded,) = load_datapack_configs([save_datapack_config(upstream, tmp_path / "b.yaml")])
+    assert loaded.objective_hint == text
+    assert parse_datapack({"id": "c", "objective_hint": "  "}).objective_hint is None
+    bundle = DatapackProvider().resolve("t", [], [preset, upstream])
+    assert (bundle.objective_hint, bundle.objective_hint_preset) == (text, None)

@@ -25,6 +25,7 @@ import torch
 from torch import nn
 
 from econmotor.errors import BackendError
+from econmotor.motor_backend.base import StepAlias
 
 METADATA_KEY = "econmotor"
 
@@ -87,8 +88,8 @@ def export_onnx(model: Any, normalizer: tuple[np.ndarray, np.ndarray, float, flo
     return path
 
 
-class OnnxPolicyHandle:
-    """A deployed policy on onnxruntime: ``act(obs)`` for one observation or a batch.
+class OnnxPolicyHandle(StepAlias):
+    """A deployed policy on onnxruntime: ``act(obs)`` (or ``step(obs)``) for one observation or a batch.
 
     Args:
         path: the exported ``policy.onnx``.
