@@ -113,12 +113,29 @@ def train_cell(cell: SweepCell, output_dir: str, cpu_threads: int = 1,
 
 @dataclass(frozen=True)
 class CellOutcome:
-    """What happened to one cell: ``completed``, ``skipped`` (done before) or ``failed``."""
+    """What happened to one cell: ``completed``, ``skipped`` (done before) or ``failed``.
+
+    ``mean_j``: the mean J of a completed cell's evaluation episodes under the cell's objective,
+    ``econmotor.valuation.episode_j`` — the J ``econmotor solve`` ranks the recorded run by.
+    """
 
     cell: SweepCell
     status: str
     run_id: int | None = None
     error: str | None = None
+    mean_j: float | None = None
+
+
+def cell_mean_j(cell: SweepCell, episodes: Sequence[Any]) -> float | None:
+    """Mean ``episode_j`` of ``episodes`` under the cell's objective and its task's economics."""
+    if not episodes:
+        return None
+    from econmotor.tasks import get_task
+    from econmotor.valuation.reward_builder import episode_j
+
+    economics = get_task(cell.task_id).economics
+    js = [episode_j(ep, cell.objective.weights, economics, cell.objective.energy_term) for ep in episodes]
+    return float(sum(js) / len(js))
 
 
 @dataclass(frozen=True)
@@ -186,7 +203,7 @@ def _finish(registry: Any, cell: SweepCell, run_id: int, result: Any, error: Bas
             outcomes: dict[str, CellOutcome]) -> None:
     if error is None:
         registry.finish_run(run_id, result)
-        outcomes[cell.key] = CellOutcome(cell, "completed", run_id)
+        outcomes[cell.key] = CellOutcome(cell, "completed", run_id, mean_j=cell_mean_j(cell, result.episodes))
     else:
         text = f"{type(error).__name__}: {error}"
         registry.mark_run(run_id, "failed", text)

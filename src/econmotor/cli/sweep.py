@@ -83,12 +83,12 @@ def sweep_command(
         with progress_bars() as progress:
             outcomes = run_sweep(registry, cells, output_dir, ray=ray, progress=progress)
     table = Table(title="sweep cells")
-    for col in ("objective", "datapacks", "seed", "status", "run", "cell key"):
+    for col in ("objective", "datapacks", "seed", "status", "run", "mean J", "cell key"):
         table.add_column(col)
     for o in outcomes:
         status = {"failed": f"[red]failed: {o.error}[/]", "skipped": "skipped (done before)"}.get(o.status, o.status)
         table.add_row(o.cell.objective.name, "+".join(o.cell.datapack_ids) or "-", str(o.cell.seed), status,
-                      str(o.run_id or "-"), o.cell.key)
+                      str(o.run_id or "-"), "-" if o.mean_j is None else f"{o.mean_j:.4g}", o.cell.key)
     console.print(table)
     failed = sum(o.status == "failed" for o in outcomes)
     console.print(f"then: econmotor solve --task-id {task_id} --motor-backend {motor_backend}"

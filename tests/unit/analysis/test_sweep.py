@@ -1,5 +1,6 @@
 """Sweep planning, cell keys, failure recording and resuming (sequential, real backend and registry)."""
 
+import numpy as np
 import pytest
 
 from econmotor.analysis.objective_surface import parse_vector_objective, preset_objectives
@@ -47,6 +48,18 @@ def test_failed_cells_are_recorded_and_retried_completed_cells_skipped(tmp_path)
     assert runs[outcomes[0].run_id].config["cell_key"] == cells[0].key
     assert len(registry.episodes(run_ids=[outcomes[0].run_id])) == 2
     assert completed_cell_keys(registry, "dishwashing", "dishwashing") == {cells[0].key}
+    # the cell's J is the one episode_j, and the solver ranks the recorded run by the same number
+    from econmotor.analysis.objective_surface import solve_objective_surface
+    from econmotor.analysis.sources import episodes_from_registry
+    from econmotor.tasks import get_task
+    from econmotor.valuation import episode_j
+
+    summaries = [e.summary for e in registry.episodes(run_ids=[outcomes[0].run_id])]
+    economics = get_task("dishwashing").economics
+    assert outcomes[0].mean_j == pytest.approx(np.mean([episode_j(e, [1, 1, 1, 1, 0], economics) for e in summaries]))
+    assert outcomes[1].mean_j is None
+    surface = solve_objective_surface(episodes_from_registry(registry), preset_objectives(["balanced"]), [])
+    assert surface.utility[0, 0] == pytest.approx(outcomes[0].mean_j, rel=1e-12)
 
     again = run_sweep(registry, cells, tmp_path / "policies")
     assert [o.status for o in again] == ["skipped", "failed"]
