@@ -15,7 +15,7 @@ from typing import Any
 
 import gymnasium as gym
 
-from econmotor.config.econ_params import EconParams
+from econmotor.config.econ_params import load_econ_params
 from econmotor.config.task_economics import TaskEconomics
 from econmotor.errors import ConfigError
 from econmotor.tasks import load_catalog
@@ -57,7 +57,7 @@ def make_task_env(task_id: str, max_episode_steps: int | None = None,
         from econmotor.envs.dishwashing import DishwashingEnv
 
         entry = spec.backend_entry(DISHWASHING_BACKEND)
-        params = EconParams.preset(str(entry.get("econ_preset", "toy")))
+        params = load_econ_params(str(entry.get("econ_preset", "toy")))
         if econ_overrides:
             params = params.with_overrides(dict(econ_overrides), source="--econ-override")
         env = DishwashingEnv(params, reward_mode="legacy", max_steps=max_episode_steps)
