@@ -3,9 +3,6 @@
 import numpy as np
 import pytest
 
-from econmotor.config.objective_profile import ObjectiveVector
-from econmotor.config.task_economics import TaskEconomics
-
 from econmotor.analysis.episode_table import EpisodeTable, RunInfo
 from econmotor.analysis.objective_surface import (
     Objective,
@@ -15,6 +12,8 @@ from econmotor.analysis.objective_surface import (
     solve_objective_surface,
 )
 from econmotor.analysis.surface_report import surface_cells, surface_document, surface_markdown
+from econmotor.config.objective_profile import ObjectiveVector
+from econmotor.config.task_economics import TaskEconomics
 from econmotor.valuation import ConstraintSet, build_reward_terms, combine_reward, episode_j
 from econmotor.valuation.reward_builder import REWARD_TERM_NAMES
 

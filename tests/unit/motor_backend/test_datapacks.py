@@ -97,3 +97,13 @@ def test_objective_hint_is_a_preset_or_free_text_kept_as_written(tmp_path):
     assert parse_datapack({"id": "c", "objective_hint": "  "}).objective_hint is None
     bundle = DatapackProvider().resolve("t", [], [preset, upstream])
     assert (bundle.objective_hint, bundle.objective_hint_preset) == (text, None)
+
+
+def test_a_free_text_hint_is_stored_in_the_registry_as_written(tmp_path):
+    from econmotor.store import Registry
+
+    text = "prioritise throughput on fragile items"
+    with Registry(f"sqlite:///{tmp_path / 'reg.sqlite'}") as registry:
+        registry.record_datapacks([parse_datapack({"id": "upstream", "objective_hint": text})])
+        (stored,) = registry.datapack_configs(["upstream"])
+    assert (stored.objective_hint, stored.objective_hint_preset) == (text, None)
