@@ -28,7 +28,10 @@ Run: ``OMP_NUM_THREADS=1 .venv/bin/python benchmarks/preset_differentiation.py [
 Measured: at 20,000 steps per run the energy_saver and safety policies had not left the middle
 of the action box (Wh/h ratio 1.028, one throughput seed at speed 0.31); at 60,000 throughput
 has the highest MPL (1.136), energy_saver the lowest Wh/h (0.919) and safety's error rate ties
-the lowest (1.006: every preset sits at the p_min floor, 0.021 +- 0.001).
+the lowest (1.006: every preset sits at the p_min floor, 0.021 +- 0.001). Re-run after the
+RewardBuilder energy term became Wh everywhere (the training overlay is unchanged by that),
+``--seeds 1`` on a loaded machine (1,640 s): throughput MPL ratio 1.075, safety error-rate
+ratio 0.879, energy_saver Wh/h ratio 0.884 (MPL 92.2 / 75.6 / 85.8, Wh/h 4.71 / 3.86 / 4.37).
 """
 
 from __future__ import annotations
