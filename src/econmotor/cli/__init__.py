@@ -10,6 +10,7 @@ import pkgutil
 import sys
 
 import typer
+from rich.markup import escape
 from typer._click.exceptions import ClickException  # typer vendors click
 
 from econmotor.cli._app import app, err_console
@@ -25,7 +26,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         rc = app(args=argv, standalone_mode=False)
     except EconmotorError as exc:
-        err_console.print(f"[bold red]error:[/] {exc}", highlight=False)
+        err_console.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
         return 2
     except typer.Abort:
         err_console.print("[yellow]aborted[/]")
@@ -34,8 +35,9 @@ def main(argv: list[str] | None = None) -> int:
         return exc.exit_code
     except SystemExit as exc:  # click usage errors
         return int(exc.code or 0)
-    except ClickException as exc:  # usage errors: one message, no traceback
-        exc.show()
+    except ClickException as exc:  # usage errors: one line naming the flag, no traceback
+        message = " ".join(exc.format_message().split())
+        err_console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
         return exc.exit_code
     # with standalone_mode=False click returns typer.Exit's code instead of raising it
     return rc if isinstance(rc, int) else 0
