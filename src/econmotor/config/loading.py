@@ -62,6 +62,7 @@ def load_yaml_text(text: str | bytes, source: str | Path) -> Any:
             text = text.decode("utf-8")
         except UnicodeDecodeError as exc:
             raise ConfigError(source, None, f"not UTF-8 text: {exc.reason} at byte {exc.start}") from None
+    _check_flow_depth(text, source)
     try:
         depth = 0
         for event in yaml.parse(text, Loader=yaml.SafeLoader):  # iterative: no recursion on deep input
@@ -77,6 +78,31 @@ def load_yaml_text(text: str | bytes, source: str | Path) -> Any:
         raise ConfigError(source, None, "not valid YAML: " + " ".join(str(exc).split())) from None
     except RecursionError:  # belt and braces: the depth scan above should make this unreachable
         raise ConfigError(source, None, f"nested too deeply (limit {MAX_YAML_DEPTH})") from None
+
+
+def _check_flow_depth(text: str, source: str | Path) -> None:
+    """Refuse ``[[[[...`` / ``{{{{...`` nesting before PyYAML's scanner, which is quadratic in it.
+
+    Counts brackets outside quotes and comments (a conservative over-count is fine: real
+    configs nest a few levels)."""
+    depth = 0
+    quote = ""
+    comment = False
+    for ch in text:
+        if comment:
+            comment = ch != "\n"
+        elif quote:
+            quote = "" if ch == quote else quote
+        elif ch in "'\"":
+            quote = ch
+        elif ch == "#":
+            comment = True
+        elif ch in "[{":
+            depth += 1
+            if depth > MAX_YAML_DEPTH:
+                raise ConfigError(source, None, f"nested more than {MAX_YAML_DEPTH} levels deep")
+        elif ch in "]}":
+            depth = max(0, depth - 1)
 
 
 def read_yaml(path: str | Path) -> Any:
