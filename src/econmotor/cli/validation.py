@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import os
+import tempfile
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -166,8 +167,12 @@ def _check_writable_parent(flag: str, path: Path) -> None:
     base = _nearest_existing(path)
     if not base.is_dir():
         raise ConfigError(flag, None, f"{path}: {base} is a file, so nothing can be created below it")
-    if not os.access(base, os.W_OK | os.X_OK):
-        raise ConfigError(flag, None, f"{path}: directory {base} is not writable")
+    try:  # a real probe: os.access says yes to root even on a read-only file system
+        fd, probe = tempfile.mkstemp(prefix=".econmotor-probe-", dir=base)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise ConfigError(flag, None, f"{path}: directory {base} is not writable ({exc.strerror or exc})") from None
 
 
 def check_output_dir(flag: str, path: str | Path | None) -> Path | None:
