@@ -6,6 +6,7 @@ Every module in this package registers its commands on :data:`app` when imported
 from __future__ import annotations
 
 import importlib
+import logging
 import pkgutil
 import sys
 
@@ -15,6 +16,19 @@ from typer._click.exceptions import ClickException  # typer vendors click
 
 from econmotor.cli._app import app, err_console
 from econmotor.errors import EconmotorError
+
+
+class _WarningLine(logging.Handler):
+    """Library warnings (logger ``econmotor``, e.g. a damaged checkpoint skipped) as one stderr line."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        err_console.print(f"[yellow]warning:[/] {escape(record.getMessage())}", highlight=False, soft_wrap=True)
+
+
+_library_log = logging.getLogger("econmotor")
+if not any(isinstance(h, _WarningLine) for h in _library_log.handlers):
+    _library_log.addHandler(_WarningLine(logging.WARNING))
+    _library_log.propagate = False
 
 for _module in pkgutil.iter_modules(__path__):
     if not _module.name.startswith("_"):
