@@ -107,6 +107,34 @@ def test_every_numeric_flag_refuses_bad_values_cleanly(command, flag, data, work
     assert not (workdir / ".econmotor").exists()  # nothing written on bad input
 
 
+BAD_NUMBER_TEXT = st.one_of(st.sampled_from(["nan", "inf", "-inf", "abc", "", "1e999", "--1"]),
+                            st.floats(max_value=-1e-9, allow_nan=False, allow_infinity=False).map(str))
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_list_valued_numeric_flags_refuse_bad_values_cleanly(data, workdir, capsys):
+    """``sweep --seeds``, ``solve --reference-point KEY=V`` and ``shadow --objective-vector`` (5 numbers)."""
+    which = data.draw(st.sampled_from(["seeds", "reference", "vector"]))
+    if which == "seeds":
+        text = data.draw(st.one_of(
+            st.sampled_from(["0-100000000", "-1", "5-2", "a-b", "0,,1", "1-", "18446744073709551616", "0-999,1000"]),
+            st.integers(min_value=1001, max_value=10**12).map(lambda n: f"0-{n}")))
+        args, flag = ["sweep", "--task-id", "dishwashing", "--seeds", text], "--seeds"
+    elif which == "reference":
+        value = data.draw(st.sampled_from(["nan", "inf", "-inf", "abc", ""]))
+        key = data.draw(st.sampled_from(["energy", "mpl", "error", "risk"]))
+        (workdir / "e.jsonl").write_text("")
+        args, flag = ["solve", "--episodes-jsonl", "e.jsonl", "--reference-point", f"{key}={value}"], \
+            "--reference-point"
+    else:
+        values = [str(v) for v in data.draw(st.lists(st.floats(0, 10), min_size=5, max_size=5))]
+        values[data.draw(st.integers(0, 4))] = data.draw(BAD_NUMBER_TEXT)
+        args, flag = ["shadow", "--objective-vector", *values], "--objective-vector"
+    rc, err, elapsed = run_cli(args, capsys)
+    assert_clean_error(rc, err, elapsed, flag)
+
+
 # ----------------------------------------------------------------------------- loaders
 VALID = {
     "objective": {"name": "t", "mpl_weight": 1.0, "error_weight": 0.5, "energy_weight": 0.1},
