@@ -32,8 +32,17 @@ def _dishwashing(pack: DatapackConfig, source: str) -> None:
     parse_econ_randomization(pack.domain_randomization, pack.curriculum, source)
 
 
+def _holosoma(pack: DatapackConfig, source: str) -> None:
+    from econmotor.motor_backend.datapacks import DatapackProvider
+    from econmotor.motor_backend.holosoma.datapack_mapping import map_datapacks
+
+    bundle = DatapackProvider().resolve("<validate>", [pack.id], [pack])
+    map_datapacks(bundle, [pack], uses_motion_clip=bool(pack.motion_clips))
+
+
 #: backend -> the check its training runs apply to a datapack's randomization and curriculum.
-BACKEND_CHECKS: dict[str, Callable[[DatapackConfig, str], None]] = {"mujoco": _mujoco, "dishwashing": _dishwashing}
+BACKEND_CHECKS: dict[str, Callable[[DatapackConfig, str], None]] = {
+    "mujoco": _mujoco, "dishwashing": _dishwashing, "holosoma": _holosoma}
 
 
 def check_for_backends(pack: DatapackConfig, backend: str | None = None) -> list[str]:
