@@ -57,6 +57,7 @@ def test_kill_9_during_a_report_leaves_an_abandoned_run_not_a_running_one(tmp_pa
     assert main(["report", "--motor-backend", "none", "--task-id", "dishwashing", "--db-url", url,
                  "--run-id", "1"]) == 2
     err = capsys.readouterr().err
+    assert "run(s) #1 were 'running' but their process is gone" in err  # said once, by the first open
     assert "run #1 is abandoned" in err and "ended without recording an outcome" in err, err
     with Registry(url) as reg:
         [run] = reg.runs()

@@ -25,7 +25,14 @@ import typer
 from rich.table import Table
 
 from econmotor.cli._app import app, console, err_console, progress_bars, set_cpu_threads
-from econmotor.cli.validation import check_db_url, check_flags, check_name, check_output_dir, check_output_file
+from econmotor.cli.validation import (
+    check_db_url,
+    check_flags,
+    check_name,
+    check_output_dir,
+    check_output_file,
+    note_abandoned,
+)
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.economics.pricing import PricingPolicy
 from econmotor.errors import ConfigError, UnknownNameError, did_you_mean
@@ -195,6 +202,7 @@ def report_command(
         if not registry_exists(url):
             raise ConfigError("--db-url", None, f"no registry at {url}; train a run first")
         with Registry(url, create=False) as reg:
+            note_abandoned(reg)
             train, priced = pick_runs(reg, task_id, run_id, objective_name if objective_name else None,
                                       [p.id for p in packs] or None)
             show_outcome(report_from_registry(reg, task, priced, train, out_dir, output_json, policy,

@@ -27,6 +27,7 @@ from econmotor.cli.validation import (
     check_output_dir,
     check_output_file,
     check_size,
+    note_abandoned,
     simplex_size,
 )
 from econmotor.errors import ConfigError
@@ -110,6 +111,7 @@ def solve_command(
         from econmotor.analysis.sources import episodes_from_registry
 
         with open_registry(db_url, create=False) as registry:
+            note_abandoned(registry)
             table = episodes_from_registry(registry, task_id=task_id, backend=motor_backend,
                                            datapacks=split_ids(datapacks) or None, objective=objective,
                                            kind=run_kind)

@@ -17,6 +17,7 @@ from econmotor.cli.validation import (
     check_flags,
     check_output_dir,
     check_size,
+    note_abandoned,
     parse_seed_list,
     simplex_size,
 )
@@ -81,6 +82,7 @@ def sweep_command(
     objectives = objectives_from_options(preset, vector, grid)
     check_size("--seeds", "sweep cells (objectives x seeds)", len(objectives) * len(seed_list), MAX_SWEEP_CELLS)
     with open_registry(url) as registry:
+        note_abandoned(registry)
         groups = datapack_groups(datapacks, registry)
         check_size("--datapacks", "sweep cells (objectives x datapacks x seeds)",
                    len(objectives) * len(groups) * len(seed_list), MAX_SWEEP_CELLS)

@@ -231,3 +231,13 @@ def check_db_url(url: str | None, *, create: bool = True, flag: str = "--db-url"
             raise ConfigError(source, None, f"cannot create the registry {path}: {exc.detail}; pass --db-url "
                               f"(or set {DB_URL_ENV}) to a writable location") from None
     return url
+
+
+def note_abandoned(registry: Any) -> None:
+    """One stderr line when opening ``registry`` marked runs whose process is gone as abandoned."""
+    ids = getattr(registry, "abandoned_run_ids", None)
+    if ids:
+        from econmotor.cli._app import err_console
+
+        err_console.print(f"[yellow]note[/]: run(s) {', '.join(f'#{i}' for i in ids)} were 'running' but their "
+                          "process is gone (killed?): marked abandoned", highlight=False, soft_wrap=True)
