@@ -165,7 +165,7 @@ BAD_INPUTS = [
      "key 'mpl_weigth': unknown key (did you mean 'mpl_weight'?)"),
     (["--task-id", "dishwashing_cheap", "--motor-backend", "dishwashing", "--tasks-file", "negative_wage.yaml"],
      "wage_human_usd_per_hour.value': must not be negative"),
-    (["--task-id", "dishwashing", "--motor-backend", "dishwashing", "--spread-share", "2"], "spread_share"),
+    (["--task-id", "dishwashing", "--motor-backend", "dishwashing", "--spread-share", "2"], "--spread-share"),
     (["--task-id", "hopper_courier", "--motor-backend", "mujoco",
       "--objective-config", "configs/objectives/example_objective.yaml"], "extra_weights.stability_margin"),
 ]
@@ -188,15 +188,26 @@ def test_bad_input_is_a_clear_error_and_writes_nothing(workdir: Path, capsys, ar
 
 
 @pytest.mark.slow
-def test_failure_after_training_keeps_the_run_and_says_how_to_report(workdir: Path, capsys) -> None:
+def test_failure_after_training_keeps_the_run_and_says_how_to_report(workdir: Path, capsys, monkeypatch) -> None:
     (workdir / "blocked").write_text("a file where the report directory should go")
-    code = main(["report", "--task-id", "dishwashing", "--motor-backend", "dishwashing", "--max-steps", "200",
-                 "--output-dir", "blocked/out"])
+    args = ["report", "--task-id", "dishwashing", "--motor-backend", "dishwashing", "--max-steps", "200"]
+    assert main([*args, "--output-dir", "blocked/out"]) == 2  # checked before training: nothing recorded
+    assert "--output-dir" in capsys.readouterr().err and not (workdir / ".econmotor").exists()
+
+    import econmotor.report.pipeline as pipeline
+
+    def disk_full(*a, **k):  # the disk fills up while the report is written
+        raise OSError(28, "No space left on device")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(pipeline, "write_report", disk_full)
+        code = main([*args, "--output-dir", "out"])
     err = " ".join(capsys.readouterr().err.split())
     assert code == 2 and "the report failed after training" in err
     assert "econmotor report --motor-backend none --task-id dishwashing --run-id 1" in err
     reg = Registry(create=False)
     assert reg.run(1).status == "completed" and len(reg.episodes(run_ids=[1])) == 5
+    assert reg.reports() == []  # no report row naming files that were never written
     assert main(["report", "--motor-backend", "none", "--task-id", "dishwashing", "--run-id", "1",
                  "--output-dir", "out"]) == 0
     assert (workdir / "out" / "dishwashing_run1.html").is_file()

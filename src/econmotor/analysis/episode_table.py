@@ -266,6 +266,17 @@ def _episode_values(rec: Mapping[str, Any], where: str) -> dict[str, float]:
     return out
 
 
+def _decoded_lines(fh: Any, path: Path) -> Iterable[tuple[int, str]]:
+    """``enumerate(fh, 1)``, with a binary (non UTF-8) file a ConfigError naming the line."""
+    number = 0
+    try:
+        for number, text in enumerate(fh, 1):
+            yield number, text
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{path}:{number + 1}", None, f"not UTF-8 text ({exc.reason}); "
+                          "expected JSON lines") from None
+
+
 def read_episodes_jsonl(path: str | Path, default_price_usd_per_kwh: float | None = None) -> EpisodeTable:
     """Read a JSONL export (format in the module docstring)."""
     path = Path(path)
@@ -274,7 +285,7 @@ def read_episodes_jsonl(path: str | Path, default_price_usd_per_kwh: float | Non
 
     def lines() -> Iterable[dict[str, Any]]:
         with path.open(encoding="utf-8") as fh:
-            for number, text in enumerate(fh, 1):
+            for number, text in _decoded_lines(fh, path):
                 if not text.strip():
                     continue
                 try:

@@ -6,14 +6,29 @@ Every module in this package registers its commands on :data:`app` when imported
 from __future__ import annotations
 
 import importlib
+import logging
 import pkgutil
 import sys
 
 import typer
+from rich.markup import escape
 from typer._click.exceptions import ClickException  # typer vendors click
 
 from econmotor.cli._app import app, err_console
 from econmotor.errors import EconmotorError
+
+
+class _WarningLine(logging.Handler):
+    """Library warnings (logger ``econmotor``, e.g. a damaged checkpoint skipped) as one stderr line."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        err_console.print(f"[yellow]warning:[/] {escape(record.getMessage())}", highlight=False, soft_wrap=True)
+
+
+_library_log = logging.getLogger("econmotor")
+if not any(isinstance(h, _WarningLine) for h in _library_log.handlers):
+    _library_log.addHandler(_WarningLine(logging.WARNING))
+    _library_log.propagate = False
 
 for _module in pkgutil.iter_modules(__path__):
     if not _module.name.startswith("_"):
@@ -25,7 +40,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         rc = app(args=argv, standalone_mode=False)
     except EconmotorError as exc:
-        err_console.print(f"[bold red]error:[/] {exc}", highlight=False)
+        err_console.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
         return 2
     except typer.Abort:
         err_console.print("[yellow]aborted[/]")
@@ -34,8 +49,9 @@ def main(argv: list[str] | None = None) -> int:
         return exc.exit_code
     except SystemExit as exc:  # click usage errors
         return int(exc.code or 0)
-    except ClickException as exc:  # usage errors: one message, no traceback
-        exc.show()
+    except ClickException as exc:  # usage errors: one line naming the flag, no traceback
+        message = " ".join(exc.format_message().split())
+        err_console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
         return exc.exit_code
     # with standalone_mode=False click returns typer.Exit's code instead of raising it
     return rc if isinstance(rc, int) else 0

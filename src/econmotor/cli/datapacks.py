@@ -1,23 +1,79 @@
-"""``econmotor datapacks validate``: check datapack YAML files."""
+"""``econmotor datapacks validate``: check datapack YAML files.
+
+Besides the generic schema, each pack's ``domain_randomization`` and ``curriculum``
+are checked by the backend that will use them (``--motor-backend``), or, without the
+flag, by every backend: a pack passes if at least one backend accepts it, so a range
+no backend can use fails here rather than later in ``report``.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import typer
 from rich.table import Table
 
 from econmotor.cli._app import console, datapacks_app
-from econmotor.motor_backend.datapacks import load_datapack_configs
+from econmotor.cli.validation import check_choice
+from econmotor.errors import ConfigError
+from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_configs
+
+
+def _mujoco(pack: DatapackConfig, source: str) -> None:
+    from econmotor.motor_backend.mujoco.randomization import parse_randomization
+
+    parse_randomization(pack.domain_randomization, pack.curriculum, source)
+
+
+def _dishwashing(pack: DatapackConfig, source: str) -> None:
+    from econmotor.envs.dishwashing_randomization import parse_econ_randomization
+
+    parse_econ_randomization(pack.domain_randomization, pack.curriculum, source)
+
+
+def _holosoma(pack: DatapackConfig, source: str) -> None:
+    from econmotor.motor_backend.datapacks import DatapackProvider
+    from econmotor.motor_backend.holosoma.datapack_mapping import map_datapacks
+
+    bundle = DatapackProvider().resolve("<validate>", [pack.id], [pack])
+    map_datapacks(bundle, [pack], uses_motion_clip=bool(pack.motion_clips))
+
+
+#: backend -> the check its training runs apply to a datapack's randomization and curriculum.
+BACKEND_CHECKS: dict[str, Callable[[DatapackConfig, str], None]] = {
+    "mujoco": _mujoco, "dishwashing": _dishwashing, "holosoma": _holosoma}
+
+
+def check_for_backends(pack: DatapackConfig, backend: str | None = None) -> list[str]:
+    """The backends that accept ``pack`` (only ``backend`` when given); none: its ConfigError."""
+    names = [backend] if backend else list(BACKEND_CHECKS)
+    accepted, errors = [], []
+    for name in names:
+        try:
+            BACKEND_CHECKS[name](pack, pack.source)
+            accepted.append(name)
+        except ConfigError as exc:
+            errors.append(exc)
+    if not accepted:
+        # the most specific complaint: a bad value beats an unknown key
+        raise min(errors, key=lambda e: e.detail.startswith("unknown key"))
+    return accepted
 
 
 @datapacks_app.command("validate")
-def validate_command(paths: list[Path] = typer.Argument(..., help="Datapack YAML files.")) -> None:
+def validate_command(
+    paths: list[Path] = typer.Argument(..., help="Datapack YAML files."),
+    motor_backend: str = typer.Option(None, "--motor-backend", help="Check the randomization for this backend "
+                                      f"({', '.join(BACKEND_CHECKS)}; default: any of them)."),
+) -> None:
     """Validate datapacks and show what each one sets."""
+    check_choice("--motor-backend", motor_backend, BACKEND_CHECKS)
     table = Table(title="datapacks")
-    for col in ("id", "clips", "domain_randomization", "curriculum", "file"):
+    for col in ("id", "clips", "domain_randomization", "curriculum", "backends", "file"):
         table.add_column(col)
     for pack in load_datapack_configs(paths):
+        backends = check_for_backends(pack, motor_backend)
         table.add_row(pack.id, str(len(pack.motion_clips)), ", ".join(pack.domain_randomization) or "-",
-                      ", ".join(pack.curriculum) or "-", pack.source)
+                      ", ".join(pack.curriculum) or "-", ", ".join(backends), pack.source)
     console.print(table)

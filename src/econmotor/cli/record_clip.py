@@ -8,6 +8,7 @@ from pathlib import Path
 import typer
 
 from econmotor.cli._app import console, datapacks_app, set_cpu_threads
+from econmotor.cli.validation import check_flags, check_name, check_output_file
 from econmotor.motor_backend.datapacks import DatapackConfig, MotionClipRef, save_datapack_config
 
 
@@ -21,6 +22,10 @@ def record_clip_command(
     datapack_id: str = typer.Option(None, "--datapack-id", help="Id of that datapack (default: the clip's name)."),
 ) -> None:
     """Roll a trained policy out deterministically and save its poses as a reference clip."""
+    check_flags(steps=steps, seed=seed)
+    check_output_file("--out", out)
+    check_output_file("--datapack-out", datapack_out)
+    check_name("--datapack-id", datapack_id)
     set_cpu_threads()
     from econmotor.motor_backend.mujoco_backend import MujocoBackend
 

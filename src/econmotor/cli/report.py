@@ -25,6 +25,14 @@ import typer
 from rich.table import Table
 
 from econmotor.cli._app import app, console, err_console, progress_bars, set_cpu_threads
+from econmotor.cli.validation import (
+    check_db_url,
+    check_flags,
+    check_name,
+    check_output_dir,
+    check_output_file,
+    note_abandoned,
+)
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.economics.pricing import PricingPolicy
 from econmotor.errors import ConfigError, UnknownNameError, did_you_mean
@@ -42,7 +50,7 @@ from econmotor.report.pipeline import (
     with_objective_name,
 )
 from econmotor.report.render import STAT_COLUMNS, headline, table_rows
-from econmotor.store.registry import DB_URL_ENV, Registry, default_db_url, registry_exists
+from econmotor.store.registry import DB_URL_ENV, Registry, registry_exists
 from econmotor.tasks import load_catalog
 from econmotor.valuation import default_objective_vector
 
@@ -166,8 +174,12 @@ def report_command(
     """Train (or reuse) a policy for a task, price its labour, write JSON, Markdown and HTML reports."""
     set_cpu_threads()
     # ---- validate everything first: nothing is trained or written on bad input
+    check_flags(num_envs=num_envs, max_steps=max_steps, eval_episodes=eval_episodes, seed=seed,
+                spread_share=spread_share, run_id=run_id)
+    check_name("--objective-name", objective_name)
+    check_output_file("--output-json", output_json)
     policy = PricingPolicy(spread_share)
-    url = db_url or os.environ.get(DB_URL_ENV) or default_db_url()
+    url = check_db_url(db_url, create=motor_backend != NO_BACKEND)
     task = load_catalog(tasks_file).get(task_id)
     backends = [*known_backends(), NO_BACKEND]
     if motor_backend not in backends:
@@ -178,7 +190,7 @@ def report_command(
         raise ConfigError("--run-id", None, "--run-id reports a recorded run: use it with --motor-backend none")
     objective = resolve_objective(objective_config, objective_name)
     packs = resolve_datapacks(split_datapack_values([*datapacks, *(more_datapacks or [])]), url)
-    out_dir = output_dir or Path("reports") / task_id
+    out_dir = check_output_dir("--output-dir", output_dir or Path("reports") / task_id)
 
     if motor_backend == NO_BACKEND:
         ignored = [flag for flag, value in (("--num-envs", num_envs), ("--max-steps", max_steps),
@@ -190,6 +202,7 @@ def report_command(
         if not registry_exists(url):
             raise ConfigError("--db-url", None, f"no registry at {url}; train a run first")
         with Registry(url, create=False) as reg:
+            note_abandoned(reg)
             train, priced = pick_runs(reg, task_id, run_id, objective_name if objective_name else None,
                                       [p.id for p in packs] or None)
             show_outcome(report_from_registry(reg, task, priced, train, out_dir, output_json, policy,

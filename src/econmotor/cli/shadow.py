@@ -9,6 +9,7 @@ import typer
 from rich.table import Table
 
 from econmotor.cli._app import app, console, progress_bars, set_cpu_threads
+from econmotor.cli.validation import FLAG_RULES, check_choice, check_flags, check_input_files, check_output_dir
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.errors import ConfigError
 from econmotor.valuation import load_constraint_set
@@ -43,6 +44,18 @@ def shadow_command(
     )] = None,
 ) -> None:
     """Train SAC on the legacy reward while logging the RewardBuilder reward beside it (or flipped)."""
+    check_flags(total_steps=total_steps, seed=seed, max_episode_steps=max_episode_steps, lagrange_lr=lagrange_lr,
+                learning_starts=learning_starts, eval_episodes=eval_episodes)
+    for weight in objective_vector or ():
+        FLAG_RULES["--objective-vector"].check("--objective-vector", weight)
+    check_choice("--constraint-mode", constraint_mode, ("penalty", "lagrangian"))
+    check_choice("--objective-sampling", objective_sampling, ("fixed", "dirichlet"))
+    check_choice("--reward-weights", reward_weights, ("identity", "analytic", "net"))
+    if constraints:
+        check_input_files("--constraints", [constraints])
+    if reward_net:
+        check_input_files("--reward-net", [reward_net])
+    check_output_dir("--save-dir", save_dir)
     set_cpu_threads()
     from econmotor.rl.train_sac_objective import ShadowConfig, train_sac_objective
 

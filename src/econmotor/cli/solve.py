@@ -17,6 +17,19 @@ from econmotor.analysis.episode_table import EpisodeTable, read_episodes_jsonl, 
 from econmotor.analysis.objective_surface import objectives_from_options, solve_objective_surface
 from econmotor.analysis.surface_report import surface_cells, write_surface_outputs
 from econmotor.cli._app import app, console, err_console
+from econmotor.cli.validation import (
+    FLAG_RULES,
+    MAX_SOLVE_OBJECTIVES,
+    check_choice,
+    check_db_url,
+    check_flags,
+    check_input_files,
+    check_output_dir,
+    check_output_file,
+    check_size,
+    note_abandoned,
+    simplex_size,
+)
 from econmotor.errors import ConfigError
 from econmotor.valuation import ConstraintSet, load_constraint_sets
 
@@ -48,6 +61,7 @@ def parse_reference(values: list[str]) -> dict[str, float]:
             out[name] = float(value)
         except ValueError:
             raise ConfigError("--reference-point", key, f"not a number: {value!r}") from None
+        FLAG_RULES["--reference-point"].check(f"--reference-point {key.strip()}", out[name])
     return out
 
 
@@ -77,6 +91,16 @@ def solve_command(
     export_jsonl: Path = typer.Option(None, "--export-jsonl", help="Also write the episodes read as JSONL."),
 ) -> None:
     """Which objective should a customer buy under which constraints? Re-score recorded episodes."""
+    check_flags(grid=grid)
+    check_size("--grid", "objectives", simplex_size(grid, include_novelty), MAX_SOLVE_OBJECTIVES)
+    check_choice("--run-kind", run_kind, ("train", "eval"))
+    check_input_files("--episodes-jsonl", episodes_jsonl)
+    if constraints:
+        check_input_files("--constraints", [constraints])
+    check_output_dir("--output-dir", output_dir)
+    check_output_file("--export-jsonl", export_jsonl)
+    if not episodes_jsonl:
+        db_url = check_db_url(db_url, create=False)
     sets = load_constraint_sets(constraints) if constraints else [ConstraintSet(name="unconstrained")]
     objectives = objectives_from_options(preset, vector, grid, include_novelty, energy_term)
     reference = parse_reference(reference_point)
@@ -89,6 +113,7 @@ def solve_command(
         from econmotor.analysis.sources import episodes_from_registry
 
         with open_registry(db_url, create=False) as registry:
+            note_abandoned(registry)
             table = episodes_from_registry(registry, task_id=task_id, backend=motor_backend,
                                            datapacks=split_ids(datapacks) or None, objective=objective,
                                            kind=run_kind)

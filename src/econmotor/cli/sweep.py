@@ -11,7 +11,16 @@ from econmotor.analysis.objective_surface import objectives_from_options
 from econmotor.analysis.sweep import RaySettings, plan_sweep, run_sweep
 from econmotor.cli._app import app, console, progress_bars, set_cpu_threads
 from econmotor.cli.solve import open_registry, split_ids
-from econmotor.errors import ConfigError
+from econmotor.cli.validation import (
+    MAX_SWEEP_CELLS,
+    check_db_url,
+    check_flags,
+    check_output_dir,
+    check_size,
+    note_abandoned,
+    parse_seed_list,
+    simplex_size,
+)
 from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_configs
 from econmotor.tasks import load_catalog
 
@@ -35,15 +44,8 @@ def datapack_groups(values: list[str], registry) -> list[list[DatapackConfig]]:
 
 
 def parse_seeds(text: str) -> list[int]:
-    """``"0,1,2"`` or ``"0-4"`` -> seeds."""
-    seeds: list[int] = []
-    try:
-        for part in text.split(","):
-            low, _, high = part.strip().partition("-")
-            seeds += list(range(int(low), int(high) + 1)) if high else [int(low)]
-    except ValueError:
-        raise ConfigError("--seeds", None, f"expected e.g. '0,1,2' or '0-4', got {text!r}") from None
-    return list(dict.fromkeys(seeds))
+    """``"0,1,2"`` or ``"0-4"`` -> seeds (each a valid --seed; at most MAX_SWEEP_SEEDS)."""
+    return parse_seed_list(text)
 
 
 @app.command("sweep")
@@ -69,13 +71,23 @@ def sweep_command(
     gpus_per_cell: float = typer.Option(0.0, "--gpus-per-cell", help="GPUs each Ray task declares."),
 ) -> None:
     """Train a grid of objective x datapacks x seeds; completed cells are skipped on re-runs."""
+    check_flags(grid=grid, num_envs=num_envs, max_steps=max_steps, eval_episodes=eval_episodes,
+                ray_num_cpus=ray_num_cpus, cpus_per_cell=cpus_per_cell, gpus_per_cell=gpus_per_cell)
+    seed_list = parse_seeds(seeds)
+    check_size("--grid", "objectives (sweep cells before seeds and datapacks)", simplex_size(grid), MAX_SWEEP_CELLS)
+    check_output_dir("--output-dir", output_dir)
+    url = check_db_url(db_url)
     set_cpu_threads()
     load_catalog().get(task_id).backend_entry(motor_backend)
     objectives = objectives_from_options(preset, vector, grid)
-    with open_registry(db_url) as registry:
-        cells = plan_sweep(task_id, motor_backend, objectives, datapack_groups(datapacks, registry),
-                           parse_seeds(seeds), num_envs=num_envs, max_steps=max_steps,
-                           eval_episodes=eval_episodes)
+    check_size("--seeds", "sweep cells (objectives x seeds)", len(objectives) * len(seed_list), MAX_SWEEP_CELLS)
+    with open_registry(url) as registry:
+        note_abandoned(registry)
+        groups = datapack_groups(datapacks, registry)
+        check_size("--datapacks", "sweep cells (objectives x datapacks x seeds)",
+                   len(objectives) * len(groups) * len(seed_list), MAX_SWEEP_CELLS)
+        cells = plan_sweep(task_id, motor_backend, objectives, groups, seed_list, num_envs=num_envs,
+                           max_steps=max_steps, eval_episodes=eval_episodes)
         ray = RaySettings(ray_address, ray_num_cpus, cpus_per_cell, gpus_per_cell) \
             if use_ray or ray_address else None
         console.print(f"sweep: {len(cells)} cells on {motor_backend} "

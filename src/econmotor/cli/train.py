@@ -10,6 +10,7 @@ import typer
 from rich.table import Table
 
 from econmotor.cli._app import app, console, progress_bars, set_cpu_threads
+from econmotor.cli.validation import check_choice, check_flags, check_output_dir, check_output_file
 from econmotor.config.objective_profile import OBJECTIVE_PRESETS, ObjectiveVector
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.datapacks import load_datapack_configs
@@ -82,6 +83,11 @@ def train_command(
     json_out: Path = JSON_OPTION,
 ) -> None:
     """Train a motor policy for an economic objective and print its economics."""
+    check_flags(num_envs=num_envs, max_steps=max_steps, seed=seed, eval_episodes=eval_episodes)
+    check_choice("--algorithm", algorithm, ("ppo", "sac"))
+    check_choice("--vec-env", vec_env, ("dummy", "subproc"))
+    check_output_dir("--output-dir", output_dir)
+    check_output_file("--json", json_out)
     set_cpu_threads()
     objective = resolve_objective(objective_config, objective_preset)
     configs = load_datapack_configs(datapacks)
@@ -122,6 +128,9 @@ def evaluate_command(
     json_out: Path = JSON_OPTION,
 ) -> None:
     """Evaluate a trained policy deterministically and print its economics."""
+    check_flags(episodes=episodes, seed=seed)
+    check_output_dir("--output-dir", output_dir)
+    check_output_file("--json", json_out)
     set_cpu_threads()
     objective = resolve_objective(objective_config, objective_preset)
     configs = load_datapack_configs(datapacks)

@@ -3,7 +3,11 @@
 Every loader in econmotor goes through these helpers, so every bad input
 raises :class:`econmotor.errors.ConfigError` naming the file, the key and what
 is allowed: unknown keys (with a did-you-mean), wrong types, NaN/inf, negative
-prices, empty or non-mapping files.
+prices, empty or non-mapping files. YAML is read by one bounded loader
+(:func:`load_yaml_text`): at most :data:`MAX_YAML_BYTES` bytes, nesting at most
+:data:`MAX_YAML_DEPTH` deep (checked on the event stream, before anything recursive
+runs), duplicate keys rejected. Every name that becomes part of a file path (objective
+names, task ids, datapack ids, run names) goes through :func:`path_name`.
 """
 
 from __future__ import annotations
@@ -17,17 +21,129 @@ import yaml
 
 from econmotor.errors import ConfigError, did_you_mean
 
+#: Largest YAML file any loader reads (configs are a few KB).
+MAX_YAML_BYTES = 1 << 20
+#: Deepest nesting of mappings and lists a YAML config may have.
+MAX_YAML_DEPTH = 32
+#: Longest name that may become a file or directory name.
+MAX_NAME_LENGTH = 120
 
-def read_yaml_mapping(path: str | Path) -> dict[str, Any]:
-    """Read a YAML file whose top level must be a non-empty mapping with string keys."""
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` that rejects a key given twice in one mapping."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        seen: set[Any] = set()
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":  # ``<<: *anchor``: merged keys may be overridden
+                continue
+            key = self.construct_object(key_node, deep=deep)
+            try:
+                duplicate = key in seen
+                seen.add(key)
+            except TypeError:  # unhashable key: SafeLoader reports it below
+                continue
+            if duplicate:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"duplicate key {key!r} (line {key_node.start_mark.line + 1})", key_node.start_mark)
+        return super().construct_mapping(node, deep=deep)
+
+
+_UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _UniqueKeyLoader.construct_mapping)
+
+
+def load_yaml_text(text: str | bytes, source: str | Path) -> Any:
+    """Parse YAML with the size, depth and duplicate-key limits (module docstring)."""
+    size = len(text.encode("utf-8") if isinstance(text, str) else text)
+    if size > MAX_YAML_BYTES:
+        raise ConfigError(source, None, f"file is {size:,} bytes, more than the limit of {MAX_YAML_BYTES:,}")
+    if isinstance(text, bytes):
+        try:
+            text = text.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise ConfigError(source, None, f"not UTF-8 text: {exc.reason} at byte {exc.start}") from None
+    _check_flow_depth(text, source)
+    try:
+        depth = 0
+        for event in yaml.parse(text, Loader=yaml.SafeLoader):  # iterative: no recursion on deep input
+            if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+                depth += 1
+                if depth > MAX_YAML_DEPTH:
+                    line = event.start_mark.line + 1 if event.start_mark else "?"
+                    raise ConfigError(source, None, f"nested more than {MAX_YAML_DEPTH} levels deep (line {line})")
+            elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+                depth -= 1
+        return yaml.load(text, Loader=_UniqueKeyLoader)
+    except yaml.YAMLError as exc:
+        raise ConfigError(source, None, "not valid YAML: " + " ".join(str(exc).split())) from None
+    except RecursionError:  # belt and braces: the depth scan above should make this unreachable
+        raise ConfigError(source, None, f"nested too deeply (limit {MAX_YAML_DEPTH})") from None
+
+
+def _check_flow_depth(text: str, source: str | Path) -> None:
+    """Refuse ``[[[[...`` / ``{{{{...`` nesting before PyYAML's scanner, which is quadratic in it.
+
+    Counts brackets outside quotes and comments (a conservative over-count is fine: real
+    configs nest a few levels)."""
+    depth = 0
+    quote = ""
+    comment = False
+    for ch in text:
+        if comment:
+            comment = ch != "\n"
+        elif quote:
+            quote = "" if ch == quote else quote
+        elif ch in "'\"":
+            quote = ch
+        elif ch == "#":
+            comment = True
+        elif ch in "[{":
+            depth += 1
+            if depth > MAX_YAML_DEPTH:
+                raise ConfigError(source, None, f"nested more than {MAX_YAML_DEPTH} levels deep")
+        elif ch in "]}":
+            depth = max(0, depth - 1)
+
+
+def read_yaml(path: str | Path) -> Any:
+    """Read any YAML file through :func:`load_yaml_text` (missing, unreadable or binary: ConfigError)."""
     path = Path(path)
+    if path.is_dir():
+        raise ConfigError(path, None, "is a directory; expected a YAML file")
     if not path.is_file():
         raise ConfigError(path, None, "file not found")
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise ConfigError(path, None, f"not valid YAML: {exc}") from exc
-    return require_mapping(data, path, None)
+        size = path.stat().st_size
+        if size > MAX_YAML_BYTES:
+            raise ConfigError(path, None, f"file is {size:,} bytes, more than the limit of {MAX_YAML_BYTES:,}")
+        data = path.read_bytes()
+    except OSError as exc:
+        raise ConfigError(path, None, f"cannot read: {exc.strerror or exc}") from None
+    return load_yaml_text(data, path)
+
+
+def read_yaml_mapping(path: str | Path) -> dict[str, Any]:
+    """Read a YAML file whose top level must be a non-empty mapping with string keys."""
+    return require_mapping(read_yaml(path), Path(path), None)
+
+
+def path_name(value: Any, source: str | Path, key: str | None) -> str:
+    """``value`` if it is safe as one file or directory name, else a ConfigError.
+
+    The one check every name that becomes part of a path goes through (objective names,
+    task ids, datapack ids, run names): no ``/`` or ``\\``, not ``.``/``..`` or hidden
+    (leading ``.``), no control characters, 1..MAX_NAME_LENGTH characters. So
+    ``base / name`` always stays directly inside ``base``.
+    """
+    if not isinstance(value, str):
+        raise ConfigError(source, key, f"expected a string, got {type(value).__name__} {value!r}")
+    allowed = f"1-{MAX_NAME_LENGTH} characters, no '/', '\\', leading '.' or control characters"
+    if not value or len(value) > MAX_NAME_LENGTH:
+        raise ConfigError(source, key, f"name of {len(value)} characters; it becomes a file name", allowed)
+    if "/" in value or "\\" in value or value.startswith(".") or any(ord(c) < 32 or ord(c) == 127 for c in value):
+        raise ConfigError(source, key, f"{value!r} cannot be used as a file name (it would leave the output "
+                          "directory or hide the file)", allowed)
+    return value
 
 
 def require_mapping(data: Any, source: str | Path, key: str | None) -> dict[str, Any]:

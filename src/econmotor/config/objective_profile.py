@@ -92,6 +92,9 @@ class ObjectiveVector:
                 raise ConfigError(
                     source, f"objective_vector[{i}]", f"expected a finite number >= 0, got {v!r}"
                 )
+        if not any(values):
+            raise ConfigError(source, "objective_vector", "all-zero weights value nothing; give at least one "
+                              "weight > 0", "5 finite numbers >= 0, not all zero")
         return cls(*(float(v) for v in values), energy_term=energy_term)
 
     @classmethod

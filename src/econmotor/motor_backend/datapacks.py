@@ -32,7 +32,7 @@ from typing import Any
 
 import yaml
 
-from econmotor.config.loading import as_float, as_str, check_keys, read_yaml_mapping, require_mapping
+from econmotor.config.loading import as_float, as_str, check_keys, path_name, read_yaml_mapping, require_mapping
 from econmotor.config.objective_profile import OBJECTIVE_PRESETS
 from econmotor.errors import ConfigError, UnknownNameError
 
@@ -140,7 +140,7 @@ def parse_datapack(data: Any, source: str | Path = "<datapack>") -> DatapackConf
     """Validate one datapack mapping (schema in the module docstring)."""
     data = require_mapping(data, source, None)
     check_keys(data, DATAPACK_KEYS, source, required=("id",))
-    pack_id = as_str(data["id"], source, "id")
+    pack_id = path_name(as_str(data["id"], source, "id"), source, "id")
     if not pack_id.strip():
         raise ConfigError(source, "id", "must not be empty")
     clips_raw = data.get("motion_clips") or []

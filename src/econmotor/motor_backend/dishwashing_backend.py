@@ -35,6 +35,7 @@ import gymnasium as gym
 import numpy as np
 
 from econmotor.config.econ_params import EconParams
+from econmotor.config.loading import path_name
 from econmotor.config.task_economics import TaskEconomics
 from econmotor.envs.dishwashing import DishwashingEnv
 from econmotor.envs.dishwashing_randomization import EconRandomization, parse_econ_randomization
@@ -260,7 +261,8 @@ class DishwashingBackend:
         vec.close()
 
         run_dir = _new_run_dir(Path(output_dir) if output_dir else self.default_output_dir,
-                               f"{task_id}__{objective.name}__seed{seed}")
+                               f"{path_name(task_id, '<task>', 'task_id')}__"
+                               f"{path_name(objective.name, '<objective>', 'name')}__seed{seed}")
         policy_path = run_dir / "policy.zip"
         model.save(policy_path)
         config = {

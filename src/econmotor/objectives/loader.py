@@ -29,7 +29,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from econmotor.config.loading import as_float, as_str, check_keys, read_yaml_mapping, require_mapping
+from econmotor.config.loading import as_float, as_str, check_keys, path_name, read_yaml_mapping, require_mapping
 from econmotor.config.objective_profile import OBJECTIVE_PRESETS, ObjectiveVector
 from econmotor.errors import ConfigError
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
@@ -73,8 +73,8 @@ def parse_objective_spec(data: Any, source: str | Path = "<objective>") -> Econo
     if len(forms) > 1:
         raise ConfigError(source, None, f"give exactly one objective form, got {forms}",
                           "flat *_weight keys | objective_vector | objective_preset")
-    name = as_str(data.get("name", Path(str(source)).stem if source != "<objective>" else "objective"),
-                  source, "name")
+    name = path_name(data.get("name", Path(str(source)).stem if source != "<objective>" else "objective"),
+                     source, "name")
     extras_raw = require_mapping(data["extra_weights"], source, "extra_weights") if "extra_weights" in data else {}
     extras = {k: as_float(v, source, f"extra_weights.{k}") for k, v in extras_raw.items()}
     for k in extras:
@@ -85,11 +85,15 @@ def parse_objective_spec(data: Any, source: str | Path = "<objective>") -> Econo
         return objective_from_vector(vector, name, extras)
     if "objective_preset" in data:
         preset = as_str(data["objective_preset"], source, "objective_preset", OBJECTIVE_PRESETS)
-        return objective_from_vector(ObjectiveVector.from_preset(preset), data.get("name", preset), extras)
+        return objective_from_vector(ObjectiveVector.from_preset(preset), name if "name" in data else preset,
+                                     extras)
     if not forms:
         raise ConfigError(source, None, "no objective given",
                           "flat *_weight keys | objective_vector | objective_preset")
     weights = {k: as_float(data[k], source, k) for k in _FLAT_KEYS if k in data}
+    if not any(weights.values()) and not any(extras.values()) and "mpl_weight" in weights:
+        raise ConfigError(source, None, "every weight is zero: the objective values nothing",
+                          "at least one non-zero *_weight")
     return EconomicObjectiveSpec(**weights, extra_weights=extras, name=name)
 
 

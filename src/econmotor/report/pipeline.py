@@ -22,6 +22,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from econmotor.config.loading import path_name
 from econmotor.economics.pricing import PricingPolicy, price_evaluation
 from econmotor.errors import BackendError, ConfigError, RegistryError, UnknownNameError
 from econmotor.motor_backend.base import ProgressFn, no_progress
@@ -227,12 +228,18 @@ def report_from_registry(registry: Registry, task: Any, priced: RunRecord, train
         training_curve=(train or priced).training_curve,
         notes=notes if notes is not None else (train or priced).notes, db_url=registry.display_url)
     document = build_document(ctx)
-    name = f"{task.task_id}_run{priced.id}"
+    name = path_name(f"{task.task_id}_run{priced.id}", "<report>", "name")
+    written: dict[str, Any] = {}
+
+    def write_files(report_id: int) -> dict[str, str]:  # inside the registry transaction: no row without files
+        written["document"] = {**document, "registry": {**document["registry"], "report_id": report_id}}
+        written["files"] = write_report(written["document"], output_dir, name, json_path)
+        return written["files"]
+
     report_id = registry.record_report(task.task_id, document, report_paths(output_dir, name, json_path),
-                                       train.id if train else None, priced.id if priced.kind == "eval" else None)
-    document = {**document, "registry": {**document["registry"], "report_id": report_id}}
-    files = write_report(document, output_dir, name, json_path)
-    return ReportOutcome(document, files, report_id, train, ctx.eval_run)
+                                       train.id if train else None, priced.id if priced.kind == "eval" else None,
+                                       write_files=write_files)
+    return ReportOutcome(written["document"], written["files"], report_id, train, ctx.eval_run)
 
 
 def report_after_training(registry: Registry, request: TrainRequest, train_id: int, eval_id: int | None,

@@ -13,6 +13,7 @@ import html
 import json
 import math
 import os
+import re
 import tempfile
 from collections.abc import Mapping
 from pathlib import Path
@@ -98,10 +99,19 @@ def task_damage_per_unit(doc: Mapping[str, Any]) -> float | None:
     return None if c_d is None or e_h is None else c_d * e_h
 
 
+_MD_SPECIAL = re.compile(r"([\\`*\[\]|])")
+
+
+def md_escape(value: Any) -> str:
+    """User text made inert in Markdown, as ``html.escape`` does for HTML: markup (``<script>``,
+    ``<img onerror>``) is escaped, Markdown syntax is backslash-escaped, newlines become spaces."""
+    text = html.escape(" ".join(str(value).split()), quote=False)
+    return _MD_SPECIAL.sub(r"\\\1", text)
+
+
 def _md_table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> str:
-    esc = lambda s: str(s).replace("|", "\\|").replace("\n", " ")
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(esc(c) for c in row) + " |" for row in rows]
+    lines = ["| " + " | ".join(md_escape(h) for h in header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(md_escape(c) for c in row) + " |" for row in rows]
     return "\n".join(lines)
 
 
@@ -154,7 +164,7 @@ PLOT_TITLES = {"unit_costs": "Human vs robot unit cost", "episode_distributions"
 def render_markdown(doc: Mapping[str, Any], plot_files: Mapping[str, str] | None = None) -> str:
     """The Markdown report; ``plot_files`` maps plot name -> relative image path."""
     s = _sections(doc)
-    parts = [f"# Task pricing report: {doc['task']['task_id']}", "", f"**{headline(doc)}**", "",
+    parts = [f"# Task pricing report: {md_escape(doc['task']['task_id'])}", "", f"**{md_escape(headline(doc))}**", "",
              _md_table(("", ""), [(k, v) for k, v in s["facts"]]), "",
              f"## Pricing (spread share {fmt(doc['pricing']['spread_share'])})", "",
              "`aggregate` pools all evaluation episodes; mean and p10/p50/p90 are over episodes.", "",

@@ -7,6 +7,9 @@ from typing import Any
 
 from sqlalchemy import event
 from sqlalchemy.engine import Engine, make_url
+from sqlalchemy.exc import SQLAlchemyError
+
+from econmotor.errors import ConfigError
 
 #: Environment variable the CLI reads for the database URL.
 DB_URL_ENV = "ECONMOTOR_DB_URL"
@@ -16,6 +19,29 @@ _SQLITE_FILE = Path(".econmotor") / "registry.sqlite"
 def default_db_url(base_dir: str | Path | None = None) -> str:
     """``sqlite:///<base_dir or cwd>/.econmotor/registry.sqlite`` (absolute path)."""
     return f"sqlite:///{(Path(base_dir or Path.cwd()) / _SQLITE_FILE).resolve()}"
+
+
+#: Registry URL schemes econmotor supports (SQLAlchemy dialect+driver).
+SUPPORTED_DB_SCHEMES = ("sqlite:///PATH", "postgresql://...", "postgresql+psycopg://...")
+_SUPPORTED_BACKENDS = ("sqlite", "postgresql")
+
+
+def check_db_url(url: str, source: str = "--db-url") -> str:
+    """A ConfigError (naming ``source``) unless ``url`` parses, is SQLite or PostgreSQL and its
+    driver is installed; returns ``url``."""
+    allowed = ", ".join(SUPPORTED_DB_SCHEMES)
+    try:
+        parsed = make_url(url)
+    except (SQLAlchemyError, ValueError, TypeError) as exc:
+        raise ConfigError(source, None, f"not a database URL ({' '.join(str(exc).split())})", allowed) from None
+    if parsed.get_backend_name() not in _SUPPORTED_BACKENDS:
+        raise ConfigError(source, None, f"unsupported database scheme '{parsed.drivername}'", allowed)
+    try:
+        parsed.get_dialect()
+    except (SQLAlchemyError, ImportError) as exc:
+        raise ConfigError(source, None, f"cannot use '{parsed.drivername}': {' '.join(str(exc).split())}; "
+                          "for PostgreSQL install psycopg (pip install 'psycopg[binary]')", allowed) from None
+    return url
 
 
 def sqlite_path(url: str) -> Path | None:

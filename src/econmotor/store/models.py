@@ -25,7 +25,8 @@ from sqlalchemy.types import TypeDecorator
 SCHEMA_VERSION = 1
 
 RUN_KINDS = ("train", "eval")
-RUN_STATUSES = ("running", "completed", "failed", "interrupted")
+#: ``abandoned``: was ``running`` but its owner process is gone (killed); set when a registry is opened.
+RUN_STATUSES = ("running", "completed", "failed", "interrupted", "abandoned")
 
 #: Per-episode summary fields also stored as columns (for SQL filters and fast vector reads).
 EPISODE_COLUMNS = (

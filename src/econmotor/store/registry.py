@@ -29,6 +29,12 @@ busy timeout and every transaction begins ``IMMEDIATE``, so several processes ca
 one file at once: writers queue instead of failing or corrupting. A run is recorded as
 ``running`` before work starts, so a crash or Ctrl-C leaves it ``failed`` /
 ``interrupted`` (via :meth:`track_run`) and never loses what was already committed.
+A run records its owner (host, pid and the process's start time, in ``config["owner"]``);
+opening a registry marks ``running`` runs whose owner process on this host is gone (a
+kill -9, a power cut) as ``abandoned``, so no dead run stays ``running``.
+Get-or-create of tasks, robots and datapacks is one ``INSERT ... ON CONFLICT`` statement
+(SQLite and PostgreSQL), so concurrent first uses of a new task never fail on a unique key.
+A report row is committed only after its files are written (:meth:`Registry.record_report`).
 The schema is versioned (``econmotor_schema``); a database written by another schema
 version is refused with a message saying what to do.
 """
@@ -36,7 +42,10 @@ version is refused with a message saying what to do.
 from __future__ import annotations
 
 import contextlib
+import os
+import socket
 from collections.abc import Iterable, Iterator, Mapping, Sequence
+from pathlib import Path
 from typing import Any, Self
 
 import numpy as np
@@ -45,10 +54,11 @@ from sqlalchemy.engine import Engine, make_url
 from sqlalchemy.exc import SQLAlchemyError
 from sqlalchemy.orm import Session
 
-from econmotor.errors import RegistryError, UnknownNameError
+from econmotor.errors import ConfigError, RegistryError, UnknownNameError
 from econmotor.motor_backend.datapacks import DatapackConfig, parse_datapack
 from econmotor.store.engine import (
     DB_URL_ENV,
+    check_db_url,
     default_db_url,
     make_sqlite_concurrent,
     registry_exists,
@@ -94,23 +104,33 @@ class Registry:
     def __init__(self, url: str | None = None, *, create: bool = True, busy_timeout_s: float = 120.0) -> None:
         self.url = url or default_db_url()
         try:
-            parsed = make_url(self.url)
-        except SQLAlchemyError as exc:
-            raise RegistryError(f"invalid database URL {self.url!r}: {exc}") from exc
+            check_db_url(self.url, "database URL")
+        except ConfigError as exc:
+            raise RegistryError(f"invalid database URL {self.url!r}: {exc.detail} "
+                                f"(supported: {exc.allowed})") from None
+        parsed = make_url(self.url)
         self.display_url = parsed.render_as_string(hide_password=True)
         path = sqlite_path(self.url)
         if path is not None:
             if not path.exists() and not create:
                 raise RegistryError(f"no registry at {path}; run `econmotor report` first or pass --db-url")
-            path.parent.mkdir(parents=True, exist_ok=True)
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise RegistryError(f"cannot create the registry directory {path.parent}: {exc.strerror or exc}; "
+                                    f"pass --db-url (or set {DB_URL_ENV}) to a writable location") from None
         self._sqlite = parsed.get_backend_name() == "sqlite"
         kwargs: dict[str, Any] = {}
         if self._sqlite:
             kwargs["connect_args"] = {"timeout": busy_timeout_s}
-        self.engine: Engine = create_engine(self.url, **kwargs)
+        try:
+            self.engine: Engine = create_engine(self.url, **kwargs)
+        except (SQLAlchemyError, ImportError) as exc:
+            raise RegistryError(f"cannot use the database URL {self.display_url}: {exc}") from None
         if self._sqlite:
             make_sqlite_concurrent(self.engine, busy_timeout_s)
         self._ensure_schema(create)
+        self.abandoned_run_ids = self._mark_abandoned_runs()
 
     # ------------------------------------------------------------------ schema
     def _ensure_schema(self, create: bool) -> None:
@@ -152,6 +172,41 @@ class Registry:
 
     _read = _write
 
+    def _upsert(self, session: Session, row_class: type, values: Mapping[str, Any], update: bool) -> None:
+        """Get-or-create (``update=False``) or insert-or-update one row by primary key, race-free:
+        one ``INSERT ... ON CONFLICT`` statement, so concurrent writers never hit a unique violation."""
+        table = row_class.__table__
+        if self._sqlite:
+            from sqlalchemy.dialects.sqlite import insert
+        else:
+            from sqlalchemy.dialects.postgresql import insert
+        stmt = insert(table).values(**values)
+        keys = [c.name for c in table.primary_key]
+        changed = {k: stmt.excluded[k] for k in values if k not in keys}
+        stmt = stmt.on_conflict_do_update(index_elements=keys, set_=changed) if update and changed \
+            else stmt.on_conflict_do_nothing(index_elements=keys)
+        session.execute(stmt)
+
+    # ------------------------------------------------------------------ run owners
+    def _mark_abandoned_runs(self) -> list[int]:
+        """Mark ``running`` runs whose owner process on this host is gone as ``abandoned``."""
+        host = socket.gethostname()
+        with self._read() as s:
+            running = s.execute(select(RunRow.id, RunRow.config).where(RunRow.status == "running")).all()
+        gone = [run_id for run_id, config in running
+                if isinstance(owner := (config or {}).get("owner"), dict) and owner.get("host") == host
+                and not _process_alive(owner.get("pid"), owner.get("start"))]
+        if gone:
+            with self._write() as s:
+                for run_id in gone:
+                    run = s.get(RunRow, run_id)
+                    if run is not None and run.status == "running":
+                        owner = run.config["owner"]
+                        run.status, run.finished_at = "abandoned", utc_now()
+                        run.error = (f"abandoned: its process {owner.get('pid')} on {host} ended without "
+                                     "recording an outcome (killed?)")
+        return gone
+
     def close(self) -> None:
         self.engine.dispose()
 
@@ -165,31 +220,28 @@ class Registry:
     def record_task(self, spec: Any) -> None:
         """Insert or update a task (a ``econmotor.tasks.TaskSpec``) with its economics."""
         with self._write() as s:
-            row = s.get(TaskRow, spec.task_id) or TaskRow(task_id=spec.task_id)
-            row.description, row.unit = spec.description, spec.unit
-            row.error_definition = spec.error_definition
-            row.economics = {"values": spec.economics.to_dict(), "parameters": spec.economics.parameters()}
-            row.source, row.updated_at = spec.source, utc_now()
-            s.add(row)
+            self._upsert(s, TaskRow, {
+                "task_id": spec.task_id, "description": spec.description, "unit": spec.unit,
+                "error_definition": spec.error_definition,
+                "economics": {"values": spec.economics.to_dict(), "parameters": spec.economics.parameters()},
+                "source": spec.source, "updated_at": utc_now()}, update=True)
 
     def record_robot(self, robot_id: str, backend: str, description: str = "",
                      details: Mapping[str, Any] | None = None) -> None:
         """Insert or update a robot (e.g. ``"mujoco:Hopper-v5"``)."""
         with self._write() as s:
-            row = s.get(RobotRow, robot_id) or RobotRow(robot_id=robot_id)
-            row.backend, row.description, row.details = backend, description, dict(details or {})
-            s.add(row)
+            self._upsert(s, RobotRow, {"robot_id": robot_id, "backend": backend, "description": description,
+                                       "details": dict(details or {})}, update=True)
 
     def record_datapacks(self, configs: Iterable[DatapackConfig]) -> list[str]:
         """Insert or update datapacks so later runs can name them by id; returns the ids."""
-        ids = []
-        with self._write() as s:
-            for config in configs:
-                row = s.get(DatapackRow, config.id) or DatapackRow(datapack_id=config.id)
-                row.description, row.config, row.source = config.description, config.to_dict(), config.source
-                s.add(row)
-                ids.append(config.id)
-        return ids
+        configs = list(configs)
+        with self._write() as s:  # in id order: concurrent writers lock rows in the same order
+            for config in sorted(configs, key=lambda c: c.id):
+                self._upsert(s, DatapackRow, {"datapack_id": config.id, "description": config.description,
+                                              "config": config.to_dict(), "source": config.source,
+                                              "registered_at": utc_now()}, update=True)
+        return [c.id for c in configs]
 
     def known_datapack_ids(self) -> list[str]:
         with self._read() as s:
@@ -234,14 +286,14 @@ class Registry:
         obj = objective.to_dict() if hasattr(objective, "to_dict") else dict(objective or {})
         ids = list(dict.fromkeys(datapack_ids))
         with self._write() as s:
-            if s.get(TaskRow, task_id) is None:
-                s.add(TaskRow(task_id=task_id))
-            if robot_id is not None and s.get(RobotRow, robot_id) is None:
-                s.add(RobotRow(robot_id=robot_id, backend=backend))
-            s.flush()  # parents first: no relationship() tells the unit of work the order
+            self._upsert(s, TaskRow, _new_task_values(task_id), update=False)
+            if robot_id is not None:
+                self._upsert(s, RobotRow, {"robot_id": robot_id, "backend": backend, "description": "",
+                                           "details": {}}, update=False)
             run = RunRow(kind=kind, parent_run_id=parent_run_id, task_id=task_id, backend=backend,
                          robot_id=robot_id, objective_name=str(obj.get("name", "objective")),
-                         objective=obj, datapack_ids=ids, config=dict(config or {}), seed=seed,
+                         objective=obj, datapack_ids=ids, config={**dict(config or {}), "owner": run_owner()},
+                         seed=seed,
                          num_envs=num_envs, max_steps=max_steps, notes=notes, status="running",
                          policy_path=policy_path, created_at=utc_now())
             s.add(run)
@@ -403,15 +455,26 @@ class Registry:
 
     # ------------------------------------------------------------------ reports
     def record_report(self, task_id: str, document: Mapping[str, Any], files: Mapping[str, str],
-                      train_run_id: int | None = None, eval_run_id: int | None = None) -> int:
+                      train_run_id: int | None = None, eval_run_id: int | None = None,
+                      write_files: Any = None) -> int:
+        """Record a report; returns its id.
+
+        With ``write_files(report_id) -> {kind: path}`` the files are written inside the
+        transaction and the row commits only if they all exist afterwards: a failed (or
+        killed) write leaves no row naming missing files.
+        """
         with self._write() as s:
-            if s.get(TaskRow, task_id) is None:
-                s.add(TaskRow(task_id=task_id))
-                s.flush()
+            self._upsert(s, TaskRow, _new_task_values(task_id), update=False)
             row = ReportRow(task_id=task_id, document=dict(document), files=dict(files),
                             train_run_id=train_run_id, eval_run_id=eval_run_id, created_at=utc_now())
             s.add(row)
             s.flush()
+            if write_files is not None:
+                written = {k: str(v) for k, v in write_files(row.id).items()}
+                missing = [p for p in written.values() if not Path(p).is_file()]
+                if missing:
+                    raise RegistryError(f"report files missing after writing: {', '.join(missing)}")
+                row.files = written
             return row.id
 
     def reports(self, task_id: str | None = None) -> list[ReportRecord]:
@@ -422,3 +485,41 @@ class Registry:
             return [report_record(r) for r in s.scalars(stmt)]
 
 
+def _new_task_values(task_id: str) -> dict[str, Any]:
+    """Column values of a task row created on first use (economics recorded later by record_task)."""
+    return {"task_id": task_id, "description": "", "unit": "", "error_definition": "", "economics": {},
+            "source": "", "updated_at": utc_now()}
+
+
+def _process_start(pid: int) -> str | None:
+    """The start time of process ``pid`` (clock ticks since boot, from /proc), or None where unknown."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return stat.rsplit(")", 1)[-1].split()[19]
+
+
+def run_owner() -> dict[str, Any]:
+    """Who runs this process: host, pid and the process start time (tells a reused pid apart)."""
+    pid = os.getpid()
+    return {"host": socket.gethostname(), "pid": pid, "start": _process_start(pid)}
+
+
+def _process_alive(pid: Any, start: Any) -> bool:
+    """Whether process ``pid`` (started at ``start``, when recorded) still runs on this host."""
+    if not isinstance(pid, int) or pid <= 0:
+        return True  # unknown owner: never guess it dead
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        pass  # exists, another user's
+    try:
+        if Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[-1].split()[0] in ("Z", "X"):
+            return False  # killed, not yet reaped
+    except (OSError, IndexError):
+        pass
+    now = _process_start(pid)
+    return start is None or now is None or now == start

@@ -28,6 +28,7 @@ from econmotor.config.loading import (
     as_float,
     as_str,
     check_keys,
+    path_name,
     read_yaml_mapping,
     require_mapping,
 )
@@ -137,7 +138,7 @@ def read_task_file(path: str | Path) -> dict[str, TaskSpec]:
     data = read_yaml_mapping(path)
     check_keys(data, ("tasks",), path, required=("tasks",))
     tasks = require_mapping(data["tasks"], path, "tasks")
-    return {str(tid): parse_task(str(tid), entry, path) for tid, entry in tasks.items()}
+    return {path_name(tid, path, f"tasks.{tid}"): parse_task(tid, entry, path) for tid, entry in tasks.items()}
 
 
 @lru_cache(maxsize=1)

@@ -24,8 +24,9 @@ from econmotor.motor_backend.mujoco.training import (
     build_model,
     checkpoint_callback,
     checkpoint_vecnormalize,
-    latest_checkpoint,
+    find_checkpoint,
     load_checkpoint,
+    log,
     save_final,
     wrap_normalize,
 )
@@ -95,7 +96,10 @@ class TrainingRun:
     def train(self, resume: bool = False, progress: ProgressFn = no_progress) -> tuple[Any, list[dict[str, float]]]:
         """Train to ``max_steps`` total environment steps; returns (model, training curve)."""
         self.run_dir.mkdir(parents=True, exist_ok=True)
-        ckpt = latest_checkpoint(self.run_dir, self.recipe.settings.normalize_obs) if resume else None
+        ckpt, skipped = find_checkpoint(self.run_dir, self.recipe.settings.normalize_obs) if resume else (None, [])
+        for problem in skipped:
+            log.warning("skipped a damaged checkpoint: %s; resuming from %s", problem,
+                        f"{ckpt[0].name}" if ckpt else "the start (no intact checkpoint)")
         if resume:
             previous = read_run_config(self.run_dir)
             if previous.get("task_id") != self.described["task_id"]:
@@ -113,6 +117,7 @@ class TrainingRun:
             "max_steps": self.max_steps, "seed": self.seed, "vec_env": self.vec_env,
             "checkpoint_every_steps": self.checkpoint_every_steps, "obs_layout": obs_layout,
             "action_layout": action_layout, "resumed_from_steps": ckpt[1] if ckpt else 0,
+            "skipped_checkpoints": skipped,
         }
         tmp = self.run_dir / (RUN_CONFIG_FILE + ".tmp")
         tmp.write_text(json.dumps(self.config, indent=2, default=str), encoding="utf-8")

@@ -7,10 +7,20 @@ Run directory (``policy_id``)::
     tb/                                 # TensorBoard: SB3 scalars + overlay/<key>_raw|_weighted + econ/<key>
     policy.zip, vecnormalize.pkl        # the final policy and its observation statistics
     policy.onnx                         # the deployed actor (export.py)
+
+Every checkpoint file is written to a temporary name and renamed into place, the
+companions (VecNormalize statistics, SAC's replay buffer) before the policy zip, so a
+``ckpt_<N>_steps.zip`` implies complete companions. On resume each candidate is verified
+(zip CRCs, the statistics unpickle) newest first; damaged ones (a file truncated by a
+crash or a full disk) are skipped and reported, and training resumes from the newest
+intact checkpoint.
 """
 
 from __future__ import annotations
 
+import logging
+import os
+import pickle
 import re
 import zipfile
 from collections.abc import Mapping
@@ -31,6 +41,7 @@ CHECKPOINT_PREFIX = "ckpt"
 POLICY_FILE = "policy.zip"
 VECNORM_FILE = "vecnormalize.pkl"
 _CKPT_RE = re.compile(rf"{CHECKPOINT_PREFIX}_(\d+)_steps\.zip$")
+log = logging.getLogger("econmotor")
 
 
 def algorithm_class(name: str) -> type[BaseAlgorithm]:
@@ -77,27 +88,48 @@ def wrap_normalize(venv: VecEnv, normalize_obs: bool, stats_path: Path | None = 
     return VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0)
 
 
-def latest_checkpoint(run_dir: str | Path, need_vecnormalize: bool = False) -> tuple[Path, int] | None:
-    """The newest complete ``checkpoints/ckpt_<N>_steps.zip`` and its N, or None.
+def checkpoint_problem(path: Path, steps: int, need_vecnormalize: bool = False) -> str | None:
+    """Why checkpoint ``path`` cannot be resumed from (a truncated or missing file), or None if intact."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            bad = zf.testzip()
+            if bad is not None:
+                return f"{path.name}: entry {bad} is corrupt"
+            if "data" not in zf.namelist():
+                return f"{path.name}: not an SB3 model (no 'data' entry)"
+    except (zipfile.BadZipFile, OSError, EOFError) as exc:
+        return f"{path.name}: {exc}"
+    stats = checkpoint_vecnormalize(path, steps)
+    if need_vecnormalize and not stats.is_file():
+        return f"{path.name}: its VecNormalize statistics {stats.name} are missing"
+    if stats.is_file():
+        try:
+            with stats.open("rb") as fh:
+                pickle.load(fh)  # our own file, written by VecNormalize.save
+        except Exception as exc:
+            return f"{stats.name}: cannot be read ({type(exc).__name__}: {exc})"
+    return None
 
-    A run killed while writing leaves a truncated zip (or a zip without its VecNormalize
-    statistics): such checkpoints are skipped in favour of the previous one.
-    """
+
+def find_checkpoint(run_dir: str | Path, need_vecnormalize: bool = False) -> tuple[tuple[Path, int] | None, list[str]]:
+    """``((path, N) of the newest intact checkpoint or None, [why each newer one was skipped])``."""
     found = []
     for path in (Path(run_dir) / "checkpoints").glob(f"{CHECKPOINT_PREFIX}_*_steps.zip"):
         m = _CKPT_RE.search(path.name)
         if m:
             found.append((int(m.group(1)), path))
+    skipped: list[str] = []
     for steps, path in sorted(found, reverse=True):
-        if need_vecnormalize and not checkpoint_vecnormalize(path, steps).is_file():
-            continue
-        try:
-            with zipfile.ZipFile(path) as zf:
-                if zf.testzip() is None:
-                    return path, steps
-        except (zipfile.BadZipFile, OSError):
-            continue
-    return None
+        problem = checkpoint_problem(path, steps, need_vecnormalize)
+        if problem is None:
+            return (path, steps), skipped
+        skipped.append(problem)
+    return None, skipped
+
+
+def latest_checkpoint(run_dir: str | Path, need_vecnormalize: bool = False) -> tuple[Path, int] | None:
+    """The newest intact ``checkpoints/ckpt_<N>_steps.zip`` and its N, or None (see :func:`find_checkpoint`)."""
+    return find_checkpoint(run_dir, need_vecnormalize)[0]
 
 
 def checkpoint_vecnormalize(ckpt: Path, steps: int) -> Path:
@@ -120,11 +152,41 @@ def load_checkpoint(algorithm: str, ckpt: Path, steps: int, venv: VecEnv) -> Bas
     return model
 
 
+class AtomicCheckpointCallback(CheckpointCallback):
+    """SB3's CheckpointCallback with every file written to a temporary name and renamed into
+    place, companions first and the policy zip last (module docstring)."""
+
+    def _on_step(self) -> bool:
+        if self.n_calls % self.save_freq != 0:
+            return True
+        Path(self.save_path).mkdir(parents=True, exist_ok=True)
+        buffer = getattr(self.model, "replay_buffer", None)
+        if self.save_replay_buffer and buffer is not None:
+            _atomic(self._checkpoint_path("replay_buffer_", extension="pkl"), self.model.save_replay_buffer)
+        normalizer = self.model.get_vec_normalize_env()
+        if self.save_vecnormalize and normalizer is not None:
+            _atomic(self._checkpoint_path("vecnormalize_", extension="pkl"), normalizer.save)
+        _atomic(self._checkpoint_path(extension="zip"), self.model.save)
+        return True
+
+
+def _atomic(final: str, save: Any) -> None:
+    """``save(tmp)`` then rename ``tmp`` to ``final`` (same directory, so the rename is atomic)."""
+    stem, dot, ext = final.rpartition(".")
+    tmp = f"{stem}.tmp{os.getpid()}{dot}{ext}"  # keeps the extension SB3 insists on
+    try:
+        save(tmp)
+        os.replace(tmp, final)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
 def checkpoint_callback(run_dir: Path, every_steps: int, num_envs: int, save_replay_buffer: bool) -> BaseCallback:
-    """SB3's CheckpointCallback saving every ``every_steps`` environment steps (all envs together)."""
-    return CheckpointCallback(save_freq=max(1, every_steps // num_envs), save_path=str(run_dir / "checkpoints"),
-                              name_prefix=CHECKPOINT_PREFIX, save_replay_buffer=save_replay_buffer,
-                              save_vecnormalize=True)
+    """Atomic checkpoints every ``every_steps`` environment steps (all envs together)."""
+    return AtomicCheckpointCallback(save_freq=max(1, every_steps // num_envs), save_path=str(run_dir / "checkpoints"),
+                                    name_prefix=CHECKPOINT_PREFIX, save_replay_buffer=save_replay_buffer,
+                                    save_vecnormalize=True)
 
 
 class CurriculumCallback(BaseCallback):
