@@ -71,8 +71,8 @@ def check_prices_by_hand(doc: dict, share: float) -> None:
         unit = cost_h / mpl
         price = unit + share * max(human - unit, 0.0)
         assert agg["robot_unit_cost_usd"] == pytest.approx(unit)
-        assert agg["recommended_price_usd_per_unit"] == pytest.approx(price)
-        assert agg["recommended_price_usd_per_robot_hour"] == pytest.approx(price * mpl)
+        assert agg["price_usd_per_unit"] == pytest.approx(price)
+        assert agg["price_usd_per_robot_hour"] == pytest.approx(price * mpl)
         assert agg["customer_saving_usd_per_hour"] == pytest.approx((human - price) * mpl)
     assert mpl == pytest.approx(doc["metrics"]["econ"]["mpl_units_per_hour"])
 
@@ -140,8 +140,8 @@ def test_report_from_recorded_runs_matches_the_worked_example(workdir: Path) -> 
     # price = 0.09324 + 0.25*0.20676 = 0.14493; /h = 7.2465; saving (0.30 - 0.14493)*50 = 7.7535
     # break-even 35000 / (7.2465 - 2.912) = 8074.75 h; wage 0.30*50 - 1.0*(10/110)*50 = 10.4545
     expected = {"mpl_units_per_hour": 50.0, "robot_cost_usd_per_hour": 4.662, "robot_unit_cost_usd": 0.09324,
-                "spread_per_unit_usd": 0.20676, "recommended_price_usd_per_unit": 0.14493,
-                "recommended_price_usd_per_robot_hour": 7.2465, "customer_saving_usd_per_hour": 7.7535,
+                "spread_per_unit_usd": 0.20676, "price_usd_per_unit": 0.14493,
+                "price_usd_per_robot_hour": 7.2465, "customer_saving_usd_per_hour": 7.7535,
                 "break_even_hours": 35000 / 4.3345, "implied_wage_usd_per_hour": 15 - 50 / 11,
                 "wage_parity": (15 - 50 / 11) / 18, "energy_productivity_units_per_kwh": 500.0}
     assert {k: agg[k] for k in expected} == pytest.approx(expected)

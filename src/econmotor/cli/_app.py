@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import sys
 from collections.abc import Iterator
 
 import typer
@@ -26,8 +27,10 @@ app = typer.Typer(
 datapacks_app = typer.Typer(help="Validate, list and record datapacks.", no_args_is_help=True)
 app.add_typer(datapacks_app, name="datapacks")
 
-console = Console()
-err_console = Console(stderr=True)
+# Messages are soft-wrapped (one line each) when the stream is not a terminal, so piped output and
+# logs keep whole lines; tables still lay out to the width (COLUMNS, else 80 when not a terminal).
+console = Console(soft_wrap=not sys.stdout.isatty())
+err_console = Console(stderr=True, soft_wrap=not sys.stderr.isatty())
 
 
 def set_cpu_threads() -> None:

@@ -16,9 +16,6 @@ from __future__ import annotations
 import inspect
 import os
 import re
-import signal
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 import typer
@@ -41,7 +38,7 @@ from econmotor.report.pipeline import (
     train_and_record,
     with_objective_name,
 )
-from econmotor.report.render import STAT_COLUMNS, headline, table_rows
+from econmotor.report.render import INTERVAL_COLUMN, headline, table_rows
 from econmotor.store.registry import DB_URL_ENV, Registry, default_db_url, registry_exists
 from econmotor.tasks import load_catalog
 from econmotor.valuation import default_objective_vector
@@ -107,29 +104,38 @@ def _make_backend(name: str, tasks_files: list[Path]):
     return make_motor_backend(name, **kwargs)
 
 
-@contextmanager
-def _sigterm_as_interrupt() -> Iterator[None]:
-    """SIGTERM (e.g. a job scheduler stopping us) is recorded like Ctrl-C: run status interrupted."""
-    def raise_interrupt(signum, frame):
-        raise KeyboardInterrupt(f"signal {signum}")
-
-    previous = signal.signal(signal.SIGTERM, raise_interrupt)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+def describe_pick(train, priced, task_id: str, asked: list[int], objective: str | None) -> str:
+    """Which run is priced and why, in words."""
+    what = f"{priced.kind} run of objective '{priced.objective_name}'"
+    if train is not None and train.id != priced.id:
+        what += f", evaluating the policy of training run #{train.id}"
+    if priced.notes == "econmotor sweep" or (train is not None and train.notes == "econmotor sweep"):
+        what += " (a sweep cell)"
+    finished = priced.finished_at.strftime("%Y-%m-%d %H:%M UTC") if priced.finished_at else "unknown time"
+    if asked:
+        why = "asked for with --run-id" if priced.id in asked else f"the newest completed evaluation of run " \
+              f"#{train.id if train else '?'} (asked for with --run-id)"
+    else:
+        why = (f"the latest completed run of task '{task_id}'"
+               + (f" and objective '{objective}'" if objective else " (any objective; choose with --objective-name)")
+               + "; pass --run-id N to price another")
+    return f"{what}, finished {finished}: {why}"
 
 
 def show_outcome(outcome: ReportOutcome) -> None:
-    """The rich table, the headline and where the files are."""
+    """The verdict, the table (estimate and 90% interval), the headline and where the files are."""
     doc = outcome.document
+    verdict = doc["verdict"]
+    console.print(f"[bold {'green' if verdict['deployable'] else 'red'}]{verdict['label'].upper()}[/]",
+                  highlight=False)
+    title = "diagnostics (not a price)" if not verdict["deployable"] else "pricing"
     table = Table(title=f"{doc['task']['task_id']} on {doc['backend']}: objective {doc['objective']['name']}, "
-                        f"spread share {doc['pricing']['spread_share']:g}")
-    table.add_column("metric (unit)", ratio=1)
-    for col in STAT_COLUMNS:
-        table.add_column(col, justify="right", no_wrap=True)
-    for label, *values, unit in table_rows(doc):
-        table.add_row(f"{label} ({unit})", *values)
+                        f"spread share {doc['pricing']['spread_share']:g}; {title}")
+    table.add_column("metric (unit)", ratio=1, overflow="fold")
+    table.add_column("estimate", justify="right", no_wrap=True)
+    table.add_column(INTERVAL_COLUMN, justify="right", no_wrap=True)
+    for label, estimate, interval, *_, unit in table_rows(doc):
+        table.add_row(f"{label} ({unit})", estimate, interval)
     console.print(table)
     console.print(headline(doc), highlight=False)
     for kind, path in outcome.files.items():
@@ -161,7 +167,8 @@ def report_command(
                                "sqlite:///./.econmotor/registry.sqlite)."),
     tasks_file: list[Path] = typer.Option([], "--tasks-file", help="Extra task catalog YAML files."),
     spread_share: float = typer.Option(0.5, "--spread-share", help="Seller's share of the spread, 0..1."),
-    run_id: int = typer.Option(None, "--run-id", help="With --motor-backend none: the recorded run to price."),
+    run_id: list[int] = typer.Option([], "--run-id", help="With --motor-backend none: a recorded run to price "
+                                     "(repeatable; default: the latest completed run of the task and objective)."),
 ) -> None:
     """Train (or reuse) a policy for a task, price its labour, write JSON, Markdown and HTML reports."""
     set_cpu_threads()
@@ -174,7 +181,7 @@ def report_command(
         raise UnknownNameError("motor backend", motor_backend, backends)
     if motor_backend != NO_BACKEND:
         task.backend_entry(motor_backend)
-    if run_id is not None and motor_backend != NO_BACKEND:
+    if run_id and motor_backend != NO_BACKEND:
         raise ConfigError("--run-id", None, "--run-id reports a recorded run: use it with --motor-backend none")
     objective = resolve_objective(objective_config, objective_name)
     packs = resolve_datapacks(split_datapack_values([*datapacks, *(more_datapacks or [])]), url)
@@ -189,11 +196,18 @@ def report_command(
                               "recorded run without training or evaluating")
         if not registry_exists(url):
             raise ConfigError("--db-url", None, f"no registry at {url}; train a run first")
+        wanted_objective = objective_name or (objective.name if objective_config is not None else None)
         with Registry(url, create=False) as reg:
-            train, priced = pick_runs(reg, task_id, run_id, objective_name if objective_name else None,
-                                      [p.id for p in packs] or None)
-            show_outcome(report_from_registry(reg, task, priced, train, out_dir, output_json, policy,
-                                              notes or None))
+            chosen = [pick_runs(reg, task_id, rid) for rid in run_id] if run_id else \
+                [pick_runs(reg, task_id, None, wanted_objective, [p.id for p in packs] or None)]
+            for train, priced in chosen:
+                why = describe_pick(train, priced, task_id, run_id, wanted_objective)
+                console.print(f"[bold]pricing run #{priced.id}[/]: {why}", highlight=False)
+                if len(chosen) > 1 and output_json is not None:
+                    raise ConfigError("--output-json", None, "one JSON path cannot hold several reports: drop "
+                                      "--output-json (each run's JSON goes to --output-dir) or give one --run-id")
+                show_outcome(report_from_registry(reg, task, priced, train, out_dir, output_json, policy,
+                                                  notes or None))
         return
 
     default_envs, default_steps = BACKEND_DEFAULTS.get(motor_backend, (1, 10_000))
@@ -203,7 +217,7 @@ def report_command(
                            max_steps=max_steps or default_steps, seed=seed, eval_episodes=eval_episodes,
                            notes=notes, train_eval_episodes=5)
     try:
-        with _sigterm_as_interrupt(), progress_bars() as progress:
+        with progress_bars() as progress:
             reg, train_id, eval_id = train_and_record(request, backend, lambda: Registry(url), progress)
     except KeyboardInterrupt:
         err_console.print(f"[yellow]interrupted[/]: the run in progress is recorded as interrupted in {url}; "

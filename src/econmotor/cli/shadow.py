@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Annotated
 
 import typer
 from rich.table import Table
 
-from econmotor.cli._app import app, console, progress_bars, set_cpu_threads
+from econmotor.cli._app import app, console, err_console, progress_bars, set_cpu_threads
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.errors import ConfigError
+from econmotor.report.pipeline import new_run_dir
+from econmotor.store.registry import DB_URL_ENV, Registry, default_db_url
 from econmotor.valuation import load_constraint_set
 
 
@@ -31,7 +34,10 @@ def shadow_command(
     reward_net: str = typer.Option(None, "--reward-net",
                                    help="With --reward-weights net: start from this saved econ_objective_net.pt."),
     seed: int = typer.Option(0, "--seed"),
-    save_dir: str = typer.Option("runs/shadow", "--save-dir", help="Run directory."),
+    save_dir: str = typer.Option(None, "--save-dir", help="Run directory, which must not hold a run yet "
+                                 "(default: a new runs/shadow/<env>-<time>-s<seed>-<pid>)."),
+    db_url: str = typer.Option(None, "--db-url", help="Registry URL (default $ECONMOTOR_DB_URL or "
+                               "sqlite:///./.econmotor/registry.sqlite)."),
     max_episode_steps: int = typer.Option(None, "--max-episode-steps", help="Episode length override."),
     lagrange_lr: float = typer.Option(1.0, "--lagrange-lr", help="Dual learning rate (lagrangian)."),
     learning_starts: int = typer.Option(1000, "--learning-starts", help="SAC random steps before updates."),
@@ -44,6 +50,10 @@ def shadow_command(
     set_cpu_threads()
     from econmotor.rl.train_sac_objective import ShadowConfig, train_sac_objective
 
+    run_dir = Path(save_dir) if save_dir else new_run_dir(Path("runs") / "shadow", env, seed)
+    if run_dir.exists() and any(run_dir.iterdir()):
+        raise ConfigError("--save-dir", None, f"{run_dir} already holds files; a shadow run never overwrites "
+                          "another: give a new directory, or leave --save-dir out for a fresh one")
     if objective_preset and objective_vector:
         raise ConfigError("--objective-vector", None, "give --objective-preset or --objective-vector, not both")
     if objective_vector:
@@ -57,14 +67,35 @@ def shadow_command(
         use_objective_reward=use_objective_reward,
         constraints=load_constraint_set(Path(constraints)) if constraints else None, constraint_mode=constraint_mode,
         objective_sampling=objective_sampling, reward_weights=reward_weights, reward_net_path=reward_net,
-        seed=seed, save_dir=save_dir,
+        seed=seed, save_dir=str(run_dir),
         max_episode_steps=max_episode_steps, lagrange_lr=lagrange_lr, learning_starts=learning_starts,
         eval_episodes=eval_episodes,
         eval_objectives={label: tuple(vector.to_list()),
                          **{p: tuple(ObjectiveVector.from_preset(p).to_list()) for p in eval_preset}}
         if eval_preset else {})
-    with progress_bars() as progress:
-        result = train_sac_objective(config, progress)
+    with Registry(db_url or os.environ.get(DB_URL_ENV) or default_db_url()) as registry:
+        run_id = registry.start_run("shadow", env, "shadow", objective={"name": label, "vector": vector.to_list()},
+                                    config={"run_dir": str(run_dir), "total_steps": total_steps,
+                                            "use_objective_reward": use_objective_reward,
+                                            "constraint_mode": constraint_mode,
+                                            "objective_sampling": objective_sampling},
+                                    seed=seed, max_steps=total_steps, policy_path=str(run_dir))
+        try:
+            with progress_bars() as progress:
+                result = train_sac_objective(config, progress)
+        except KeyboardInterrupt as exc:
+            registry.mark_run(run_id, "interrupted", f"KeyboardInterrupt: {exc}")
+            kept = ", ".join(sorted(p.name for p in run_dir.iterdir())) if run_dir.is_dir() else "nothing"
+            err_console.print(f"[yellow]interrupted[/]: shadow run #{run_id} recorded as interrupted in "
+                              f"{registry.display_url}. Kept in {run_dir}: {kept or 'nothing'} (the episode log up "
+                              "to the interrupt; no model). Shadow runs do not resume: run the command again (it "
+                              "writes a new directory).", highlight=False)
+            raise typer.Abort from None
+        except BaseException as exc:
+            registry.mark_run(run_id, "failed", f"{type(exc).__name__}: {exc}")
+            raise
+        registry.finish_run(run_id, raw_metrics=dict(result.summary), econ_metrics={},
+                            artifacts={"run_dir": str(run_dir), "evaluation": result.evaluation})
     s = result.summary
     console.print(f"[bold]shadow run[/] {env}, objective {label} {vector.normalize().to_list()}, "
                   f"learner reward: {'objective' if use_objective_reward else 'legacy'}, "
@@ -83,8 +114,8 @@ def shadow_command(
     console.print(table)
     if result.multipliers:
         console.print(f"Lagrange multipliers (last): {result.multipliers[-1]}")
-    console.print(f"saved under {result.save_dir}: shadow_episodes.jsonl, shadow_summary.json, shadow_plot.png, "
-                  f"run.json, sac_model.zip")
+    console.print(f"shadow run #{run_id} saved under {result.save_dir}: shadow_episodes.jsonl, "
+                  "shadow_summary.json, shadow_plot.png, run.json, sac_model.zip", highlight=False)
 
 
 def _fmt(value: float | None, digits: int = 3) -> str:
