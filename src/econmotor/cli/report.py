@@ -29,8 +29,10 @@ from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_conf
 from econmotor.motor_backend.factory import known_backends, make_motor_backend
 from econmotor.objectives import load_objective_spec, objective_from_vector
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
+from econmotor.cli.train import interrupted_note
 from econmotor.report.pipeline import (
     ReportOutcome,
+    new_run_dir,
     TrainRequest,
     pick_runs,
     report_after_training,
@@ -212,16 +214,19 @@ def report_command(
 
     default_envs, default_steps = BACKEND_DEFAULTS.get(motor_backend, (1, 10_000))
     backend = _make_backend(motor_backend, tasks_file)
+    run_dir = new_run_dir(Path("runs"), task_id, seed)
     request = TrainRequest(task=task, backend_name=motor_backend, objective=objective, datapacks=tuple(packs),
                            num_envs=default_envs if num_envs is None else num_envs,
                            max_steps=max_steps or default_steps, seed=seed, eval_episodes=eval_episodes,
-                           notes=notes, train_eval_episodes=5)
+                           notes=notes, train_eval_episodes=5, output_dir=run_dir)
     try:
         with progress_bars() as progress:
             reg, train_id, eval_id = train_and_record(request, backend, lambda: Registry(url), progress)
     except KeyboardInterrupt:
-        err_console.print(f"[yellow]interrupted[/]: the run in progress is recorded as interrupted in {url}; "
-                          "completed runs are kept (report from them with --motor-backend none)", highlight=False)
+        note = interrupted_note(motor_backend, task_id, run_dir, request.max_steps, "The training run")
+        err_console.print(f"[yellow]interrupted[/]: {note}. Registry: {url}; runs completed before are kept "
+                          "(price one with: econmotor report --motor-backend none --task-id "
+                          f"{task_id} --run-id N)", highlight=False)
         raise typer.Abort from None
     with reg:
         show_outcome(report_after_training(reg, request, train_id, eval_id, out_dir, output_json, policy))
