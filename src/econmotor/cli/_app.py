@@ -45,6 +45,10 @@ def set_cpu_threads() -> None:
         pass
 
 
+#: progress labels longer than this are messages: printed whole above the bars instead of cut to fit one.
+MAX_BAR_LABEL = 40
+
+
 @contextlib.contextmanager
 def progress_bars() -> Iterator:
     """Yield a ``ProgressFn`` that draws one rich bar per label."""
@@ -58,8 +62,14 @@ def progress_bars() -> Iterator:
         transient=False,
     )
     tasks: dict[str, int] = {}
+    said: set[str] = set()
 
     def update(label: str, completed: float, total: float) -> None:
+        if len(label) > MAX_BAR_LABEL:  # a message (e.g. an adaptation), not a bar: printed whole, once
+            if label not in said:
+                said.add(label)
+                progress.console.print(label, highlight=False, soft_wrap=True)
+            return
         if label not in tasks:
             tasks[label] = progress.add_task(label, total=total)
         progress.update(tasks[label], completed=completed, total=total)

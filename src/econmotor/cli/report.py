@@ -22,6 +22,7 @@ import typer
 from rich.table import Table
 
 from econmotor.cli._app import app, console, err_console, progress_bars, set_cpu_threads
+from econmotor.cli.train import interrupted_note
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.economics.pricing import PricingPolicy
 from econmotor.errors import ConfigError, UnknownNameError, did_you_mean
@@ -29,11 +30,10 @@ from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_conf
 from econmotor.motor_backend.factory import known_backends, make_motor_backend
 from econmotor.objectives import load_objective_spec, objective_from_vector
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
-from econmotor.cli.train import interrupted_note
 from econmotor.report.pipeline import (
     ReportOutcome,
-    new_run_dir,
     TrainRequest,
+    new_run_dir,
     pick_runs,
     report_after_training,
     report_from_registry,

@@ -84,7 +84,7 @@ def sweep_command(
             outcomes = run_sweep(registry, cells, output_dir, ray=ray, progress=progress)
     table = Table(title="sweep cells")
     for col in ("objective", "datapacks", "seed", "status", "run", "cell key"):
-        table.add_column(col)
+        table.add_column(col, overflow="fold")  # wrap, never cut: ids and keys are copied by users
     for o in outcomes:
         status = {"failed": f"[red]failed: {o.error}[/]", "skipped": "skipped (done before)"}.get(o.status, o.status)
         table.add_row(o.cell.objective.name, "+".join(o.cell.datapack_ids) or "-", str(o.cell.seed), status,

@@ -229,7 +229,8 @@ _CSS = """body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans
 max-width:1100px;color:#222;padding:0 1rem}h1{margin-bottom:.2rem}h2{border-bottom:1px solid #ddd;
 padding-bottom:.2rem;margin-top:2rem}.headline{font-size:1.15rem;background:#eef6ee;border-left:4px solid #2ca02c;
 padding:.7rem 1rem}.verdict{font-size:1.4rem;font-weight:700;color:#2ca02c;margin:.3rem 0}
-.verdict.bad{color:#d62728;background:none}.bad{background:#fbeeee;border-color:#d62728}table{border-collapse:collapse;margin:.5rem 0;
+.verdict.bad{color:#d62728;background:none}.bad{background:#fbeeee;border-color:#d62728}
+table{border-collapse:collapse;margin:.5rem 0;
 font-size:.92rem}td,th{border:1px solid #ddd;padding:.3rem .6rem;text-align:left}th{background:#f5f5f5}
 td.num{text-align:right;font-variant-numeric:tabular-nums}img{max-width:100%;margin:.5rem 0}
 .facts td:first-child{font-weight:600;white-space:nowrap}small{color:#666}"""

@@ -28,6 +28,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
+from econmotor.config.acceptance import Acceptance
 from econmotor.config.loading import (
     as_float,
     as_str,
@@ -35,7 +36,6 @@ from econmotor.config.loading import (
     read_yaml_mapping,
     require_mapping,
 )
-from econmotor.config.acceptance import Acceptance
 from econmotor.config.task_economics import ECONOMICS_UNITS, TaskEconomics
 from econmotor.errors import ConfigError, UnknownNameError
 
