@@ -125,11 +125,12 @@ def describe_pick(train, priced, task_id: str, asked: list[int], objective: str 
 
 
 def show_outcome(outcome: ReportOutcome) -> None:
-    """The verdict, the table (estimate and 90% interval), the headline and where the files are."""
+    """The verdict and headline first, then the table (estimate and 90% interval) and where the files are."""
     doc = outcome.document
     verdict = doc["verdict"]
     console.print(f"[bold {'green' if verdict['deployable'] else 'red'}]{verdict['label'].upper()}[/]",
                   highlight=False)
+    console.print(headline(doc), highlight=False)
     title = "diagnostics (not a price)" if not verdict["deployable"] else "pricing"
     table = Table(title=f"{doc['task']['task_id']} on {doc['backend']}: objective {doc['objective']['name']}, "
                         f"spread share {doc['pricing']['spread_share']:g}; {title}")
@@ -139,7 +140,6 @@ def show_outcome(outcome: ReportOutcome) -> None:
     for label, estimate, interval, *_, unit in table_rows(doc):
         table.add_row(f"{label} ({unit})", estimate, interval)
     console.print(table)
-    console.print(headline(doc), highlight=False)
     for kind, path in outcome.files.items():
         console.print(f"{kind:>8}: {path}", highlight=False, soft_wrap=True)
     console.print(f"HTML report: {outcome.files['html']}", style="bold green", highlight=False, soft_wrap=True)

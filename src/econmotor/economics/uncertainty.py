@@ -198,7 +198,7 @@ class Verdict:
 
 
 def _g(value: float) -> str:
-    return f"{value:.3g}"
+    return f"{value:,.0f}" if abs(value) >= 1000 else f"{value:.3g}"
 
 
 def _plural(name: str, count: float) -> str:
