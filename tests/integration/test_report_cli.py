@@ -23,15 +23,6 @@ REPO = Path(__file__).resolve().parents[2]
 SCRIPT = REPO / "scripts" / "report_task_pricing_and_performance.py"
 
 
-@pytest.fixture
-def workdir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    """An empty working directory with the repository's configs/ reachable as ./configs."""
-    (tmp_path / "configs").symlink_to(REPO / "configs")
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.delenv("ECONMOTOR_DB_URL", raising=False)
-    return tmp_path
-
-
 def written(workdir: Path) -> list[str]:
     return sorted(p.name for p in workdir.iterdir() if p.name != "configs")
 

@@ -17,16 +17,6 @@ from econmotor.motor_backend.base import MotorEvalResult, summarize_episodes
 from econmotor.store import Registry
 from econmotor.tasks import get_task, load_catalog
 
-REPO = Path(__file__).resolve().parents[2]
-
-
-@pytest.fixture
-def workdir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    (tmp_path / "configs").symlink_to(REPO / "configs")
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.delenv("ECONMOTOR_DB_URL", raising=False)
-    return tmp_path
-
 
 def _record_eval(url: str, raw_episodes: list[dict], task_id: str = "hopper_courier", name: str = "hand") -> int:
     task = get_task(task_id)
