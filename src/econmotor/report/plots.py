@@ -130,13 +130,14 @@ def unit_costs(doc: dict[str, Any]) -> bytes | None:
     if missing:
         ax.text(0.98, 0.95, f"not finite: {', '.join(missing)} (robot completed no unit)", ha="right",
                 va="top", transform=ax.transAxes, fontsize=8, color="#d62728")
-    if not (doc.get("verdict") or {}).get("deployable", True):
-        ax.text(0.02, 0.95, "NOT DEPLOYABLE: no recommended price", ha="left", va="top", transform=ax.transAxes,
-                fontsize=9, color="#d62728", fontweight="bold")
     ax.set_xticks(range(len(drawn)), [b[0] for b in drawn])
-    ax.set_ylim(bottom=0)
+    ax.set_ylim(0, max(max(b[1], (b[2] or (0, 0))[1] or 0) for b in drawn) * 1.15)
     ax.set_ylabel(f"USD per {doc['task']['unit']}")
-    ax.set_title("human vs robot unit cost (bars: 90% interval)")
+    if (doc.get("verdict") or {}).get("deployable", True):
+        ax.set_title("human vs robot unit cost (bars: 90% interval)")
+    else:
+        ax.set_title("NOT DEPLOYABLE: diagnostics, no recommended price\n(bars: 90% interval)", color="#d62728",
+                     fontsize=10)
     fig.tight_layout()
     return _png(fig)
 

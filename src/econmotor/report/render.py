@@ -232,7 +232,7 @@ padding:.7rem 1rem}.verdict{font-size:1.4rem;font-weight:700;color:#2ca02c;margi
 .verdict.bad{color:#d62728;background:none}.bad{background:#fbeeee;border-color:#d62728}
 table{border-collapse:collapse;margin:.5rem 0;
 font-size:.92rem}td,th{border:1px solid #ddd;padding:.3rem .6rem;text-align:left}th{background:#f5f5f5}
-td.num{text-align:right;font-variant-numeric:tabular-nums}img{max-width:100%;margin:.5rem 0}
+td.num{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}img{max-width:100%;margin:.5rem 0}
 .facts td:first-child{font-weight:600;white-space:nowrap}small{color:#666}"""
 
 
