@@ -26,23 +26,32 @@ def _raise_interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt(f"signal {signal.Signals(signum).name}")
 
 
-def install_interrupt_handlers() -> None:
+def install_interrupt_handlers() -> dict[int, object]:
     """SIGINT and SIGTERM both raise KeyboardInterrupt, whatever disposition the process inherited.
 
     A shell that starts a job in the background (or ``make`` under ``trap '' INT``) leaves SIGINT
     ignored, and Python then installs no handler of its own; the run would not stop on Ctrl-C or
     be recorded as interrupted. Every long command turns KeyboardInterrupt into a recorded
-    ``interrupted`` run and a note of what was kept and how to resume.
+    ``interrupted`` run and a note of what was kept and how to resume. Returns the handlers it
+    replaced (``main`` puts them back when it returns).
     """
     if threading.current_thread() is not threading.main_thread():
-        return
-    signal.signal(signal.SIGINT, _raise_interrupt)
-    signal.signal(signal.SIGTERM, _raise_interrupt)
+        return {}
+    return {signum: signal.signal(signum, _raise_interrupt) for signum in (signal.SIGINT, signal.SIGTERM)}
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; econmotor errors print as one clear line and exit with status 2."""
-    install_interrupt_handlers()
+    previous = install_interrupt_handlers()
+    try:
+        return _run(argv)
+    finally:
+        for signum, handler in previous.items():
+            if handler is not None:  # None: a handler not set from Python, which cannot be put back
+                signal.signal(signum, handler)
+
+
+def _run(argv: list[str] | None) -> int:
     try:
         rc = app(args=argv, standalone_mode=False)
     except EconmotorError as exc:
