@@ -144,7 +144,7 @@ def test_two_shadow_runs_leave_two_complete_run_directories(workdir: Path, capsy
         assert (run_dir / "sac_model.zip").is_file()
     # an explicit --save-dir that already holds a run is refused, not overwritten
     assert main([*args, "--save-dir", str(dirs[0])]) == 2
-    assert "already holds files" in " ".join(capsys.readouterr().err.split())
+    assert "already holds a shadow run" in " ".join(capsys.readouterr().err.split())
 
 
 def test_tasks_at_80_columns_shows_every_task_id_whole(workdir: Path) -> None:

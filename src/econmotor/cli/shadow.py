@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich.table import Table
@@ -15,6 +15,14 @@ from econmotor.errors import ConfigError
 from econmotor.report.pipeline import new_run_dir
 from econmotor.store.registry import DB_URL_ENV, Registry, default_db_url
 from econmotor.valuation import load_constraint_set
+
+#: the files of a shadow run; a --save-dir holding any of them (not empty) holds a run already.
+SHADOW_RUN_FILES = ("run.json", "shadow_episodes.jsonl", "shadow_summary.json", "sac_model.zip")
+
+
+def holds_a_run(run_dir: Path) -> bool:
+    """True when ``run_dir`` holds a shadow run's files (an empty log left by bad input does not count)."""
+    return any((run_dir / name).is_file() and (run_dir / name).stat().st_size > 0 for name in SHADOW_RUN_FILES)
 
 
 @app.command("shadow")
@@ -51,8 +59,8 @@ def shadow_command(
     from econmotor.rl.train_sac_objective import ShadowConfig, train_sac_objective
 
     run_dir = Path(save_dir) if save_dir else new_run_dir(Path("runs") / "shadow", env, seed)
-    if run_dir.exists() and any(run_dir.iterdir()):
-        raise ConfigError("--save-dir", None, f"{run_dir} already holds files; a shadow run never overwrites "
+    if holds_a_run(run_dir):
+        raise ConfigError("--save-dir", None, f"{run_dir} already holds a shadow run; a run never overwrites "
                           "another: give a new directory, or leave --save-dir out for a fresh one")
     if objective_preset and objective_vector:
         raise ConfigError("--objective-vector", None, "give --objective-preset or --objective-vector, not both")
@@ -73,29 +81,48 @@ def shadow_command(
         eval_objectives={label: tuple(vector.to_list()),
                          **{p: tuple(ObjectiveVector.from_preset(p).to_list()) for p in eval_preset}}
         if eval_preset else {})
-    with Registry(db_url or os.environ.get(DB_URL_ENV) or default_db_url()) as registry:
-        run_id = registry.start_run("shadow", env, "shadow", objective={"name": label, "vector": vector.to_list()},
-                                    config={"run_dir": str(run_dir), "total_steps": total_steps,
-                                            "use_objective_reward": use_objective_reward,
-                                            "constraint_mode": constraint_mode,
-                                            "objective_sampling": objective_sampling},
-                                    seed=seed, max_steps=total_steps, policy_path=str(run_dir))
-        try:
-            with progress_bars() as progress:
-                result = train_sac_objective(config, progress)
-        except KeyboardInterrupt as exc:
-            registry.mark_run(run_id, "interrupted", f"KeyboardInterrupt: {exc}")
-            kept = ", ".join(sorted(p.name for p in run_dir.iterdir())) if run_dir.is_dir() else "nothing"
-            err_console.print(f"[yellow]interrupted[/]: shadow run #{run_id} recorded as interrupted in "
-                              f"{registry.display_url}. Kept in {run_dir}: {kept or 'nothing'} (the episode log up "
-                              "to the interrupt; no model). Shadow runs do not resume: run the command again (it "
-                              "writes a new directory).", highlight=False)
-            raise typer.Abort from None
-        except BaseException as exc:
-            registry.mark_run(run_id, "failed", f"{type(exc).__name__}: {exc}")
-            raise
-        registry.finish_run(run_id, raw_metrics=dict(result.summary), econ_metrics={},
-                            artifacts={"run_dir": str(run_dir), "evaluation": result.evaluation})
+    url = db_url or os.environ.get(DB_URL_ENV) or default_db_url()
+    recorded: dict[str, Any] = {}
+
+    def start() -> int:
+        """Record the run when training really starts (bad input found before that records nothing)."""
+        if "id" not in recorded:
+            recorded["registry"] = registry = Registry(url)
+            recorded["id"] = registry.start_run(
+                "shadow", env, "shadow", objective={"name": label, "vector": vector.to_list()},
+                config={"run_dir": str(run_dir), "total_steps": total_steps,
+                        "use_objective_reward": use_objective_reward, "constraint_mode": constraint_mode,
+                        "objective_sampling": objective_sampling, "reward_weights": reward_weights},
+                seed=seed, max_steps=total_steps, policy_path=str(run_dir))
+        return recorded["id"]
+
+    try:
+        with progress_bars() as bars:
+            def progress(label_: str, done: float, total: float) -> None:
+                start()
+                bars(label_, done, total)
+
+            result = train_sac_objective(config, progress)
+        run_id = start()
+        recorded["registry"].finish_run(run_id, raw_metrics=dict(result.summary), econ_metrics={},
+                                        artifacts={"run_dir": str(run_dir), "evaluation": result.evaluation})
+    except KeyboardInterrupt as exc:
+        where = "nothing was recorded"
+        if "id" in recorded:
+            recorded["registry"].mark_run(recorded["id"], "interrupted", f"KeyboardInterrupt: {exc}")
+            where = f"shadow run #{recorded['id']} is recorded as interrupted in {recorded['registry'].display_url}"
+        kept = ", ".join(sorted(p.name for p in run_dir.iterdir())) if run_dir.is_dir() else ""
+        err_console.print(f"[yellow]interrupted[/]: {where}. Kept in {run_dir}: {kept or 'nothing'} (the episode "
+                          "log up to the interrupt; no model). Shadow runs do not resume: run the command again "
+                          "(it writes a new directory).", highlight=False)
+        raise typer.Abort from None
+    except BaseException as exc:
+        if "id" in recorded:
+            recorded["registry"].mark_run(recorded["id"], "failed", f"{type(exc).__name__}: {exc}")
+        raise
+    finally:
+        if "registry" in recorded:
+            recorded["registry"].close()
     s = result.summary
     console.print(f"[bold]shadow run[/] {env}, objective {label} {vector.normalize().to_list()}, "
                   f"learner reward: {'objective' if use_objective_reward else 'legacy'}, "
