@@ -1,4 +1,4 @@
-"""A throwaway PostgreSQL server for the tests that need one (fixtures ``pg_server``, ``pg_url``).
+"""Fixtures of the end-to-end tests: ``workdir``, and a throwaway PostgreSQL server (``pg_server``, ``pg_url``).
 
 Started on loopback once per session: initdb into a temporary directory, pg_ctl on a free
 port (as the ``postgres`` user when running as root, since PostgreSQL refuses root).
@@ -93,3 +93,13 @@ def pg_url(pg_server: tuple[str, int], request: pytest.FixtureRequest) -> str:
         conn.execute(f'DROP DATABASE IF EXISTS "{name}"')
         conn.execute(f'CREATE DATABASE "{name}"')
     return f"postgresql+psycopg://econ@{host}:{port}/{name}"
+REPO = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture
+def workdir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """An empty working directory with the repository's configs/ reachable as ./configs."""
+    (tmp_path / "configs").symlink_to(REPO / "configs")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("ECONMOTOR_DB_URL", raising=False)
+    return tmp_path

@@ -67,6 +67,17 @@ def test_gpu_request_runs_unchanged() -> None:
         choose_simulator("isaacgym", CPU)
 
 
+def test_num_envs_zero_is_the_simulators_default_not_an_error() -> None:
+    """`econmotor report --motor-backend holosoma` without --num-envs sends 0: it must run."""
+    for sim, device, envs in (("mujoco", "cpu", 1), ("mjwarp", "cpu", 64), ("isaacgym", "cuda:0", 4096)):
+        plan = plan_training(experiment="g1_29dof", algo="ppo", simulator=sim, device=device, num_envs=0,
+                             max_steps=50_000, cpu_max_env_steps=9_600)
+        assert plan.num_envs == envs and not any("num_envs" in m for m in plan.messages)
+    with pytest.raises(ConfigError, match="num_envs must be >= 0"):
+        plan_training(experiment="g1_29dof", algo="ppo", simulator="mujoco", device="cpu", num_envs=-1,
+                      max_steps=10, cpu_max_env_steps=9_600)
+
+
 def test_fast_sac_on_cpu_counts_global_steps() -> None:
     plan = plan_training(experiment="g1_29dof_fast_sac", algo="fast_sac", simulator="mjwarp", device="cpu",
                          num_envs=2048, max_steps=50_000, cpu_max_env_steps=6_400)

@@ -23,15 +23,6 @@ REPO = Path(__file__).resolve().parents[2]
 SCRIPT = REPO / "scripts" / "report_task_pricing_and_performance.py"
 
 
-@pytest.fixture
-def workdir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    """An empty working directory with the repository's configs/ reachable as ./configs."""
-    (tmp_path / "configs").symlink_to(REPO / "configs")
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.delenv("ECONMOTOR_DB_URL", raising=False)
-    return tmp_path
-
-
 def written(workdir: Path) -> list[str]:
     return sorted(p.name for p in workdir.iterdir() if p.name != "configs")
 
@@ -47,7 +38,7 @@ def run_script(args: list[str], cwd: Path, timeout: int = 240) -> subprocess.Com
 def check_outputs(result: subprocess.CompletedProcess, out_dir: Path) -> dict:
     """All four outputs exist; returns the JSON document."""
     assert result.returncode == 0, result.stderr[-3000:]
-    assert "metric (unit)" in result.stdout and "recommended price per unit" in result.stdout  # the rich table
+    assert "metric (unit)" in result.stdout and "price per unit at the point estimate" in result.stdout  # the table
     html_line = [ln for ln in result.stdout.splitlines() if ln.startswith("HTML report: ")]
     assert html_line, result.stdout[-2000:]
     html = Path(html_line[0].removeprefix("HTML report: ").strip())
@@ -71,8 +62,8 @@ def check_prices_by_hand(doc: dict, share: float) -> None:
         unit = cost_h / mpl
         price = unit + share * max(human - unit, 0.0)
         assert agg["robot_unit_cost_usd"] == pytest.approx(unit)
-        assert agg["recommended_price_usd_per_unit"] == pytest.approx(price)
-        assert agg["recommended_price_usd_per_robot_hour"] == pytest.approx(price * mpl)
+        assert agg["price_usd_per_unit"] == pytest.approx(price)
+        assert agg["price_usd_per_robot_hour"] == pytest.approx(price * mpl)
         assert agg["customer_saving_usd_per_hour"] == pytest.approx((human - price) * mpl)
     assert mpl == pytest.approx(doc["metrics"]["econ"]["mpl_units_per_hour"])
 
@@ -140,8 +131,8 @@ def test_report_from_recorded_runs_matches_the_worked_example(workdir: Path) -> 
     # price = 0.09324 + 0.25*0.20676 = 0.14493; /h = 7.2465; saving (0.30 - 0.14493)*50 = 7.7535
     # break-even 35000 / (7.2465 - 2.912) = 8074.75 h; wage 0.30*50 - 1.0*(10/110)*50 = 10.4545
     expected = {"mpl_units_per_hour": 50.0, "robot_cost_usd_per_hour": 4.662, "robot_unit_cost_usd": 0.09324,
-                "spread_per_unit_usd": 0.20676, "recommended_price_usd_per_unit": 0.14493,
-                "recommended_price_usd_per_robot_hour": 7.2465, "customer_saving_usd_per_hour": 7.7535,
+                "spread_per_unit_usd": 0.20676, "price_usd_per_unit": 0.14493,
+                "price_usd_per_robot_hour": 7.2465, "customer_saving_usd_per_hour": 7.7535,
                 "break_even_hours": 35000 / 4.3345, "implied_wage_usd_per_hour": 15 - 50 / 11,
                 "wage_parity": (15 - 50 / 11) / 18, "energy_productivity_units_per_kwh": 500.0}
     assert {k: agg[k] for k in expected} == pytest.approx(expected)
@@ -213,29 +204,43 @@ def test_failure_after_training_keeps_the_run_and_says_how_to_report(workdir: Pa
     assert (workdir / "out" / "dishwashing_run1.html").is_file()
 
 
+def _ignore_sigint() -> None:  # the disposition a non-interactive shell hands to background jobs
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 @pytest.mark.slow
-def test_an_interrupted_training_run_is_recorded_as_interrupted(workdir: Path) -> None:
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_an_interrupted_training_run_is_recorded_as_interrupted(workdir: Path, signum: int) -> None:
+    """Started with SIGINT ignored (as `(trap '' INT; make test)` does), the CLI still stops on the signal,
+    records the run as interrupted and says what it kept; the child is always killed and reaped."""
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     proc = subprocess.Popen([sys.executable, str(SCRIPT), "--task-id", "dishwashing", "--motor-backend",
                              "dishwashing", "--max-steps", "500000"], cwd=workdir, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    db = workdir / ".econmotor" / "registry.sqlite"
-    deadline = time.monotonic() + 120
-    status = None
-    while time.monotonic() < deadline and status is None:
-        time.sleep(0.5)
-        if db.exists():
-            with sqlite3.connect(db, timeout=30) as conn:
-                try:
-                    row = conn.execute("SELECT status FROM runs").fetchone()
-                except sqlite3.OperationalError:  # tables not created yet
-                    row = None
-            status = row[0] if row else None
-    assert status == "running", proc.stderr.read() if proc.poll() is not None else "no run recorded in time"
-    time.sleep(1.0)
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=60)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_ignore_sigint)
+    try:
+        db = workdir / ".econmotor" / "registry.sqlite"
+        deadline = time.monotonic() + 120
+        status = None
+        while time.monotonic() < deadline and status is None and proc.poll() is None:
+            time.sleep(0.5)
+            if db.exists():
+                with sqlite3.connect(db, timeout=30) as conn:
+                    try:
+                        row = conn.execute("SELECT status FROM runs").fetchone()
+                    except sqlite3.OperationalError:  # tables not created yet
+                        row = None
+                status = row[0] if row else None
+        assert status == "running", proc.stderr.read() if proc.poll() is not None else "no run recorded in time"
+        time.sleep(1.0)
+        proc.send_signal(signum)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.communicate(timeout=30)  # reap it and close its pipes, whatever happened above
     assert proc.returncode == 130, err[-2000:]
+    err = " ".join(err.split())
+    assert "interrupted" in err and "Kept:" in err and "start again: econmotor train --task-id dishwashing" in err
     run = Registry(create=False).run(1)
     assert run.status == "interrupted" and "KeyboardInterrupt" in run.error and run.finished_at is not None
 

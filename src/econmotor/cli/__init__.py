@@ -8,7 +8,9 @@ from __future__ import annotations
 import importlib
 import logging
 import pkgutil
+import signal
 import sys
+import threading
 
 import typer
 from rich.markup import escape
@@ -35,8 +37,36 @@ for _module in pkgutil.iter_modules(__path__):
         importlib.import_module(f"{__name__}.{_module.name}")
 
 
+def _raise_interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt(f"signal {signal.Signals(signum).name}")
+
+
+def install_interrupt_handlers() -> dict[int, object]:
+    """SIGINT and SIGTERM both raise KeyboardInterrupt, whatever disposition the process inherited.
+
+    A shell that starts a job in the background (or ``make`` under ``trap '' INT``) leaves SIGINT
+    ignored, and Python then installs no handler of its own; the run would not stop on Ctrl-C or
+    be recorded as interrupted. Every long command turns KeyboardInterrupt into a recorded
+    ``interrupted`` run and a note of what was kept and how to resume. Returns the handlers it
+    replaced (``main`` puts them back when it returns).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {signum: signal.signal(signum, _raise_interrupt) for signum in (signal.SIGINT, signal.SIGTERM)}
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; econmotor errors print as one clear line and exit with status 2."""
+    previous = install_interrupt_handlers()
+    try:
+        return _run(argv)
+    finally:
+        for signum, handler in previous.items():
+            if handler is not None:  # None: a handler not set from Python, which cannot be put back
+                signal.signal(signum, handler)
+
+
+def _run(argv: list[str] | None) -> int:
     try:
         rc = app(args=argv, standalone_mode=False)
     except EconmotorError as exc:
@@ -44,6 +74,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except typer.Abort:
         err_console.print("[yellow]aborted[/]")
+        return 130
+    except KeyboardInterrupt as exc:  # a command without its own note
+        err_console.print(f"[yellow]interrupted[/] ({exc or 'Ctrl-C'}): nothing further was written", highlight=False)
         return 130
     except typer.Exit as exc:
         return exc.exit_code

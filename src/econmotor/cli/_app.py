@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import sys
 from collections.abc import Iterator
 
 import typer
@@ -26,8 +27,10 @@ app = typer.Typer(
 datapacks_app = typer.Typer(help="Validate, list and record datapacks.", no_args_is_help=True)
 app.add_typer(datapacks_app, name="datapacks")
 
-console = Console()
-err_console = Console(stderr=True)
+# Messages are soft-wrapped (one line each) when the stream is not a terminal, so piped output and
+# logs keep whole lines; tables still lay out to the width (COLUMNS, else 80 when not a terminal).
+console = Console(soft_wrap=not sys.stdout.isatty())
+err_console = Console(stderr=True, soft_wrap=not sys.stderr.isatty())
 
 
 def set_cpu_threads() -> None:
@@ -40,6 +43,10 @@ def set_cpu_threads() -> None:
         torch.set_num_threads(threads)
     except ImportError:  # torch-free commands
         pass
+
+
+#: progress labels longer than this are messages: printed whole above the bars instead of cut to fit one.
+MAX_BAR_LABEL = 40
 
 
 @contextlib.contextmanager
@@ -55,8 +62,14 @@ def progress_bars() -> Iterator:
         transient=False,
     )
     tasks: dict[str, int] = {}
+    said: set[str] = set()
 
     def update(label: str, completed: float, total: float) -> None:
+        if len(label) > MAX_BAR_LABEL:  # a message (e.g. an adaptation), not a bar: printed whole, once
+            if label not in said:
+                said.add(label)
+                progress.console.print(label, highlight=False, soft_wrap=True)
+            return
         if label not in tasks:
             tasks[label] = progress.add_task(label, total=total)
         progress.update(tasks[label], completed=completed, total=total)

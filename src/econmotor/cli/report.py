@@ -16,15 +16,13 @@ from __future__ import annotations
 import inspect
 import os
 import re
-import signal
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 import typer
 from rich.table import Table
 
 from econmotor.cli._app import app, console, err_console, progress_bars, set_cpu_threads
+from econmotor.cli.train import interrupted_note
 from econmotor.cli.validation import (
     check_db_url,
     check_flags,
@@ -43,13 +41,14 @@ from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.report.pipeline import (
     ReportOutcome,
     TrainRequest,
+    new_run_dir,
     pick_runs,
     report_after_training,
     report_from_registry,
     train_and_record,
     with_objective_name,
 )
-from econmotor.report.render import STAT_COLUMNS, headline, table_rows
+from econmotor.report.render import INTERVAL_COLUMN, headline, table_rows
 from econmotor.store.registry import DB_URL_ENV, Registry, registry_exists
 from econmotor.tasks import load_catalog
 from econmotor.valuation import default_objective_vector
@@ -115,31 +114,40 @@ def _make_backend(name: str, tasks_files: list[Path]):
     return make_motor_backend(name, **kwargs)
 
 
-@contextmanager
-def _sigterm_as_interrupt() -> Iterator[None]:
-    """SIGTERM (e.g. a job scheduler stopping us) is recorded like Ctrl-C: run status interrupted."""
-    def raise_interrupt(signum, frame):
-        raise KeyboardInterrupt(f"signal {signum}")
-
-    previous = signal.signal(signal.SIGTERM, raise_interrupt)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+def describe_pick(train, priced, task_id: str, asked: list[int], objective: str | None) -> str:
+    """Which run is priced and why, in words."""
+    what = f"{priced.kind} run of objective '{priced.objective_name}'"
+    if train is not None and train.id != priced.id:
+        what += f", evaluating the policy of training run #{train.id}"
+    if priced.notes == "econmotor sweep" or (train is not None and train.notes == "econmotor sweep"):
+        what += " (a sweep cell)"
+    finished = priced.finished_at.strftime("%Y-%m-%d %H:%M UTC") if priced.finished_at else "unknown time"
+    if asked:
+        why = "asked for with --run-id" if priced.id in asked else f"the newest completed evaluation of run " \
+              f"#{train.id if train else '?'} (asked for with --run-id)"
+    else:
+        why = (f"the latest completed run of task '{task_id}'"
+               + (f" and objective '{objective}'" if objective else " (any objective; choose with --objective-name)")
+               + "; pass --run-id N to price another")
+    return f"{what}, finished {finished}: {why}"
 
 
 def show_outcome(outcome: ReportOutcome) -> None:
-    """The rich table, the headline and where the files are."""
+    """The verdict and headline first, then the table (estimate and 90% interval) and where the files are."""
     doc = outcome.document
-    table = Table(title=f"{doc['task']['task_id']} on {doc['backend']}: objective {doc['objective']['name']}, "
-                        f"spread share {doc['pricing']['spread_share']:g}")
-    table.add_column("metric (unit)", ratio=1)
-    for col in STAT_COLUMNS:
-        table.add_column(col, justify="right", no_wrap=True)
-    for label, *values, unit in table_rows(doc):
-        table.add_row(f"{label} ({unit})", *values)
-    console.print(table)
+    verdict = doc["verdict"]
+    console.print(f"[bold {'green' if verdict['deployable'] else 'red'}]{verdict['label'].upper()}[/]",
+                  highlight=False)
     console.print(headline(doc), highlight=False)
+    title = "diagnostics (not a price)" if not verdict["deployable"] else "pricing"
+    table = Table(title=f"{doc['task']['task_id']} on {doc['backend']}: objective {doc['objective']['name']}, "
+                        f"spread share {doc['pricing']['spread_share']:g}; {title}")
+    table.add_column("metric (unit)", ratio=1, overflow="fold")
+    table.add_column("estimate", justify="right", no_wrap=True)
+    table.add_column(INTERVAL_COLUMN, justify="right", no_wrap=True)
+    for label, estimate, interval, *_, unit in table_rows(doc):
+        table.add_row(f"{label} ({unit})", estimate, interval)
+    console.print(table)
     for kind, path in outcome.files.items():
         console.print(f"{kind:>8}: {path}", highlight=False, soft_wrap=True)
     console.print(f"HTML report: {outcome.files['html']}", style="bold green", highlight=False, soft_wrap=True)
@@ -169,7 +177,8 @@ def report_command(
                                "sqlite:///./.econmotor/registry.sqlite)."),
     tasks_file: list[Path] = typer.Option([], "--tasks-file", help="Extra task catalog YAML files."),
     spread_share: float = typer.Option(0.5, "--spread-share", help="Seller's share of the spread, 0..1."),
-    run_id: int = typer.Option(None, "--run-id", help="With --motor-backend none: the recorded run to price."),
+    run_id: list[int] = typer.Option([], "--run-id", help="With --motor-backend none: a recorded run to price "
+                                     "(repeatable; default: the latest completed run of the task and objective)."),
 ) -> None:
     """Train (or reuse) a policy for a task, price its labour, write JSON, Markdown and HTML reports."""
     set_cpu_threads()
@@ -186,7 +195,7 @@ def report_command(
         raise UnknownNameError("motor backend", motor_backend, backends)
     if motor_backend != NO_BACKEND:
         task.backend_entry(motor_backend)
-    if run_id is not None and motor_backend != NO_BACKEND:
+    if run_id and motor_backend != NO_BACKEND:
         raise ConfigError("--run-id", None, "--run-id reports a recorded run: use it with --motor-backend none")
     objective = resolve_objective(objective_config, objective_name)
     packs = resolve_datapacks(split_datapack_values([*datapacks, *(more_datapacks or [])]), url)
@@ -201,26 +210,36 @@ def report_command(
                               "recorded run without training or evaluating")
         if not registry_exists(url):
             raise ConfigError("--db-url", None, f"no registry at {url}; train a run first")
+        wanted_objective = objective_name or (objective.name if objective_config is not None else None)
         with Registry(url, create=False) as reg:
             note_abandoned(reg)
-            train, priced = pick_runs(reg, task_id, run_id, objective_name if objective_name else None,
-                                      [p.id for p in packs] or None)
-            show_outcome(report_from_registry(reg, task, priced, train, out_dir, output_json, policy,
-                                              notes or None))
+            chosen = [pick_runs(reg, task_id, rid) for rid in run_id] if run_id else \
+                [pick_runs(reg, task_id, None, wanted_objective, [p.id for p in packs] or None)]
+            for train, priced in chosen:
+                why = describe_pick(train, priced, task_id, run_id, wanted_objective)
+                console.print(f"[bold]pricing run #{priced.id}[/]: {why}", highlight=False)
+                if len(chosen) > 1 and output_json is not None:
+                    raise ConfigError("--output-json", None, "one JSON path cannot hold several reports: drop "
+                                      "--output-json (each run's JSON goes to --output-dir) or give one --run-id")
+                show_outcome(report_from_registry(reg, task, priced, train, out_dir, output_json, policy,
+                                                  notes or None))
         return
 
     default_envs, default_steps = BACKEND_DEFAULTS.get(motor_backend, (1, 10_000))
     backend = _make_backend(motor_backend, tasks_file)
+    run_dir = new_run_dir(Path("runs"), task_id, seed)
     request = TrainRequest(task=task, backend_name=motor_backend, objective=objective, datapacks=tuple(packs),
                            num_envs=default_envs if num_envs is None else num_envs,
                            max_steps=max_steps or default_steps, seed=seed, eval_episodes=eval_episodes,
-                           notes=notes, train_eval_episodes=5)
+                           notes=notes, train_eval_episodes=5, output_dir=run_dir)
     try:
-        with _sigterm_as_interrupt(), progress_bars() as progress:
+        with progress_bars() as progress:
             reg, train_id, eval_id = train_and_record(request, backend, lambda: Registry(url), progress)
     except KeyboardInterrupt:
-        err_console.print(f"[yellow]interrupted[/]: the run in progress is recorded as interrupted in {url}; "
-                          "completed runs are kept (report from them with --motor-backend none)", highlight=False)
+        note = interrupted_note(motor_backend, task_id, run_dir, request.max_steps, "The training run")
+        err_console.print(f"[yellow]interrupted[/]: {note}. Registry: {url}; runs completed before are kept "
+                          "(price one with: econmotor report --motor-backend none --task-id "
+                          f"{task_id} --run-id N)", highlight=False)
         raise typer.Abort from None
     with reg:
         show_outcome(report_after_training(reg, request, train_id, eval_id, out_dir, output_json, policy))

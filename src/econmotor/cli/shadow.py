@@ -3,16 +3,33 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich.table import Table
 
-from econmotor.cli._app import app, console, progress_bars, set_cpu_threads
-from econmotor.cli.validation import FLAG_RULES, check_choice, check_flags, check_input_files, check_output_dir
+from econmotor.cli._app import app, console, err_console, progress_bars, set_cpu_threads
+from econmotor.cli.validation import (
+    FLAG_RULES,
+    check_choice,
+    check_db_url,
+    check_flags,
+    check_input_files,
+    check_output_dir,
+)
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.errors import ConfigError
+from econmotor.report.pipeline import new_run_dir
+from econmotor.store.registry import Registry
 from econmotor.valuation import load_constraint_set
+
+#: the files of a shadow run; a --save-dir holding any of them (not empty) holds a run already.
+SHADOW_RUN_FILES = ("run.json", "shadow_episodes.jsonl", "shadow_summary.json", "sac_model.zip")
+
+
+def holds_a_run(run_dir: Path) -> bool:
+    """True when ``run_dir`` holds a shadow run's files (an empty log left by bad input does not count)."""
+    return any((run_dir / name).is_file() and (run_dir / name).stat().st_size > 0 for name in SHADOW_RUN_FILES)
 
 
 @app.command("shadow")
@@ -34,7 +51,10 @@ def shadow_command(
     reward_net: str = typer.Option(None, "--reward-net",
                                    help="With --reward-weights net: start from this saved econ_objective_net.pt."),
     seed: int = typer.Option(0, "--seed"),
-    save_dir: str = typer.Option("runs/shadow", "--save-dir", help="Run directory."),
+    save_dir: str = typer.Option(None, "--save-dir", help="Run directory, which must not hold a run yet "
+                                 "(default: a new runs/shadow/<env>-<time>-s<seed>-<pid>)."),
+    db_url: str = typer.Option(None, "--db-url", help="Registry URL (default $ECONMOTOR_DB_URL or "
+                               "sqlite:///./.econmotor/registry.sqlite)."),
     max_episode_steps: int = typer.Option(None, "--max-episode-steps", help="Episode length override."),
     lagrange_lr: float = typer.Option(1.0, "--lagrange-lr", help="Dual learning rate (lagrangian)."),
     learning_starts: int = typer.Option(1000, "--learning-starts", help="SAC random steps before updates."),
@@ -59,6 +79,10 @@ def shadow_command(
     set_cpu_threads()
     from econmotor.rl.train_sac_objective import ShadowConfig, train_sac_objective
 
+    run_dir = Path(save_dir) if save_dir else new_run_dir(Path("runs") / "shadow", env, seed)
+    if holds_a_run(run_dir):
+        raise ConfigError("--save-dir", None, f"{run_dir} already holds a shadow run; a run never overwrites "
+                          "another: give a new directory, or leave --save-dir out for a fresh one")
     if objective_preset and objective_vector:
         raise ConfigError("--objective-vector", None, "give --objective-preset or --objective-vector, not both")
     if objective_vector:
@@ -73,14 +97,54 @@ def shadow_command(
         use_objective_reward=use_objective_reward,
         constraints=load_constraint_set(Path(constraints)) if constraints else None, constraint_mode=constraint_mode,
         objective_sampling=objective_sampling, reward_weights=reward_weights, reward_net_path=reward_net,
-        seed=seed, save_dir=save_dir,
+        seed=seed, save_dir=str(run_dir),
         max_episode_steps=max_episode_steps, lagrange_lr=lagrange_lr, learning_starts=learning_starts,
         eval_episodes=eval_episodes,
         eval_objectives={label: tuple(vector.to_list()),
                          **{p: tuple(ObjectiveVector.from_preset(p).to_list()) for p in eval_preset}}
         if eval_preset else {})
-    with progress_bars() as progress:
-        result = train_sac_objective(config, progress)
+    url = check_db_url(db_url)
+    recorded: dict[str, Any] = {}
+
+    def start() -> int:
+        """Record the run when training really starts (bad input found before that records nothing)."""
+        if "id" not in recorded:
+            recorded["registry"] = registry = Registry(url)
+            recorded["id"] = registry.start_run(
+                "shadow", env, "shadow", objective={"name": label, "vector": vector.to_list()},
+                config={"run_dir": str(run_dir), "total_steps": total_steps,
+                        "use_objective_reward": use_objective_reward, "constraint_mode": constraint_mode,
+                        "objective_sampling": objective_sampling, "reward_weights": reward_weights},
+                seed=seed, max_steps=total_steps, policy_path=str(run_dir))
+        return recorded["id"]
+
+    try:
+        with progress_bars() as bars:
+            def progress(label_: str, done: float, total: float) -> None:
+                start()
+                bars(label_, done, total)
+
+            result = train_sac_objective(config, progress)
+        run_id = start()
+        recorded["registry"].finish_run(run_id, raw_metrics=dict(result.summary), econ_metrics={},
+                                        artifacts={"run_dir": str(run_dir), "evaluation": result.evaluation})
+    except KeyboardInterrupt as exc:
+        where = "nothing was recorded"
+        if "id" in recorded:
+            recorded["registry"].mark_run(recorded["id"], "interrupted", f"KeyboardInterrupt: {exc}")
+            where = f"shadow run #{recorded['id']} is recorded as interrupted in {recorded['registry'].display_url}"
+        kept = ", ".join(sorted(p.name for p in run_dir.iterdir())) if run_dir.is_dir() else ""
+        err_console.print(f"[yellow]interrupted[/]: {where}. Kept in {run_dir}: {kept or 'nothing'} (the episode "
+                          "log up to the interrupt; no model). Shadow runs do not resume: run the command again "
+                          "(it writes a new directory).", highlight=False)
+        raise typer.Abort from None
+    except BaseException as exc:
+        if "id" in recorded:
+            recorded["registry"].mark_run(recorded["id"], "failed", f"{type(exc).__name__}: {exc}")
+        raise
+    finally:
+        if "registry" in recorded:
+            recorded["registry"].close()
     s = result.summary
     console.print(f"[bold]shadow run[/] {env}, objective {label} {vector.normalize().to_list()}, "
                   f"learner reward: {'objective' if use_objective_reward else 'legacy'}, "
@@ -99,8 +163,8 @@ def shadow_command(
     console.print(table)
     if result.multipliers:
         console.print(f"Lagrange multipliers (last): {result.multipliers[-1]}")
-    console.print(f"saved under {result.save_dir}: shadow_episodes.jsonl, shadow_summary.json, shadow_plot.png, "
-                  f"run.json, sac_model.zip")
+    console.print(f"shadow run #{run_id} saved under {result.save_dir}: shadow_episodes.jsonl, "
+                  "shadow_summary.json, shadow_plot.png, run.json, sac_model.zip", highlight=False)
 
 
 def _fmt(value: float | None, digits: int = 3) -> str:

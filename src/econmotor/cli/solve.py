@@ -133,18 +133,16 @@ def _print_summary(surface, files) -> None:
 
     document = json.loads(files["json"].read_text())
     shown = [o.name for o in surface.objectives if o.kind != "grid"][:12]
+    # one row per (objective, constraint set): three columns fit 80 columns however many sets there are
     table = Table(title=f"best valid run (utility J): {surface.table.num_episodes} episodes, "
                         f"{surface.table.num_runs} runs")
-    table.add_column("objective")
-    for cset in surface.constraint_sets:
-        table.add_column(cset.name)
-    rows: dict[str, list[str]] = {name: [] for name in shown}
+    table.add_column("objective", overflow="fold")
+    table.add_column("constraint set", overflow="fold")
+    table.add_column("best valid run (J)", overflow="fold")
     for cell in surface_cells(surface):
-        if cell.objective in rows:
-            rows[cell.objective].append(f"{cell.best_run_id} ({cell.utility:.4g})" if cell.valid
-                                        else "[red]none[/]")
-    for name, cells in rows.items():
-        table.add_row(name, *cells)
+        if cell.objective in shown:
+            table.add_row(cell.objective, cell.constraint_set,
+                          f"{cell.best_run_id} ({cell.utility:.4g})" if cell.valid else "[red]none[/]")
     console.print(table)
     for name in document["constraint_sets_no_run_meets"]:
         console.print(f"[yellow]no run meets constraint set '{name}'[/]")

@@ -8,8 +8,8 @@ import typer
 from rich.table import Table
 
 from econmotor.analysis.objective_surface import objectives_from_options
-from econmotor.analysis.sweep import RaySettings, plan_sweep, run_sweep
-from econmotor.cli._app import app, console, progress_bars, set_cpu_threads
+from econmotor.analysis.sweep import RaySettings, completed_cell_keys, plan_sweep, run_sweep
+from econmotor.cli._app import app, console, err_console, progress_bars, set_cpu_threads
 from econmotor.cli.solve import open_registry, split_ids
 from econmotor.cli.validation import (
     MAX_SWEEP_CELLS,
@@ -92,11 +92,19 @@ def sweep_command(
             if use_ray or ray_address else None
         console.print(f"sweep: {len(cells)} cells on {motor_backend} "
                       f"({'Ray' if ray else 'sequential'}); registry {registry.display_url}")
-        with progress_bars() as progress:
-            outcomes = run_sweep(registry, cells, output_dir, ray=ray, progress=progress)
+        try:
+            with progress_bars() as progress:
+                outcomes = run_sweep(registry, cells, output_dir, ray=ray, progress=progress)
+        except KeyboardInterrupt:
+            done = completed_cell_keys(registry, task_id, motor_backend) & {c.key for c in cells}
+            err_console.print(f"[yellow]interrupted[/]: the cells in flight are recorded as interrupted in "
+                              f"{registry.display_url}. Kept: {len(done)} of {len(cells)} cells completed, each "
+                              f"in {output_dir}/<cell key>/ and in the registry. Resume by running the same "
+                              "command again: completed cells are skipped.", highlight=False)
+            raise typer.Abort from None
     table = Table(title="sweep cells")
     for col in ("objective", "datapacks", "seed", "status", "run", "mean J", "cell key"):
-        table.add_column(col)
+        table.add_column(col, overflow="fold")  # wrap, never cut: ids and keys are copied by users
     for o in outcomes:
         status = {"failed": f"[red]failed: {o.error}[/]", "skipped": "skipped (done before)"}.get(o.status, o.status)
         table.add_row(o.cell.objective.name, "+".join(o.cell.datapack_ids) or "-", str(o.cell.seed), status,

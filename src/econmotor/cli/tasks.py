@@ -22,16 +22,26 @@ def tasks_command(
     if show:
         spec = catalog.get(show)
         table = Table(title=f"{spec.task_id}: {spec.description}")
-        for col in ("parameter", "value", "unit", "source"):
-            table.add_column(col)
+        table.add_column("parameter", overflow="fold")
+        table.add_column("value", justify="right", no_wrap=True)
+        table.add_column("unit", overflow="fold")
+        table.add_column("source", overflow="fold", ratio=1)
         for row in spec.economics.parameters():
             table.add_row(row["name"], f"{row['value']:g}", row["unit"], row["source"])
         console.print(table)
-        console.print(f"unit of work: {spec.unit}; errors: {spec.error_definition}")
+        console.print(f"unit of work: {spec.unit}; errors: {spec.error_definition}", highlight=False)
+        acc = spec.acceptance
+        console.print(f"deployable when the {acc.error_name} rate's 95% upper bound <= {acc.max_error_rate:g} "
+                      f"({acc.sources.get('max_error_rate', '')}) and throughput's 95% lower bound >= "
+                      f"{acc.min_units_per_hour:g} units/h ({acc.sources.get('min_units_per_hour', '')})",
+                      highlight=False)
         return
     table = Table(title="econmotor task catalog")
-    for col in ("task id", "unit", "backends", "human wage USD/h", "human units/h"):
-        table.add_column(col)
+    table.add_column("task id", no_wrap=True)  # ids are typed by users: never cut
+    table.add_column("unit of work", ratio=1)
+    table.add_column("backends", no_wrap=True)
+    for col in ("human USD/h", "human units/h"):
+        table.add_column(col, justify="right")
     for task_id in catalog.ids(backend):
         spec = catalog.get(task_id)
         table.add_row(task_id, spec.unit, ", ".join(spec.backends),

@@ -9,8 +9,8 @@ from typing import Any
 import typer
 from rich.table import Table
 
-from econmotor.cli._app import app, console, progress_bars, set_cpu_threads
-from econmotor.cli.validation import check_choice, check_flags, check_output_dir, check_output_file
+from econmotor.cli._app import app, console, err_console, progress_bars, set_cpu_threads
+from econmotor.cli.validation import check_choice, check_db_url, check_flags, check_output_dir, check_output_file
 from econmotor.config.objective_profile import OBJECTIVE_PRESETS, ObjectiveVector
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.datapacks import load_datapack_configs
@@ -65,6 +65,30 @@ def write_json(path: Path | None, payload: dict[str, Any]) -> None:
         path.write_text(json.dumps(payload, indent=2, default=str), encoding="utf-8")
 
 
+def completed_run_note(run_dir: Path) -> str | None:
+    """What a finished MuJoCo run holds, or ``None`` when ``run_dir`` has no final policy."""
+    from econmotor.motor_backend.mujoco.run import RUN_CONFIG_FILE, read_run_config
+
+    if not (run_dir / "policy.zip").is_file() or not (run_dir / RUN_CONFIG_FILE).is_file():
+        return None
+    config = read_run_config(run_dir)
+    return (f"{run_dir} is a complete run ({config.get('algorithm', '?')}, {config.get('max_steps', '?'):,} "
+            "steps, final policy.zip)" if isinstance(config.get("max_steps"), int)
+            else f"{run_dir} is a complete run (final policy.zip)")
+
+
+def interrupted_note(backend: str, task: str, run_dir: Path, max_steps: int, run_id: str) -> str:
+    """What an interrupted training run kept and how to go on."""
+    checkpoints = sorted((run_dir / "checkpoints").glob("*.zip")) if (run_dir / "checkpoints").is_dir() else []
+    if backend == "mujoco" and checkpoints:
+        return (f"{run_id} recorded as interrupted. Kept: {len(checkpoints)} checkpoint(s) in {run_dir}/checkpoints "
+                f"(newest {checkpoints[-1].name}). Resume with: econmotor train --task-id {task} --output-dir "
+                f"{run_dir} --max-steps {max_steps} --resume")
+    kept = f"the partial run directory {run_dir}" if run_dir.exists() else "no files"
+    return (f"{run_id} recorded as interrupted. Kept: {kept}; no checkpoint to resume from, so start again: "
+            f"econmotor train --task-id {task} --motor-backend {backend} --max-steps {max_steps}")
+
+
 @app.command("train")
 def train_command(
     task: str = TASK_OPTION,
@@ -75,14 +99,22 @@ def train_command(
     num_envs: int = typer.Option(0, "--num-envs", help="Environments (0: the task's default)."),
     max_steps: int = typer.Option(100_000, "--max-steps", help="Total environment steps."),
     seed: int = SEED_OPTION,
-    output_dir: Path = typer.Option(None, "--output-dir", help="Run directory (the policy id)."),
+    output_dir: Path = typer.Option(None, "--output-dir", help="Run directory (the policy id; default: a new "
+                                    "runs/<task>-<time>-s<seed>-<pid>)."),
     eval_episodes: int = typer.Option(5, "--eval-episodes", help="Deterministic episodes after training."),
-    resume: bool = typer.Option(False, "--resume", help="Continue the run in --output-dir from its last checkpoint."),
+    resume: bool = typer.Option(False, "--resume", help="Continue the interrupted run in --output-dir from its last "
+                                "checkpoint (a complete run is left as it is)."),
     algorithm: str = typer.Option(None, "--algorithm", help="Override the task's algorithm (mujoco: ppo | sac)."),
     vec_env: str = typer.Option(None, "--vec-env", help="mujoco: dummy (in-process, default) | subproc."),
+    db_url: str = typer.Option(None, "--db-url", help="Registry URL (default $ECONMOTOR_DB_URL or "
+                               "sqlite:///./.econmotor/registry.sqlite)."),
     json_out: Path = JSON_OPTION,
 ) -> None:
-    """Train a motor policy for an economic objective and print its economics."""
+    """Train a motor policy for an economic objective, record it in the registry, print its economics."""
+    from econmotor.report.pipeline import TrainRequest, new_run_dir, train_and_record
+    from econmotor.store.registry import Registry
+    from econmotor.tasks import load_catalog
+
     check_flags(num_envs=num_envs, max_steps=max_steps, seed=seed, eval_episodes=eval_episodes)
     check_choice("--algorithm", algorithm, ("ppo", "sac"))
     check_choice("--vec-env", vec_env, ("dummy", "subproc"))
@@ -91,6 +123,7 @@ def train_command(
     set_cpu_threads()
     objective = resolve_objective(objective_config, objective_preset)
     configs = load_datapack_configs(datapacks)
+    spec = load_catalog().get(task)
     extra: dict[str, Any] = {}
     if resume:
         extra["resume"] = True
@@ -99,19 +132,41 @@ def train_command(
     if (extra or vec_env) and backend != "mujoco":
         raise ConfigError("<command line>", "--resume/--algorithm/--vec-env",
                           f"backend '{backend}' does not support them", ["mujoco"])
+    if resume and output_dir is None:
+        raise ConfigError("<command line>", "--resume", "needs --output-dir: the run directory to continue")
+    if resume:
+        complete = completed_run_note(output_dir)
+        if complete is not None:
+            console.print(f"{complete}: nothing to resume, nothing changed. To train further, start a new run "
+                          "(a new --output-dir, or none for a fresh directory).", highlight=False)
+            return
     motor = make_motor_backend(backend, **({"vec_env": vec_env} if vec_env else {}))
-    with progress_bars() as progress:
-        result = motor.train_policy(task, objective, [c.id for c in configs],
-                                    num_envs if (num_envs > 0 or backend == "mujoco") else 1, max_steps, seed,
-                                    datapack_configs=configs, output_dir=output_dir, eval_episodes=eval_episodes,
-                                    progress=progress, **extra)
-    render_result(f"{task} on {backend}: {result.policy_id}", result.raw_metrics, result.econ_metrics)
-    if result.training_curve:
-        last = result.training_curve[-1]
+    url = check_db_url(db_url)
+    run_dir = output_dir or new_run_dir(Path("runs"), task, seed)
+    request = TrainRequest(task=spec, backend_name=backend, objective=objective, datapacks=tuple(configs),
+                           num_envs=num_envs if (num_envs > 0 or backend == "mujoco") else 1, max_steps=max_steps,
+                           seed=seed, train_eval_episodes=eval_episodes, output_dir=run_dir, backend_options=extra)
+    registry = None
+    try:
+        with progress_bars() as progress:
+            registry, run_id, _ = train_and_record(request, motor, lambda: Registry(url), progress)
+    except KeyboardInterrupt:
+        err_console.print(f"[yellow]interrupted[/]: {interrupted_note(backend, task, run_dir, max_steps, 'the run')}"
+                          f" (registry {url})", highlight=False)
+        raise typer.Abort from None
+    with registry:
+        record = registry.run(run_id)
+    render_result(f"{task} on {backend}: run #{run_id}", record.raw_metrics, record.econ_metrics)
+    if record.training_curve:
+        last = record.training_curve[-1]
         console.print(f"training: {last['timesteps']:.0f} steps, mean return {last['mean_return']:.1f}")
-    write_json(json_out, {"policy_id": result.policy_id, "raw_metrics": result.raw_metrics,
-                          "econ_metrics": result.econ_metrics, "episodes": result.episodes,
-                          "training_curve": result.training_curve, "artifacts": result.artifacts})
+    console.print(f"recorded as run #{run_id} in {registry.display_url}; run directory {record.policy_path}; "
+                  f"price it with: econmotor report --motor-backend none --task-id {task} --run-id {run_id}",
+                  highlight=False)
+    write_json(json_out, {"run_id": run_id, "policy_id": record.policy_path, "raw_metrics": record.raw_metrics,
+                          "econ_metrics": record.econ_metrics,
+                          "episodes": [e.summary for e in registry.episodes(run_ids=[run_id])],
+                          "training_curve": record.training_curve, "artifacts": record.artifacts})
 
 
 @app.command("evaluate")

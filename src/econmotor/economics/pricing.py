@@ -85,8 +85,8 @@ class TaskPrice:
     implied_wage_usd_per_hour: float
     wage_parity: float
     spread_per_unit_usd: float
-    recommended_price_usd_per_unit: float
-    recommended_price_usd_per_robot_hour: float
+    price_usd_per_unit: float
+    price_usd_per_robot_hour: float
     customer_saving_usd_per_hour: float
     damage_usd_per_unit: float
     customer_saving_after_damage_usd_per_hour: float
@@ -110,8 +110,8 @@ PRICE_UNITS: dict[str, str] = {
     "implied_wage_usd_per_hour": "USD/h",
     "wage_parity": "ratio",
     "spread_per_unit_usd": "USD/unit",
-    "recommended_price_usd_per_unit": "USD/unit",
-    "recommended_price_usd_per_robot_hour": "USD/h",
+    "price_usd_per_unit": "USD/unit",
+    "price_usd_per_robot_hour": "USD/h",
     "customer_saving_usd_per_hour": "USD/h",
     "damage_usd_per_unit": "USD/unit",
     "customer_saving_after_damage_usd_per_hour": "USD/h",
@@ -152,8 +152,8 @@ def price_task(economics: TaskEconomics, mpl_units_per_hour: float, error_rate: 
         implied_wage_usd_per_hour=wage,
         wage_parity=labour.wage_parity(wage, econ.wage_human_usd_per_hour),
         spread_per_unit_usd=spread,
-        recommended_price_usd_per_unit=price,
-        recommended_price_usd_per_robot_hour=price_per_hour,
+        price_usd_per_unit=price,
+        price_usd_per_robot_hour=price_per_hour,
         customer_saving_usd_per_hour=saving,
         damage_usd_per_unit=damage,
         customer_saving_after_damage_usd_per_hour=saving_after_damage,

@@ -7,9 +7,16 @@ Schema ``econmotor.task_pricing_report`` version :data:`REPORT_SCHEMA_VERSION`::
     backend, objective {name, weights..., overlay, J}, datapacks [ids], datapack_objective_hints {id: hint}, notes
     runs:        train {run_id, status, seed, num_envs, max_steps, policy_path, ...} | null,
                  eval {...} | null   (the run whose episodes were priced: ``runs.priced``)
+    verdict:     {deployable, label, reasons [..], checks [{name, measured, bound, limit, passed, text}],
+                 acceptance {max_error_rate, min_units_per_hour, error_name, sources}}
+    uncertainty: {confidence, interval_coverage, resamples, seed,
+                  evidence {episodes, units_attempted, units_completed, errors, episodes_with_errors, robot_hours},
+                  intervals {field: {point, low, high, method}}, conservative {TaskPrice fields}}
+    recommendation: null when not deployable, else {price_usd_per_unit, price_usd_per_100_units,
+                 price_usd_per_robot_hour, point_price_usd_per_unit, interval_usd_per_unit [low, high], basis}
     inputs:      [{name, value, unit, source}]  every number the price depends on
-    pricing:     spread_share, aggregate {TaskPrice fields}, distributions {field: {mean, p10, p50, p90, n}},
-                 units {field: unit}
+    pricing:     spread_share, aggregate {TaskPrice fields: point estimates, diagnostics},
+                 distributions {field: {mean, p10, p50, p90, n}}, units {field: unit}
     metrics:     raw {..}, econ {..}  (aggregate over the priced episodes)
     episodes:    [{episode_index, termination_reason, mpl_units_per_hour, ..., J}]
     training_curve: [{timesteps, mean_return}]
@@ -32,13 +39,16 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from econmotor.economics.pricing import PricingSummary, pricing_inputs
+from econmotor.economics.uncertainty import Uncertainty, Verdict, assess, decide
 from econmotor.objectives import compile_economic_overlay
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.objectives.loader import objective_weights_vector
 from econmotor.valuation.reward_builder import episode_j
 
 REPORT_SCHEMA = "econmotor.task_pricing_report"
-REPORT_SCHEMA_VERSION = 2  # 2: TaskPrice gained damage_usd_per_unit, customer_saving_after_damage_usd_per_hour
+# 2: TaskPrice gained damage_usd_per_unit, customer_saving_after_damage_usd_per_hour
+# 3: verdict, uncertainty, recommendation; TaskPrice's recommended_price_* became price_* (point estimates)
+REPORT_SCHEMA_VERSION = 3
 
 #: per-episode fields copied into the document (and its episode table).
 EPISODE_FIELDS = ("episode_index", "termination_reason", "units_completed", "errors", "episode_length_s",
@@ -109,6 +119,36 @@ def _objective_hints(run: Any) -> dict[str, str]:
     packs = (getattr(run, "config", None) or {}).get("datapacks") or []
     return {str(p["id"]): str(p["objective_hint"]) for p in packs
             if isinstance(p, dict) and p.get("id") and p.get("objective_hint")}
+def recommendation(verdict: Verdict, uncertainty: Uncertainty, spread_share: float) -> dict[str, Any] | None:
+    """The price to charge, at the unfavourable end of the intervals; ``None`` when not deployable."""
+    if not verdict.deployable:
+        return None
+    cons, price = uncertainty.conservative, uncertainty.intervals["price_usd_per_unit"]
+    pct = f"{uncertainty.confidence:.0%}"
+    return {"price_usd_per_unit": cons.price_usd_per_unit,
+            "price_usd_per_100_units": cons.price_usd_per_unit * 100,
+            "price_usd_per_robot_hour": cons.price_usd_per_robot_hour,
+            "point_price_usd_per_unit": price.point, "interval_usd_per_unit": [price.low, price.high],
+            "customer_saving_usd_per_hour": cons.customer_saving_usd_per_hour,
+            "basis": (f"priced at the unfavourable end of the intervals: throughput at its {pct} lower bound, "
+                      f"error rate and energy at their {pct} upper bounds (robot unit cost "
+                      f"{cons.robot_unit_cost_usd:.4g} USD), spread share {spread_share:g}")}
+
+
+def acceptance_inputs(verdict: Verdict) -> list[dict[str, Any]]:
+    """The acceptance limits as input rows (value, unit, source)."""
+    acc = verdict.acceptance
+    return [{"name": "acceptance_max_error_rate", "value": acc.max_error_rate, "unit": "errors/attempted unit",
+             "source": acc.sources.get("max_error_rate", "")},
+            {"name": "acceptance_min_units_per_hour", "value": acc.min_units_per_hour, "unit": "units/h",
+             "source": acc.sources.get("min_units_per_hour", "")}]
+
+
+def assess_context(ctx: ReportContext) -> tuple[Uncertainty, Verdict]:
+    """Intervals and the deployability verdict of the priced episodes."""
+    unc = assess(ctx.task.economics, ctx.episodes, ctx.pricing.aggregate, ctx.pricing.policy)
+    verdict = decide(ctx.task.acceptance, unc, ctx.task.economics.error_rate_human, ctx.task.unit)
+    return unc, verdict
 
 
 def build_document(ctx: ReportContext, generated_at: dt.datetime | None = None) -> dict[str, Any]:
@@ -118,6 +158,7 @@ def build_document(ctx: ReportContext, generated_at: dt.datetime | None = None) 
     priced = ctx.eval_run or ctx.train_run
     vector = objective_weights_vector(ctx.objective)
     js = [episode_j(ep, vector, ctx.task.economics) for ep in ctx.episodes]
+    unc, verdict = assess_context(ctx)
     source = (f"measured: {priced.kind} run #{priced.id} of the registry, {len(ctx.episodes)} episodes"
               if priced is not None else f"measured: {len(ctx.episodes)} evaluation episodes")
     doc = {
@@ -135,7 +176,11 @@ def build_document(ctx: ReportContext, generated_at: dt.datetime | None = None) 
         "notes": ctx.notes,
         "runs": {"train": _run_facts(ctx.train_run), "eval": _run_facts(ctx.eval_run),
                  "priced": priced.id if priced is not None else None},
-        "inputs": pricing_inputs(ctx.task.economics, ctx.pricing.policy, ctx.pricing.aggregate, source),
+        "verdict": verdict.to_dict(),
+        "uncertainty": unc.to_dict(),
+        "recommendation": recommendation(verdict, unc, ctx.pricing.policy.spread_share),
+        "inputs": pricing_inputs(ctx.task.economics, ctx.pricing.policy, ctx.pricing.aggregate, source)
+        + acceptance_inputs(verdict),
         "pricing": ctx.pricing.to_dict(),
         "metrics": {"raw": ctx.raw_metrics, "econ": ctx.econ_metrics},
         "episodes": [{**{k: ep.get(k) for k in EPISODE_FIELDS if k in ep}, "J": j}

@@ -48,6 +48,9 @@ class TrainRequest:
         eval_episodes: episodes of an extra evaluation run (0: none).
         notes: free text recorded with the runs.
         runs_dir: where the backend writes policies (``<runs_dir>/<task>-<time>-s<seed>-<pid>``).
+        output_dir: the run directory itself (``econmotor train --output-dir``), instead of a new one
+            under ``runs_dir``.
+        backend_options: extra keyword arguments of ``train_policy`` (mujoco: ``resume``, ``algorithm``).
     """
 
     task: Any
@@ -61,6 +64,8 @@ class TrainRequest:
     eval_episodes: int = 0
     notes: str = ""
     runs_dir: Path = Path("runs")
+    output_dir: Path | None = None
+    backend_options: dict[str, Any] = field(default_factory=dict)
 
     @property
     def datapack_ids(self) -> list[str]:
@@ -79,6 +84,11 @@ class ReportOutcome:
     extra: dict[str, Any] = field(default_factory=dict)
 
 
+def new_run_dir(runs_dir: Path, task_id: str, seed: int) -> Path:
+    """A run directory of its own: ``<runs_dir>/<task>-<UTC time>-s<seed>-<pid>`` (never reused)."""
+    return Path(runs_dir) / f"{task_id}-{time.strftime('%Y%m%d-%H%M%S', time.gmtime())}-s{seed}-{os.getpid()}"
+
+
 def how_to_report_from(run_id: int, task_id: str, registry: Registry) -> str:
     """The command that reports from a recorded run."""
     return (f"econmotor report --motor-backend none --task-id {task_id} --run-id {run_id} "
@@ -91,6 +101,7 @@ class _TrainRun:
 
     def __init__(self, request: TrainRequest, open_registry: Callable[[], Registry]) -> None:
         self.request, self._open = request, open_registry
+        self.run_dir = request.output_dir or new_run_dir(request.runs_dir, request.task.task_id, request.seed)
         self.registry: Registry | None = None
         self.run_id: int | None = None
         entry = dict(request.task.backends.get(request.backend_name) or {})
@@ -111,7 +122,8 @@ class _TrainRun:
             reg.record_datapacks(r.datapacks)
         reg.record_robot(self.robot_id, r.backend_name, r.task.description, self.entry)
         config = {"datapacks": [p.to_dict() for p in r.datapacks], "task_backend_entry": self.entry,
-                  "train_eval_episodes": r.train_eval_episodes}
+                  "train_eval_episodes": r.train_eval_episodes, "run_dir": str(self.run_dir),
+                  **({"backend_options": dict(r.backend_options)} if r.backend_options else {})}
         self.run_id = reg.start_run("train", r.task.task_id, r.backend_name, seed=r.seed, num_envs=r.num_envs,
                                     max_steps=r.max_steps, config=config, **self.common())
         return self.run_id
@@ -139,12 +151,11 @@ def train_and_record(request: TrainRequest, backend: Any, open_registry: Callabl
         run.start()
         progress(label, done, total)
 
-    out_name = f"{task_id}-{time.strftime('%Y%m%d-%H%M%S')}-s{request.seed}-{os.getpid()}"
     try:
         result = backend.train_policy(
             task_id, request.objective, request.datapack_ids, request.num_envs, request.max_steps, request.seed,
-            datapack_configs=list(request.datapacks), output_dir=request.runs_dir / out_name,
-            eval_episodes=request.train_eval_episodes, progress=tracked)
+            datapack_configs=list(request.datapacks), output_dir=run.run_dir,
+            eval_episodes=request.train_eval_episodes, progress=tracked, **request.backend_options)
     except (ConfigError, UnknownNameError):
         if run.run_id is None:
             raise
@@ -169,7 +180,7 @@ def train_and_record(request: TrainRequest, backend: Any, open_registry: Callabl
                                 **run.common()) as eval_id:
             evaluation = backend.evaluate_policy(
                 result.policy_id, task_id, request.objective, request.eval_episodes, eval_seed,
-                datapack_configs=list(request.datapacks), output_dir=request.runs_dir / f"{out_name}-eval{eval_id}",
+                datapack_configs=list(request.datapacks), output_dir=Path(f"{run.run_dir}-eval{eval_id}"),
                 progress=progress)
             registry.finish_run(eval_id, evaluation)
     except (KeyboardInterrupt, SystemExit):
@@ -195,13 +206,16 @@ def pick_runs(registry: Registry, task_id: str, run_id: int | None = None, objec
             raise RegistryError(f"run #{run_id} is {chosen.status} ({chosen.error or 'no error recorded'}); "
                                 "only completed runs can be priced")
     else:
-        chosen = registry.latest_run(task_id=task_id, status="completed", objective=objective,
-                                     datapacks=datapacks, backend=backend)
+        priceable = [r for r in registry.runs(task_id=task_id, status="completed", objective=objective,
+                                              datapacks=datapacks, backend=backend) if r.kind in ("train", "eval")]
+        chosen = priceable[-1] if priceable else None
         if chosen is None:
             raise RegistryError(
                 f"no completed run of task '{task_id}' in the registry {registry.display_url}"
                 + (" matching the given objective/datapacks" if objective or datapacks else "")
                 + "; train one first (e.g. --motor-backend dishwashing or mujoco)")
+    if chosen.kind not in ("train", "eval"):
+        raise RegistryError(f"run #{chosen.id} is a {chosen.kind} run: it has no evaluation episodes to price")
     if chosen.kind == "eval":
         train = registry.run(chosen.parent_run_id) if chosen.parent_run_id is not None else None
         return train, chosen

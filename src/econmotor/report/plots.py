@@ -3,10 +3,11 @@
 Each function reads the report document (:mod:`econmotor.report.document`) and
 returns PNG bytes, or ``None`` when there is nothing to draw:
 
-- ``episode_distributions``: per-episode MPL (units/h), energy (Wh) and errors;
+- ``episode_distributions``: per-episode MPL (units/h), energy (Wh) and errors, on axes from
+  zero; a quantity every episode agrees on is shown as its value, not as a histogram;
 - ``training_curve``: mean episode return over training timesteps;
-- ``unit_costs``: human unit cost vs the robot's unit cost (p10/p50/p90 over episodes)
-  and the recommended price.
+- ``unit_costs``: human unit cost vs the robot's unit cost and price (90% intervals) and,
+  for a deployable robot, the recommended price.
 """
 
 from __future__ import annotations
@@ -33,13 +34,39 @@ def _finite(values: list[Any]) -> list[float]:
     return [float(v) for v in values if v is not None and math.isfinite(float(v))]
 
 
+#: values whose spread is below this fraction of their size are one value shown as text, not a histogram.
+SAME_VALUE_REL = 1e-3
+
+
+def _draw_values(ax: Any, values: list[float], label: str, color: str) -> None:
+    """A histogram on an axis that starts at zero, or the value itself when every episode agrees."""
+    lo, hi = min(values), max(values)
+    if hi - lo <= SAME_VALUE_REL * max(abs(hi), abs(lo), 1e-12):
+        ax.text(0.5, 0.5, f"all {len(values)} episodes:\n{values[0]:.4g}", ha="center", va="center",
+                transform=ax.transAxes, fontsize=12)
+        ax.set_xticks([])
+        ax.set_yticks([])
+        ax.set_title(label, fontsize=9)
+        return
+    bins = min(20, max(3, len(set(values))))
+    ax.hist(values, bins=bins, color=color, alpha=0.85, edgecolor="white")
+    mean = sum(values) / len(values)
+    ax.axvline(mean, color="black", linestyle="--", linewidth=1, label=f"mean {mean:.4g}")
+    ax.legend(fontsize=8)
+    if lo >= 0:  # honest axis: from zero, so the spread reads against the size of the value
+        ax.set_xlim(0, hi * 1.05)
+    ax.ticklabel_format(axis="x", useOffset=False, style="plain")
+    ax.set_xlabel(label)
+    ax.set_ylabel("episodes")
+
+
 def episode_distributions(doc: dict[str, Any]) -> bytes | None:
-    """Histograms of MPL, energy and errors per evaluation episode."""
+    """Histograms of MPL, energy and errors per evaluation episode (a value where all episodes agree)."""
     episodes = doc.get("episodes") or []
     if not episodes:
         return None
     unit = doc["task"]["unit"]
-    panels = [("mpl_units_per_hour", f"MPL (units per hour; unit: {unit})", _BLUE),
+    panels = [("mpl_units_per_hour", f"MPL ({unit} per hour)", _BLUE),
               ("energy_wh", "energy per episode (Wh)", _ORANGE),
               ("errors", "errors per episode", "#d62728")]
     fig = Figure(figsize=(11, 3.2))
@@ -47,13 +74,9 @@ def episode_distributions(doc: dict[str, Any]) -> bytes | None:
         ax = fig.add_subplot(1, 3, i + 1)
         values = _finite([ep.get(key) for ep in episodes])
         if values:
-            bins = min(20, max(3, len(set(values))))
-            ax.hist(values, bins=bins, color=color, alpha=0.85, edgecolor="white")
-            mean = sum(values) / len(values)
-            ax.axvline(mean, color="black", linestyle="--", linewidth=1, label=f"mean {mean:.3g}")
-            ax.legend(fontsize=8)
-        ax.set_xlabel(label)
-        ax.set_ylabel("episodes")
+            _draw_values(ax, values, label, color)
+        else:
+            ax.set_xlabel(label)
     fig.suptitle(f"{len(episodes)} evaluation episodes")
     fig.tight_layout()
     return _png(fig)
@@ -77,19 +100,24 @@ def training_curve(doc: dict[str, Any]) -> bytes | None:
 
 
 def unit_costs(doc: dict[str, Any]) -> bytes | None:
-    """Bars: human unit cost, robot unit cost (with p10-p90 over episodes), recommended price."""
+    """Bars: human unit cost, robot unit cost and price with their 90% intervals (the recommended price
+    only for a deployable robot)."""
     pricing = doc.get("pricing") or {}
-    agg, dists = pricing.get("aggregate") or {}, pricing.get("distributions") or {}
+    agg = pricing.get("aggregate") or {}
+    intervals = (doc.get("uncertainty") or {}).get("intervals") or {}
     human = agg.get("human_unit_cost_usd")
     if human is None:
         return None
     bars = [("human", human, None, _GREY)]
     for key, label, color in (("robot_unit_cost_usd", "robot cost", _BLUE),
-                              ("recommended_price_usd_per_unit", "recommended price", _GREEN)):
-        value, dist = agg.get(key), dists.get(key, {})
-        band = (dist.get("p10"), dist.get("p90"))
-        bars.append((label, value, band if None not in band else None, color))
-    fig = Figure(figsize=(6, 3.4))
+                              ("price_usd_per_unit", "price (point)", _GREEN)):
+        iv = intervals.get(key) or {}
+        band = (iv.get("low"), iv.get("high"))
+        bars.append((label, agg.get(key), band if None not in band else None, color))
+    rec = doc.get("recommendation")
+    if rec:
+        bars.append(("recommended", rec.get("price_usd_per_unit"), None, "#17becf"))
+    fig = Figure(figsize=(6.5, 3.4))
     ax = fig.add_subplot(1, 1, 1)
     drawn = [b for b in bars if b[1] is not None]
     for i, (_, value, band, color) in enumerate(drawn):
@@ -103,8 +131,13 @@ def unit_costs(doc: dict[str, Any]) -> bytes | None:
         ax.text(0.98, 0.95, f"not finite: {', '.join(missing)} (robot completed no unit)", ha="right",
                 va="top", transform=ax.transAxes, fontsize=8, color="#d62728")
     ax.set_xticks(range(len(drawn)), [b[0] for b in drawn])
+    ax.set_ylim(0, max(max(b[1], (b[2] or (0, 0))[1] or 0) for b in drawn) * 1.15)
     ax.set_ylabel(f"USD per {doc['task']['unit']}")
-    ax.set_title("human vs robot unit cost (bars: p10-p90 over episodes)")
+    if (doc.get("verdict") or {}).get("deployable", True):
+        ax.set_title("human vs robot unit cost (bars: 90% interval)")
+    else:
+        ax.set_title("NOT DEPLOYABLE: diagnostics, no recommended price\n(bars: 90% interval)", color="#d62728",
+                     fontsize=10)
     fig.tight_layout()
     return _png(fig)
 

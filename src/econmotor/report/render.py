@@ -21,26 +21,29 @@ from typing import Any
 
 from econmotor.report.plots import render_plots
 
-#: (field, label) of the pricing table, in reading order.
+#: (field, label) of the pricing table, in reading order; every saving says what it counts.
 PRICE_ROWS = (
     ("mpl_units_per_hour", "robot throughput (MPL)"),
     ("error_rate", "robot error rate"),
     ("energy_kwh_per_hour", "robot energy"),
     ("energy_productivity_units_per_kwh", "energy productivity"),
-    ("implied_wage_usd_per_hour", "implied robot wage"),
-    ("wage_parity", "wage parity (robot / human)"),
-    ("human_unit_cost_usd", "human unit cost"),
-    ("robot_cost_usd_per_hour", "robot cost per hour"),
-    ("robot_unit_cost_usd", "robot unit cost"),
-    ("spread_per_unit_usd", "spread per unit"),
-    ("recommended_price_usd_per_unit", "recommended price per unit"),
-    ("recommended_price_usd_per_robot_hour", "recommended price per robot-hour"),
-    ("customer_saving_usd_per_hour", "customer saving per hour"),
-    ("damage_usd_per_unit", "expected damage per unit"),
-    ("customer_saving_after_damage_usd_per_hour", "customer saving after damage"),
-    ("break_even_hours", "break-even hours of capex"),
+    ("implied_wage_usd_per_hour", "implied robot wage (value of its work minus damage)"),
+    ("wage_parity", "wage parity (implied robot wage / human wage)"),
+    ("human_unit_cost_usd", "human unit cost (wage / human throughput)"),
+    ("robot_cost_usd_per_hour", "robot cost per hour (capex share, upkeep, energy)"),
+    ("robot_unit_cost_usd", "robot unit cost (robot cost per hour / MPL)"),
+    ("spread_per_unit_usd", "spread per unit (human - robot unit cost)"),
+    ("price_usd_per_unit", "price per unit at the point estimate"),
+    ("price_usd_per_robot_hour", "price per robot-hour at the point estimate"),
+    ("customer_saving_usd_per_hour", "customer saving per robot-hour: human wage for the same work minus the "
+                                     "price (damage not counted)"),
+    ("damage_usd_per_unit", "expected damage per unit (damage cost x robot error rate)"),
+    ("customer_saving_after_damage_usd_per_hour", "customer saving per robot-hour with damage: the above plus the "
+                                                  "human's expected damage avoided, minus the robot's"),
+    ("break_even_hours", "break-even hours of capex at the point-estimate price"),
 )
 STAT_COLUMNS = ("aggregate", "mean", "p10", "p50", "p90")
+INTERVAL_COLUMN = "90% interval"
 
 
 def fmt(value: Any) -> str:
@@ -58,38 +61,83 @@ def fmt(value: Any) -> str:
     return str(value)
 
 
+def interval_text(doc: Mapping[str, Any], key: str) -> str:
+    """``"low - high"`` of a field's interval, or ``""`` when it has none."""
+    iv = ((doc.get("uncertainty") or {}).get("intervals") or {}).get(key)
+    if not iv:
+        return ""
+    return f"{fmt(iv['low'])} - {fmt(iv['high'])}"
+
+
 def table_rows(doc: Mapping[str, Any]) -> list[tuple[str, ...]]:
-    """Rows ``(label, aggregate, mean, p10, p50, p90, unit)`` of the pricing table."""
+    """Rows ``(label, aggregate, 90% interval, mean, p10, p50, p90, unit)`` of the pricing table."""
     pricing = doc["pricing"]
     agg, dists, units = pricing["aggregate"], pricing.get("distributions") or {}, pricing["units"]
     rows = []
     for key, label in PRICE_ROWS:
         dist = dists.get(key, {})
-        rows.append((label, fmt(agg.get(key)), *(fmt(dist.get(s)) for s in STAT_COLUMNS[1:]), units[key]))
+        rows.append((label, fmt(agg.get(key)), interval_text(doc, key),
+                     *(fmt(dist.get(s)) for s in STAT_COLUMNS[1:]), units[key]))
     return rows
 
 
+def evidence_text(doc: Mapping[str, Any]) -> str:
+    """What the figures rest on, in one sentence."""
+    ev = doc["uncertainty"]["evidence"]
+    return (f"Evidence: {ev['episodes']} evaluation episodes, {fmt(ev['units_attempted'])} units attempted "
+            f"(unit: {doc['task']['unit']}), {fmt(ev['errors'])} {_errors_word(doc)}, {fmt(ev['robot_hours'])} "
+            f"robot-hours ({fmt(ev['robot_hours'] * 60)} robot-minutes).")
+
+
+def _errors_word(doc: Mapping[str, Any]) -> str:
+    name = doc["verdict"]["acceptance"].get("error_name") or "error"
+    return name if name.endswith("s") else f"{name}s"
+
+
+def parity_text(doc: Mapping[str, Any]) -> str:
+    """Wage parity in words."""
+    agg = doc["pricing"]["aggregate"]
+    parity, wage = agg.get("wage_parity"), agg.get("implied_wage_usd_per_hour")
+    human = {i["name"]: i["value"] for i in doc.get("inputs", [])}.get("wage_human_usd_per_hour")
+    iv = interval_text(doc, "wage_parity")
+    within = f" (90% interval {iv})" if iv else ""
+    if parity is None or wage is None:
+        return ""
+    if parity < 0:
+        return (f"The robot's labour is worth less than nothing: damage from its errors exceeds the value of its "
+                f"work (implied wage {fmt(wage)} USD/h against a human's {fmt(human)} USD/h).")
+    return (f"The robot's labour is worth {parity:.2g}x a human's wage{within}: its work, net of damage, is "
+            f"worth {fmt(wage)} USD per hour against a human's {fmt(human)} USD/h.")
+
+
 def headline(doc: Mapping[str, Any]) -> str:
-    """One sentence: what to charge and why."""
-    agg, task = doc["pricing"]["aggregate"], doc["task"]
-    unit = task["unit"]
-    if agg.get("recommended_price_usd_per_unit") is None:
-        return f"The robot completed no {unit} in evaluation: it cannot be priced per unit."
-    verdict = ("cheaper than a human" if agg["competitive"] else "dearer than a human (not competitive)")
-    text = (f"Charge {fmt(agg['recommended_price_usd_per_unit'])} USD per {unit} "
-            f"({fmt(agg['recommended_price_usd_per_robot_hour'])} USD per robot-hour): the robot's unit cost is "
-            f"{fmt(agg['robot_unit_cost_usd'])} USD vs {fmt(agg['human_unit_cost_usd'])} USD for a human, "
-            f"{verdict}; wage parity {fmt(agg['wage_parity'])}.")
-    if (agg.get("implied_wage_usd_per_hour") or 0.0) < 0:
-        text += (f" Warning: at error rate {fmt(agg['error_rate'])} the damage from errors exceeds the value of "
-                 f"the work (implied wage {fmt(agg['implied_wage_usd_per_hour'])} USD/h); the unit cost "
-                 "counts the robot's own cost only.")
+    """The verdict first; then, for a deployable robot only, what to charge, with its interval and evidence."""
+    verdict, unit = doc["verdict"], doc["task"]["unit"]
+    if not verdict["deployable"]:
+        return (f"Not deployable: {'; '.join(verdict['reasons'])}. No price is recommended; the figures below "
+                f"are diagnostics only. {evidence_text(doc)}")
+    rec = doc["recommendation"]
+    low, high = rec["interval_usd_per_unit"]
+    err_check = next(c for c in verdict["checks"] if c["name"] == "error rate")
+    text = (f"Deployable: {err_check['text']}. Charge {fmt(rec['price_usd_per_unit'])} USD per {unit} "
+            f"({fmt(rec['price_usd_per_100_units'])} USD per 100; {fmt(rec['price_usd_per_robot_hour'])} USD per "
+            f"robot-hour), priced at the unfavourable end of the 90% intervals; the point estimate is "
+            f"{fmt(rec['point_price_usd_per_unit'])} USD per {unit} (90% interval {fmt(low)} - {fmt(high)}). "
+            f"{parity_text(doc)}")
+    saving = rec.get("customer_saving_usd_per_hour")
+    if saving is not None and saving >= 0:
+        text += (f" At this price the customer saves {fmt(saving)} USD per robot-hour against paying a human for "
+                 "the same work (wages only).")
+    elif saving is not None:
+        text += (f" At this price the robot is dearer than a human: the customer pays {fmt(-saving)} USD per "
+                 "robot-hour more (wages only).")
+    agg = doc["pricing"]["aggregate"]
     after = agg.get("customer_saving_after_damage_usd_per_hour")
     if after is not None and after < 0:
         text += (f" With damage of {fmt(agg.get('damage_usd_per_unit'))} USD per {unit} (human: "
                  f"{fmt(task_damage_per_unit(doc))} USD) the customer loses {fmt(-after)} USD/h against a human "
-                 "worker at this price.")
-    return text
+                 "worker at the point-estimate price.")
+    return f"{text} {evidence_text(doc)}"
 
 
 def task_damage_per_unit(doc: Mapping[str, Any]) -> float | None:
@@ -157,6 +205,28 @@ def _sections(doc: Mapping[str, Any]) -> dict[str, Any]:
     return {"facts": facts, "inputs": inputs, "ep_keys": ep_keys, "episodes": episodes}
 
 
+PRICING_NOTE = ("`aggregate` pools all evaluation episodes (the point estimate); the 90% interval's ends are "
+                "one-sided 95% bounds (Clopper-Pearson for the error rate, a seeded bootstrap over episodes "
+                "otherwise); mean and p10/p50/p90 are over episodes.")
+
+
+def verdict_rows(doc: Mapping[str, Any]) -> list[tuple[str, str, str]]:
+    """(check, passed, what was measured) for every acceptance check."""
+    return [(c["name"], "pass" if c["passed"] else "FAIL", c["text"]) for c in doc["verdict"]["checks"]]
+
+
+def _md_verdict(doc: Mapping[str, Any]) -> list[str]:
+    verdict = doc["verdict"]
+    lines = [f"## Verdict: {verdict['label']}", "", _md_table(("check", "result", "measured"), verdict_rows(doc)),
+             ""]
+    rec = doc.get("recommendation")
+    if rec:
+        lines += [f"Recommended price: **{fmt(rec['price_usd_per_unit'])} USD per {doc['task']['unit']}**, "
+                  f"{fmt(rec['price_usd_per_100_units'])} USD per 100, {fmt(rec['price_usd_per_robot_hour'])} USD "
+                  f"per robot-hour; {rec['basis']}.", ""]
+    return lines
+
+
 PLOT_TITLES = {"unit_costs": "Human vs robot unit cost", "episode_distributions": "Per-episode distributions",
                "training_curve": "Training curve"}
 
@@ -166,9 +236,10 @@ def render_markdown(doc: Mapping[str, Any], plot_files: Mapping[str, str] | None
     s = _sections(doc)
     parts = [f"# Task pricing report: {md_escape(doc['task']['task_id'])}", "", f"**{md_escape(headline(doc))}**", "",
              _md_table(("", ""), [(k, v) for k, v in s["facts"]]), "",
-             f"## Pricing (spread share {fmt(doc['pricing']['spread_share'])})", "",
-             "`aggregate` pools all evaluation episodes; mean and p10/p50/p90 are over episodes.", "",
-             _md_table(("metric", *STAT_COLUMNS, "unit"), table_rows(doc)), "",
+             *_md_verdict(doc),
+             f"## {'Diagnostics' if not doc['verdict']['deployable'] else 'Pricing'} "
+             f"(spread share {fmt(doc['pricing']['spread_share'])})", "", f"{PRICING_NOTE}", "",
+             _md_table(("metric", STAT_COLUMNS[0], INTERVAL_COLUMN, *STAT_COLUMNS[1:], "unit"), table_rows(doc)), "",
              "## Inputs", "", _md_table(("parameter", "value", "unit", "source"), s["inputs"]), ""]
     for name, path in (plot_files or {}).items():
         parts += [f"## {PLOT_TITLES.get(name, name)}", "", f"![{name}]({path})", ""]
@@ -180,9 +251,11 @@ def render_markdown(doc: Mapping[str, Any], plot_files: Mapping[str, str] | None
 _CSS = """body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:2rem auto;
 max-width:1100px;color:#222;padding:0 1rem}h1{margin-bottom:.2rem}h2{border-bottom:1px solid #ddd;
 padding-bottom:.2rem;margin-top:2rem}.headline{font-size:1.15rem;background:#eef6ee;border-left:4px solid #2ca02c;
-padding:.7rem 1rem}.bad{background:#fbeeee;border-color:#d62728}table{border-collapse:collapse;margin:.5rem 0;
+padding:.7rem 1rem}.verdict{font-size:1.4rem;font-weight:700;color:#2ca02c;margin:.3rem 0}
+.verdict.bad{color:#d62728;background:none}.bad{background:#fbeeee;border-color:#d62728}
+table{border-collapse:collapse;margin:.5rem 0;
 font-size:.92rem}td,th{border:1px solid #ddd;padding:.3rem .6rem;text-align:left}th{background:#f5f5f5}
-td.num{text-align:right;font-variant-numeric:tabular-nums}img{max-width:100%;margin:.5rem 0}
+td.num{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}img{max-width:100%;margin:.5rem 0}
 .facts td:first-child{font-weight:600;white-space:nowrap}small{color:#666}"""
 
 
@@ -202,14 +275,24 @@ def _html_table(header: tuple[str, ...] | None, rows: list[tuple[str, ...]], cls
 def render_html(doc: Mapping[str, Any], plots: Mapping[str, bytes]) -> str:
     """A self-contained HTML page: inline CSS, plots as base64 PNG data URIs."""
     s = _sections(doc)
-    agg = doc["pricing"]["aggregate"]
-    bad = "" if agg.get("competitive") and (agg.get("implied_wage_usd_per_hour") or 0.0) >= 0 else " bad"
+    agg, verdict = doc["pricing"]["aggregate"], doc["verdict"]
+    good = verdict["deployable"] and agg.get("competitive") and (agg.get("implied_wage_usd_per_hour") or 0.0) >= 0
+    rec = doc.get("recommendation")
     body = [f"<h1>Task pricing report: {html.escape(doc['task']['task_id'])}</h1>",
-            f'<p class="headline{bad}">{html.escape(headline(doc))}</p>',
-            _html_table(None, s["facts"], "facts"),
-            (f"<h2>Pricing <small>(spread share {fmt(doc['pricing']['spread_share'])}; aggregate pools all "
-             "evaluation episodes, mean and p10/p50/p90 are over episodes)</small></h2>"),
-            _html_table(("metric", *STAT_COLUMNS, "unit"), table_rows(doc), numeric_from=1)]
+            f'<p class="verdict{"" if verdict["deployable"] else " bad"}">{html.escape(verdict["label"].upper())}</p>',
+            f'<p class="headline{"" if good else " bad"}">{html.escape(headline(doc))}</p>',
+            f"<h2>Verdict: {html.escape(verdict['label'])}</h2>",
+            _html_table(("check", "result", "measured"), verdict_rows(doc))]
+    if rec:
+        body.append(f"<p>Recommended price: <b>{html.escape(fmt(rec['price_usd_per_unit']))} USD per "
+                    f"{html.escape(doc['task']['unit'])}</b>, {html.escape(fmt(rec['price_usd_per_100_units']))} "
+                    f"USD per 100, {html.escape(fmt(rec['price_usd_per_robot_hour']))} USD per robot-hour; "
+                    f"{html.escape(rec['basis'])}.</p>")
+    body += [_html_table(None, s["facts"], "facts"),
+             (f"<h2>{'Diagnostics' if not verdict['deployable'] else 'Pricing'} <small>(spread share "
+              f"{fmt(doc['pricing']['spread_share'])}; {html.escape(PRICING_NOTE.replace('`', ''))})</small></h2>"),
+             _html_table(("metric", STAT_COLUMNS[0], INTERVAL_COLUMN, *STAT_COLUMNS[1:], "unit"), table_rows(doc),
+                         numeric_from=1)]
     for name, png in plots.items():
         data = base64.b64encode(png).decode("ascii")
         body += [f"<h2>{html.escape(PLOT_TITLES.get(name, name))}</h2>",

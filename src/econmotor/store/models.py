@@ -24,7 +24,7 @@ from sqlalchemy.types import TypeDecorator
 #: Bump when a table or column changes; an older or newer database is refused with a clear error.
 SCHEMA_VERSION = 1
 
-RUN_KINDS = ("train", "eval")
+RUN_KINDS = ("train", "eval", "shadow")  # shadow: econmotor shadow runs (no evaluation episodes)
 #: ``abandoned``: was ``running`` but its owner process is gone (killed); set when a registry is opened.
 RUN_STATUSES = ("running", "completed", "failed", "interrupted", "abandoned")
 

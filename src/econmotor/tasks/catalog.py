@@ -14,6 +14,10 @@ order; a user file may add tasks or replace a shipped one whole. File schema::
           ...
         backends:                           # backend name -> that backend's own settings
           dishwashing: {econ_preset: toy}
+        acceptance:                         # optional: what evaluation must show before a price
+          max_error_rate: {value: 0.05, source: "..."}     # upper bound of the error rate (default: human's)
+          min_units_per_hour: {value: 30, source: "..."}   # lower bound of MPL (default: any work)
+          error_name: "broken dish"                        # one error, in sentences
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
+from econmotor.config.acceptance import Acceptance
 from econmotor.config.loading import (
     as_float,
     as_str,
@@ -36,7 +41,8 @@ from econmotor.config.task_economics import ECONOMICS_UNITS, TaskEconomics
 from econmotor.errors import ConfigError, UnknownNameError
 
 _PACKAGE_DIR = Path(__file__).parent
-_TASK_KEYS = ("description", "unit", "error_definition", "economics", "backends", "tags")
+_TASK_KEYS = ("description", "unit", "error_definition", "economics", "backends", "tags", "acceptance")
+_ACCEPTANCE_KEYS = ("max_error_rate", "min_units_per_hour", "error_name")
 
 
 @dataclass(frozen=True)
@@ -51,6 +57,12 @@ class TaskSpec:
     backends: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     tags: tuple[str, ...] = ()
     source: str = "<builtin>"
+    acceptance_rule: Acceptance | None = None
+
+    @property
+    def acceptance(self) -> Acceptance:
+        """The catalog's acceptance rule, or the default (no worse than a human)."""
+        return self.acceptance_rule or Acceptance.default_for(self.economics.error_rate_human)
 
     def backend_entry(self, backend: str) -> dict[str, Any]:
         """The backend's own settings for this task; a ConfigError if it cannot run it."""
@@ -122,6 +134,7 @@ def parse_task(task_id: str, data: Any, source: str | Path) -> TaskSpec:
     if not isinstance(tags, list) or not all(isinstance(t, str) for t in tags):
         raise ConfigError(source, f"{prefix}.tags", "expected a list of strings")
     return TaskSpec(
+        acceptance_rule=_parse_acceptance(data.get("acceptance"), economics, source, prefix),
         task_id=task_id,
         description=as_str(data.get("description", ""), source, f"{prefix}.description"),
         unit=as_str(data["unit"], source, f"{prefix}.unit"),
@@ -131,6 +144,28 @@ def parse_task(task_id: str, data: Any, source: str | Path) -> TaskSpec:
         tags=tuple(tags),
         source=str(source),
     )
+
+
+def _parse_acceptance(raw: Any, economics: TaskEconomics, source: str | Path, prefix: str) -> Acceptance | None:
+    if raw is None:
+        return None
+    key = f"{prefix}.acceptance"
+    raw = require_mapping(raw, source, key)
+    check_keys(raw, _ACCEPTANCE_KEYS, source, key)
+    default = Acceptance.default_for(economics.error_rate_human)
+    values: dict[str, Any] = {"error_name": as_str(raw.get("error_name", "error"), source, f"{key}.error_name")}
+    sources = dict(default.sources)
+    for name in ("max_error_rate", "min_units_per_hour"):
+        if name not in raw:
+            values[name] = getattr(default, name)
+            continue
+        entry = require_mapping(raw[name], source, f"{key}.{name}")
+        check_keys(entry, ("value", "source"), source, f"{key}.{name}", required=("value", "source"))
+        values[name] = as_float(entry["value"], source, f"{key}.{name}.value", allow_negative=False)
+        sources[name] = as_str(entry["source"], source, f"{key}.{name}.source")
+    if values["max_error_rate"] > 1:
+        raise ConfigError(source, f"{key}.max_error_rate.value", f"must be <= 1, got {values['max_error_rate']}")
+    return Acceptance(values["max_error_rate"], values["min_units_per_hour"], values["error_name"], sources)
 
 
 def read_task_file(path: str | Path) -> dict[str, TaskSpec]:

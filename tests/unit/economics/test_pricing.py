@@ -41,8 +41,8 @@ def test_worked_example_competitive_robot():
     assert p.robot_unit_cost_usd == pytest.approx(0.09324)
     assert p.human_unit_cost_usd == pytest.approx(0.30)
     assert p.spread_per_unit_usd == pytest.approx(0.20676)
-    assert p.recommended_price_usd_per_unit == pytest.approx(0.19662)
-    assert p.recommended_price_usd_per_robot_hour == pytest.approx(9.831)
+    assert p.price_usd_per_unit == pytest.approx(0.19662)
+    assert p.price_usd_per_robot_hour == pytest.approx(9.831)
     assert p.customer_saving_usd_per_hour == pytest.approx(5.169)
     assert p.break_even_hours == pytest.approx(35000 / 6.919)
     assert p.implied_wage_usd_per_hour == pytest.approx(13.0)
@@ -70,7 +70,7 @@ def test_damage_is_priced_beside_the_unit_cost():
 @pytest.mark.parametrize("share, price", [(0.0, 0.09324), (1.0, 0.30), (0.25, 0.09324 + 0.25 * 0.20676)])
 def test_spread_share_moves_the_price_between_cost_and_the_human_unit_cost(share, price):
     p = price_task(ECON, 50.0, 0.04, 0.1, PricingPolicy(share))
-    assert p.recommended_price_usd_per_unit == pytest.approx(price)
+    assert p.price_usd_per_unit == pytest.approx(price)
     assert p.customer_saving_usd_per_hour == pytest.approx((0.30 - price) * 50.0)
 
 
@@ -80,14 +80,14 @@ def test_uncompetitive_robot_is_priced_at_cost_and_costs_the_customer():
     p = price_task(ECON, 10.0, 0.0, 0.1)
     assert not p.competitive
     assert p.spread_per_unit_usd == pytest.approx(-0.1662)
-    assert p.recommended_price_usd_per_unit == pytest.approx(0.4662)
+    assert p.price_usd_per_unit == pytest.approx(0.4662)
     assert p.customer_saving_usd_per_hour == pytest.approx(-1.662)
     assert p.break_even_hours == pytest.approx(ECON.robot_lifetime_h)
 
 
 def test_robot_that_completes_nothing_has_infinite_price_and_no_break_even():
     p = price_task(ECON, 0.0, 0.0, 0.2)
-    assert math.isinf(p.robot_unit_cost_usd) and math.isinf(p.recommended_price_usd_per_unit)
+    assert math.isinf(p.robot_unit_cost_usd) and math.isinf(p.price_usd_per_unit)
     assert math.isinf(p.break_even_hours) and p.customer_saving_usd_per_hour == 0.0
     assert p.wage_parity == 0.0 and not p.competitive
 

@@ -41,9 +41,14 @@ RAW = [
 ]
 
 
-def make_doc(curve=None, notes="n <b>", share=0.5) -> dict:
+#: ten steady one-hour shifts: 609 dishes, no error -> the error rate's 95% upper bound is 0.0049 (deployable)
+STEADY = [{"units_completed": 60 + (i % 3), "errors": 0, "episode_length_s": 3600, "energy_wh": 100.0 + i}
+          for i in range(10)]
+
+
+def make_doc(curve=None, notes="n <b>", share=0.5, raw_episodes=RAW) -> dict:
     task = get_task("dishwashing")
-    raw, econ, episodes = summarize_episodes(RAW, task.economics)
+    raw, econ, episodes = summarize_episodes(raw_episodes, task.economics)
     pricing = price_evaluation(task.economics, econ, episodes, PricingPolicy(share))
     ctx = ReportContext(task=task, backend="dishwashing", objective=EconomicObjectiveSpec(name="obj"),
                         datapack_ids=("dp1",), pricing=pricing, raw_metrics=raw, econ_metrics=econ,
@@ -61,7 +66,7 @@ def test_document_is_versioned_strict_json_with_hand_computed_prices():
     # cost/h = 1.75 + 0.9 + 2.0 + 0.12*0.10667 = 4.6628; unit cost = 4.6628/33.333 = 0.139884
     assert agg["mpl_units_per_hour"] == pytest.approx(100 / 3)
     assert agg["robot_unit_cost_usd"] == pytest.approx((4.65 + 0.12 * 0.16 / 1.5) / (100 / 3))
-    assert agg["recommended_price_usd_per_unit"] == pytest.approx(
+    assert agg["price_usd_per_unit"] == pytest.approx(
         agg["robot_unit_cost_usd"] + 0.5 * (0.30 - agg["robot_unit_cost_usd"]))
     # the third shift completed nothing: its unit cost is infinite -> null in JSON, and p90 with it
     assert doc["episodes"][2]["robot_unit_cost_usd"] is None
@@ -75,14 +80,26 @@ def test_document_is_versioned_strict_json_with_hand_computed_prices():
 
 def test_table_rows_and_headline_read_the_document():
     doc = make_doc()
-    rows = {r[0]: r for r in table_rows(doc)}
-    assert rows["human unit cost"][1:] == ("0.3",) * 5 + ("USD/unit",)
-    assert rows["robot unit cost"][5] == "n/a"  # p90 is infinite
-    assert "Charge " in headline(doc) and "cheaper than a human" in headline(doc)
-    assert "customer loses" not in headline(doc)  # 5 errors in 55 attempts still beat a human after damage
+    rows = {r[0].split(" (")[0]: r for r in table_rows(doc)}
+    # label, aggregate, interval, mean, p10, p50, p90, unit
+    assert rows["human unit cost"][1] == "0.3" and rows["human unit cost"][3:] == ("0.3",) * 4 + ("USD/unit",)
+    assert rows["robot unit cost"][6] == "n/a"  # p90 is infinite
     assert rows["expected damage per unit"][1] == fmt(5 / 55)  # c_d 1.0 x pooled error rate
-    doc["pricing"]["aggregate"].update(damage_usd_per_unit=1.65, customer_saving_after_damage_usd_per_hour=-12.5)
-    assert "With damage of 1.65 USD per" in headline(doc) and "the customer loses 12.5 USD/h" in headline(doc)
+    # 5 errors in 55 dishes: the error rate's 95% upper bound 0.182 exceeds the human's 0.05 -> no price
+    text = headline(doc)
+    assert text.startswith("Not deployable: errors in 2 of 3 episodes (5 in 55 attempted); 95% upper bound on "
+                           "the error rate 0.182 vs 0.05 accepted")
+    assert "Charge" not in text and "Evidence: 3 evaluation episodes, 55 units attempted" in text
+    steady = make_doc(raw_episodes=STEADY)
+    text = headline(steady)
+    rec = steady["recommendation"]
+    assert text.startswith("Deployable: errors in none of 10 episodes (0 in 609 attempted); 95% upper bound on "
+                           "the error rate 0.00491")  # 1 - 0.05**(1/609)
+    assert f"Charge {fmt(rec['price_usd_per_unit'])} USD per clean dish" in text
+    assert "robot's labour is worth" in text and "x a human's wage" in text and "10 robot-hours" in text
+    assert "customer loses" not in text
+    steady["pricing"]["aggregate"].update(damage_usd_per_unit=1.65, customer_saving_after_damage_usd_per_hour=-12.5)
+    assert "With damage of 1.65 USD per" in headline(steady) and "the customer loses 12.5 USD/h" in headline(steady)
     assert fmt(None) == "n/a" and fmt(math.inf) == "n/a" and fmt(12345.6) == "12,346" and fmt(0.123456) == "0.1235"
 
 
@@ -99,7 +116,8 @@ def test_markdown_and_html_are_complete_and_self_contained():
     plots = render_plots(doc)
     md = render_markdown(doc, {k: f"p/{k}.png" for k in plots})
     assert md.startswith("# Task pricing report: dishwashing")
-    assert "| recommended price per unit |" in md and "![training_curve](p/training_curve.png)" in md
+    assert "| price per unit at the point estimate |" in md and "![training_curve](p/training_curve.png)" in md
+    assert "## Verdict: not deployable" in md and "Recommended price" not in md
     assert "| wage_human_usd_per_hour | 18 | USD/h |" in md
     page = render_html(doc, plots)
     assert "n &lt;b&gt;" in page and "<b>" not in page  # notes are escaped

@@ -27,7 +27,10 @@ def test_shipped_tasks_have_sources_for_every_number():
 def test_dishwashing_economics_match_econ_context_defaults():
     econ = get_task("dishwashing").economics
     assert (econ.wage_human_usd_per_hour, econ.mp_human_units_per_hour, econ.value_per_unit) == (18.0, 60.0, 0.30)
-    assert get_task("dishwashing_realistic").backend_entry("dishwashing") == {"econ_preset": "realistic"}
+    # the workcell's energy is a UR5e-class arm's 200 W typical power over a 37.5 s attempt (1.6/min)
+    assert get_task("dishwashing_realistic").backend_entry("dishwashing") == {
+        "econ_preset": "realistic", "econ_overrides": {"energy_Wh_per_attempt": 2.08}}
+    assert 200 * 37.5 / 3600 == pytest.approx(2.08, abs=0.005)
 
 
 def test_user_file_extends_catalog(tmp_path):

@@ -30,6 +30,8 @@ SIMULATORS = ("auto", "isaacgym", "isaacsim", "mjwarp", "mujoco")
 ALGOS = ("ppo", "fast_sac")
 PPO_STEPS_PER_ENV = 24
 CPU_WARP_MAX_ENVS = 64
+#: envs when the request leaves num_envs to the backend (0): Holosoma's own G1/T1 presets use 4096 on a GPU.
+DEFAULT_GPU_ENVS = 4096
 #: default cap on environment steps when training on the CPU (about 2-3 min for PPO on classic MuJoCo).
 DEFAULT_CPU_MAX_ENV_STEPS = 9_600
 
@@ -141,11 +143,15 @@ def plan_training(
     """Adapt ``(num_envs, max_steps)`` to the simulator; see the module docstring for the rules."""
     if algo not in ALGOS:
         raise ConfigError("<holosoma backend>", "algo", f"unknown algorithm {algo!r}", ALGOS)
-    if num_envs < 1 or max_steps < 1:
-        raise ConfigError("<holosoma backend>", "num_envs/max_steps", "must both be >= 1")
+    if num_envs < 0 or max_steps < 1:
+        raise ConfigError("<holosoma backend>", "num_envs/max_steps",
+                          f"num_envs must be >= 0 (0: the simulator's default) and max_steps >= 1, got "
+                          f"{num_envs} and {max_steps}")
     messages: list[str] = []
-    envs, steps = num_envs, max_steps
     on_cpu = device == "cpu"
+    if num_envs == 0:  # the simulator's default: no adaptation to announce
+        num_envs = 1 if simulator == "mujoco" else (CPU_WARP_MAX_ENVS if on_cpu else DEFAULT_GPU_ENVS)
+    envs, steps = num_envs, max_steps
     if simulator == "mujoco" and envs != 1:
         messages.append(f"num_envs {num_envs} -> 1: Holosoma's classic MuJoCo simulator runs exactly one env "
                         "(use simulator mjwarp or isaacgym on a GPU machine for parallel envs)")

@@ -1,0 +1,241 @@
+"""How far the evaluation episodes let us trust a price: intervals, evidence and the deployability verdict.
+
+Every headline figure of a report is a point estimate from a handful of episodes; this
+module says how uncertain it is and whether the robot may be priced at all.
+
+- **Error rate**: the exact (Clopper-Pearson) binomial bounds on ``errors`` in
+  ``attempted`` units. Each end is a one-sided bound at ``confidence`` (95%), so the two
+  together form a ``2*confidence - 1`` (90%) interval::
+
+      upper = Beta.ppf(confidence, k + 1, n - k)      (1 when k = n)
+      lower = Beta.ppf(1 - confidence, k, n - k + 1)  (0 when k = 0)
+
+  Worked example: 0 errors in 9 attempts -> upper = 1 - 0.05**(1/9) = 0.2831.
+  Fractional counts (legs counted fractionally) use the same Beta quantiles.
+- **MPL, implied wage, unit cost, spread, price**: a seeded bootstrap over episodes
+  (``resamples`` resamples of the episodes with replacement; each resample is pooled the
+  way the aggregate is, ratios of sums, and priced by
+  :func:`econmotor.economics.pricing.price_task`); the interval is the
+  ``1 - confidence`` and ``confidence`` quantiles of the resampled values.
+- **The conservative price**: :func:`price_task` on the unfavourable end of every
+  measured input, MPL at its lower bound, error rate and energy per hour at their upper
+  bounds. It covers the robot's cost unless it performs worse than every bound.
+- **The verdict** (:func:`decide`): deployable when the robot completed work, the error
+  rate's upper bound is within the task's acceptance limit (``max_error_rate``, the
+  human's rate unless the catalog says otherwise) and the MPL lower bound reaches the
+  task's ``min_units_per_hour``. Otherwise the reasons say why, in words.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+from scipy.stats import beta
+
+from econmotor.config.acceptance import Acceptance
+from econmotor.config.task_economics import TaskEconomics
+from econmotor.economics import labour
+from econmotor.economics.pricing import PricingPolicy, TaskPrice, price_task
+
+#: one-sided confidence of every bound (each end of a 90% interval).
+CONFIDENCE = 0.95
+#: bootstrap resamples and seed (fixed: the same episodes always give the same interval).
+BOOTSTRAP_RESAMPLES = 2000
+BOOTSTRAP_SEED = 20240601
+#: TaskPrice fields given a bootstrap interval, with the end that is unfavourable to the buyer's case.
+BOOTSTRAP_FIELDS: dict[str, str] = {
+    "mpl_units_per_hour": "low",
+    "energy_kwh_per_hour": "high",
+    "implied_wage_usd_per_hour": "low",
+    "wage_parity": "low",
+    "robot_unit_cost_usd": "high",
+    "spread_per_unit_usd": "low",
+    "price_usd_per_unit": "high",
+    "price_usd_per_robot_hour": "high",
+}
+
+
+def clopper_pearson(errors: float, attempted: float, confidence: float = CONFIDENCE) -> tuple[float, float]:
+    """(lower, upper) exact binomial bounds on a rate, each one-sided at ``confidence``.
+
+    With nothing attempted the rate is unknown: ``(0.0, 1.0)``.
+    """
+    k, n = float(errors), float(attempted)
+    if n <= 0:
+        return 0.0, 1.0
+    k = min(max(k, 0.0), n)
+    lower = 0.0 if k <= 0 else float(beta.ppf(1.0 - confidence, k, n - k + 1.0))
+    upper = 1.0 if k >= n else float(beta.ppf(confidence, k + 1.0, n - k))
+    return lower, upper
+
+
+@dataclass(frozen=True)
+class Interval:
+    """A point estimate with its bounds (each one-sided at the report's confidence)."""
+
+    point: float
+    low: float
+    high: float
+    method: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """How much the figures rest on."""
+
+    episodes: int
+    units_attempted: float
+    units_completed: float
+    errors: float
+    episodes_with_errors: int
+    robot_hours: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def _pooled(rows: np.ndarray) -> tuple[float, float, float]:
+    """(MPL, error rate, kWh/h) of summed episode columns [hours, completed, attempted, errors, Wh]."""
+    hours, units, attempted, errors, wh = rows
+    return (labour.mpl_units_per_hour(units, hours), labour.error_rate(errors, attempted),
+            wh / 1000.0 / hours if hours > 0 else 0.0)
+
+
+def _columns(episodes: Sequence[Mapping[str, Any]]) -> np.ndarray:
+    def num(ep: Mapping[str, Any], key: str, default: float = 0.0) -> float:
+        value = ep.get(key)
+        return float(value) if value is not None else default
+
+    out = []
+    for ep in episodes:
+        units, errors = num(ep, "units_completed"), num(ep, "errors")
+        attempted = num(ep, "units_attempted", units + errors)
+        hours = num(ep, "hours", num(ep, "episode_length_s") / 3600.0)
+        out.append((hours, units, attempted, errors, num(ep, "energy_wh")))
+    return np.asarray(out, dtype=np.float64).reshape(len(out), 5)
+
+
+@dataclass(frozen=True)
+class Uncertainty:
+    """Intervals on the headline figures, the evidence and the conservative price."""
+
+    confidence: float
+    evidence: Evidence
+    intervals: dict[str, Interval]
+    conservative: TaskPrice
+    resamples: int
+    seed: int
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"confidence": self.confidence, "interval_coverage": 2 * self.confidence - 1,
+                "resamples": self.resamples, "seed": self.seed, "evidence": self.evidence.to_dict(),
+                "intervals": {k: v.to_dict() for k, v in self.intervals.items()},
+                "conservative": self.conservative.to_dict()}
+
+
+def assess(economics: TaskEconomics, episodes: Sequence[Mapping[str, Any]], point: TaskPrice,
+           policy: PricingPolicy = PricingPolicy(), confidence: float = CONFIDENCE,
+           resamples: int = BOOTSTRAP_RESAMPLES, seed: int = BOOTSTRAP_SEED) -> Uncertainty:
+    """Intervals for ``point`` (the pooled price of ``episodes``) from the episodes themselves."""
+    cols = _columns(episodes)
+    total = cols.sum(axis=0)
+    evidence = Evidence(episodes=len(episodes), units_attempted=float(total[2]), units_completed=float(total[1]),
+                        errors=float(total[3]), episodes_with_errors=int((cols[:, 3] > 0).sum()),
+                        robot_hours=float(total[0]))
+    lo_q, hi_q = 1.0 - confidence, confidence
+    intervals: dict[str, Interval] = {}
+    err_lo, err_hi = clopper_pearson(total[3], total[2], confidence)
+    intervals["error_rate"] = Interval(point.error_rate, err_lo, err_hi, "Clopper-Pearson exact binomial")
+    samples: dict[str, list[float]] = {name: [] for name in BOOTSTRAP_FIELDS}
+    if len(episodes):
+        rng = np.random.default_rng(seed)
+        picks = rng.integers(0, len(episodes), size=(resamples, len(episodes)))
+        for pick in picks:
+            mpl, err, kwh = _pooled(cols[pick].sum(axis=0))
+            price = price_task(economics, mpl, err, kwh, policy)
+            for name in BOOTSTRAP_FIELDS:
+                samples[name].append(getattr(price, name))
+    method = f"bootstrap over {len(episodes)} episodes, {resamples} resamples, seed {seed}"
+    for name in BOOTSTRAP_FIELDS:
+        values = np.asarray(samples[name], dtype=np.float64)
+        value = getattr(point, name)
+        if values.size == 0:
+            intervals[name] = Interval(value, math.nan, math.nan, method)
+            continue
+        # 'inverted_cdf' keeps inf (a resample that completed nothing) instead of nan
+        low, high = (float(np.quantile(values, q, method="inverted_cdf")) for q in (lo_q, hi_q))
+        intervals[name] = Interval(value, min(low, value), max(high, value), method)
+    mpl_lo = intervals["mpl_units_per_hour"].low
+    kwh_hi = intervals["energy_kwh_per_hour"].high
+    conservative = price_task(economics, max(mpl_lo, 0.0) if math.isfinite(mpl_lo) else 0.0, err_hi,
+                              kwh_hi if math.isfinite(kwh_hi) else point.energy_kwh_per_hour, policy)
+    return Uncertainty(confidence, evidence, intervals, conservative, resamples, seed)
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Deployable or not, and why (``reasons`` is empty when deployable)."""
+
+    deployable: bool
+    reasons: tuple[str, ...]
+    checks: tuple[dict[str, Any], ...]
+    acceptance: Acceptance
+
+    @property
+    def label(self) -> str:
+        return "deployable" if self.deployable else "not deployable"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"deployable": self.deployable, "label": self.label, "reasons": list(self.reasons),
+                "checks": list(self.checks), "acceptance": self.acceptance.to_dict()}
+
+
+def _g(value: float) -> str:
+    return f"{value:,.0f}" if abs(value) >= 1000 else f"{value:.3g}"
+
+
+def _plural(name: str, count: float) -> str:
+    return name if count == 1 else (name[:-1] + "ies" if name.endswith("y") else name + "s")
+
+
+def decide(acceptance: Acceptance, uncertainty: Uncertainty, human_error_rate: float, unit: str) -> Verdict:
+    """Apply the acceptance rule to the evaluation (module docstring)."""
+    ev, iv = uncertainty.evidence, uncertainty.intervals
+    pct = f"{uncertainty.confidence:.0%}"
+    err, mpl = iv["error_rate"], iv["mpl_units_per_hour"]
+    name = acceptance.error_name
+    reasons: list[str] = []
+    checks: list[dict[str, Any]] = []
+
+    worked = ev.units_completed > 0
+    checks.append({"name": "completes work", "measured": ev.units_completed, "limit": 0.0, "passed": worked,
+                   "text": f"{_g(ev.units_completed)} units ({unit}) completed in {ev.episodes} episodes"})
+    if not worked:
+        reasons.append(f"completed no unit ({unit}) in {ev.episodes} evaluation episodes")
+
+    err_ok = err.high <= acceptance.max_error_rate
+    in_episodes = (f"in {ev.episodes_with_errors} of {ev.episodes} episodes" if ev.episodes_with_errors
+                   else f"in none of {ev.episodes} episodes")
+    text = (f"{_plural(name, 2)} {in_episodes} ({_g(ev.errors)} in {_g(ev.units_attempted)} attempted); "
+            f"{pct} upper bound on the {name} rate {_g(err.high)} vs {_g(acceptance.max_error_rate)} accepted "
+            f"({_g(human_error_rate)} for a human)")
+    checks.append({"name": "error rate", "measured": err.point, "bound": err.high,
+                   "limit": acceptance.max_error_rate, "passed": err_ok, "text": text})
+    if not err_ok and worked:
+        reasons.append(text)
+
+    mpl_ok = worked and mpl.low >= acceptance.min_units_per_hour
+    text = (f"{pct} lower bound on throughput {_g(mpl.low)} units/h vs at least "
+            f"{_g(acceptance.min_units_per_hour)} required")
+    checks.append({"name": "throughput", "measured": mpl.point, "bound": mpl.low,
+                   "limit": acceptance.min_units_per_hour, "passed": mpl_ok, "text": text})
+    if worked and not mpl_ok:
+        reasons.append(text)
+    return Verdict(not reasons, tuple(reasons), tuple(checks), acceptance)
