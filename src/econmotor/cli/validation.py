@@ -98,10 +98,12 @@ FLAG_RULES: dict[str, Rule] = {
 
 
 def check_flags(**values: Any) -> None:
-    """Check each ``name=value`` against the rule of ``--name`` (underscores become dashes)."""
+    """Check each ``name=value`` against the rule of ``--name`` (underscores become dashes); a repeatable
+    flag's list is checked item by item."""
     for name, value in values.items():
         flag = "--" + name.replace("_", "-")
-        FLAG_RULES[flag].check(flag, value)
+        for item in value if isinstance(value, (list, tuple)) else (value,):
+            FLAG_RULES[flag].check(flag, item)
 
 
 def check_choice(flag: str, value: str | None, choices: Iterable[str]) -> str | None:
