@@ -9,7 +9,7 @@ from typing import Any
 import typer
 from rich.table import Table
 
-from econmotor.cli._app import app, console, progress_bars, set_cpu_threads
+from econmotor.cli._app import announce_device, app, console, progress_bars, set_cpu_threads
 from econmotor.config.objective_profile import OBJECTIVE_PRESETS, ObjectiveVector
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.datapacks import load_datapack_configs
@@ -90,13 +90,14 @@ def train_command(
         extra["resume"] = True
     if algorithm:
         extra["algorithm"] = algorithm
-    if (extra or vec_env) and backend != "mujoco":
+    if (extra and backend not in ("mujoco", "mjx")) or (vec_env and backend != "mujoco"):
         raise ConfigError("<command line>", "--resume/--algorithm/--vec-env",
-                          f"backend '{backend}' does not support them", ["mujoco"])
+                          f"backend '{backend}' does not support them", ["mujoco", "mjx (--resume, --algorithm)"])
     motor = make_motor_backend(backend, **({"vec_env": vec_env} if vec_env else {}))
+    announce_device(motor)
     with progress_bars() as progress:
         result = motor.train_policy(task, objective, [c.id for c in configs],
-                                    num_envs if (num_envs > 0 or backend == "mujoco") else 1, max_steps, seed,
+                                    num_envs if (num_envs > 0 or backend in ("mujoco", "mjx")) else 1, max_steps, seed,
                                     datapack_configs=configs, output_dir=output_dir, eval_episodes=eval_episodes,
                                     progress=progress, **extra)
     render_result(f"{task} on {backend}: {result.policy_id}", result.raw_metrics, result.econ_metrics)
@@ -126,6 +127,7 @@ def evaluate_command(
     objective = resolve_objective(objective_config, objective_preset)
     configs = load_datapack_configs(datapacks)
     motor = make_motor_backend(backend)
+    announce_device(motor, "evaluating")
     with progress_bars() as progress:
         result = motor.evaluate_policy(policy, task, objective, episodes, seed, datapack_configs=configs,
                                        output_dir=output_dir, progress=progress)
