@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from operator import mul
 from typing import Any
 
 #: overlay keys in the order :func:`running_metrics` returns them.
@@ -96,7 +97,7 @@ def high_water_units(x: Any, best_x: Any, leg_distance_m: float, xp: Any) -> tup
 def mechanical_power_w(qfrc_actuator: Any, qvel: Any, xp: Any) -> Any:
     """``sum_j |qfrc_actuator_j * qvel_j|``, W, over the last axis (the actuated dofs)."""
     if xp is PY:
-        return sum([abs(f * v) for f, v in zip(qfrc_actuator, qvel, strict=True)])
+        return sum(map(abs, map(mul, qfrc_actuator, qvel)))
     return xp.sum(xp.abs(qfrc_actuator * qvel), axis=-1)
 
 
@@ -225,18 +226,26 @@ def potential_coefficients(factors: Mapping[str, float], dt_s: float) -> tuple[f
     )
 
 
-def overlay_potential(coef: Sequence[float], steps: Any, units: Any, errors: Any, energy_wh: Any, risk_sum: Any,
-                      novelty_sum: Any, pose_sum: Any, xp: Any) -> Any:
-    """``J(t) = sum_k factor_k * m_k(t)`` from the running sums (``coef``: :func:`potential_coefficients`)."""
+def overlay_potential(coef: Sequence[float], sums: Any, xp: Any) -> Any:
+    """``J(t) = sum_k factor_k * m_k(t)`` from an episode's running sums.
+
+    ``coef``: :func:`potential_coefficients`; ``sums``: any object with the attributes ``steps``,
+    ``units``, ``errors``, ``energy_wh``, ``risk_sum``, ``novelty_sum`` and ``pose_sum`` (the
+    mujoco backend's ``EpisodeTally``; a namespace of traced arrays in the mjx backend). A sum
+    whose coefficient is 0 is not read.
+    """
     c_units, c_risk, c_novelty, c_error, c_energy, c_pose = coef
-    per_step = c_units * units + c_risk * risk_sum
+    units = sums.units
+    per_step = c_units * units + c_risk * sums.risk_sum
     if c_novelty:
-        per_step = per_step + c_novelty * novelty_sum
-    j = safe_div(per_step, steps, xp) + c_energy * energy_wh
+        per_step = per_step + c_novelty * sums.novelty_sum
+    j = safe_div(per_step, sums.steps, xp) + c_energy * sums.energy_wh
     if c_pose:
-        j = j + c_pose * pose_sum
+        j = j + c_pose * sums.pose_sum
     if c_error:
-        j = j + c_error * safe_div(errors, units + errors, xp)
+        errors = sums.errors
+        if xp is not PY or errors:  # no errors: the error rate is 0
+            j = j + c_error * safe_div(errors, units + errors, xp)
     return j
 
 

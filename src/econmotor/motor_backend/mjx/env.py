@@ -94,7 +94,7 @@ def _merge_datapacks(datapacks: Sequence[Any]) -> tuple[dict[str, Any], dict[str
 def parse_mjx_randomization(datapacks: Sequence[Any]) -> DomainRandomization:
     """The datapacks' domain randomization the mjx backend honours; anything else is a ConfigError."""
     dr, cur, clips, source = _merge_datapacks(datapacks)
-    randomization, curriculum = parse_randomization(dr, cur, source)
+    randomization, _ = parse_randomization(dr, cur, source)
     for key in dr:
         if key not in SUPPORTED_DR_KEYS and not (key == "terrain" and dr[key] == "flat"):
             raise ConfigError(source, f"domain_randomization.{key}", "the mjx backend cannot honour this option",
@@ -231,8 +231,12 @@ class MjxCourierEnv:
         else:
             qvel = jax.random.uniform(k_vel, (nv,), minval=-scale, maxval=scale)
         data = self._template.replace(qpos=qpos, qvel=qvel)
-        if self._needs_cfrc:  # cinert, cvel, qfrc_actuator in the obs (cfrc_ext stays 0, as after mj_forward)
-            data = mjx.forward(m, data)
+        if self.robot.robot == "humanoid":
+            # Humanoid-v5's reset obs holds cinert and cvel (after Gymnasium's mj_forward); qfrc_actuator
+            # (ctrl = 0) and cfrc_ext (not computed by mj_forward) read 0 there as in the template. The
+            # kinematics alone give them, far cheaper to compile and run than a whole mjx.forward; the
+            # next mjx.step recomputes everything else from qpos and qvel.
+            data = mjx.com_vel(m, mjx.com_pos(m, mjx.kinematics(m, data)))
         obs = self._noisy_obs(self._obs(data, m), k_obs)
         zero = jnp.zeros((), jnp.float32)
         episode = {k: zero for k in EPISODE_KEYS}
