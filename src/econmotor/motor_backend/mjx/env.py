@@ -33,6 +33,7 @@ Float32 here (JAX's default) vs float64 in MuJoCo C: per-step figures agree to ~
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from types import SimpleNamespace
 from typing import Any, NamedTuple
 
 import jax
@@ -292,8 +293,7 @@ class MjxCourierEnv:
             "best_x": best_x,
             "x0": ep["x0"],
         }
-        j = cf.overlay_potential(self._coef, new["steps"], new["units"], new["errors"], new["energy_wh"],
-                                 new["risk_sum"], new["novelty_sum"], 0.0, jnp)
+        j = cf.overlay_potential(self._coef, SimpleNamespace(**new, pose_sum=0.0), jnp)
         overlay_r = j - ep["overlay_j"]
         new["overlay_j"] = j
         reward = (task_r if self.keep_task_reward else 0.0) + overlay_r
