@@ -117,11 +117,14 @@ class MjxCourierEnv:
         seed: kept for the caller's records; randomness comes from the keys given to ``reset``.
         catalog: a :class:`~econmotor.tasks.TaskCatalog` (default: the shipped one).
         keep_task_reward: add the overlay to the task reward (True) or use it alone.
+        economics: False strips the metering, novelty table and overlay from the step (the
+            reward is the task's, ``finished`` holds only the return and the length): the
+            baseline ``benchmarks/mjx_throughput.py`` times the economics against.
     """
 
     def __init__(self, task_id: str, *, objective: EconomicObjectiveSpec | None = None,
                  datapacks: Sequence[Any] = (), seed: int = 0, catalog: Any = None,
-                 keep_task_reward: bool = True) -> None:
+                 keep_task_reward: bool = True, economics: bool = True) -> None:
         catalog = catalog if catalog is not None else load_catalog()
         spec = catalog.get(task_id)
         self.task_id, self.seed = task_id, int(seed)
@@ -136,6 +139,7 @@ class MjxCourierEnv:
         self.control_dt_s = float(self.mj_model.opt.timestep) * self.frame_skip
         self.max_episode_steps = int(self.robot.max_episode_steps)
         self.keep_task_reward = bool(keep_task_reward)
+        self.economics = bool(economics)
         self.healthy = cf.healthy_rule(self.robot.robot, p)
         ctrl = np.asarray(self.mj_model.actuator_ctrlrange, dtype=np.float32)
         self.action_low, self.action_high = ctrl[:, 0].copy(), ctrl[:, 1].copy()
@@ -144,7 +148,7 @@ class MjxCourierEnv:
         self._free_root = int(self.mj_model.jnt_type[0]) == int(mujoco.mjtJoint.mjJNT_FREE)
         self._needs_cfrc = self.robot.robot in ("ant", "humanoid")
         # the overlay: scales and human-baseline references as the mujoco backend compiles them
-        scales = dict(compile_economic_overlay(objective)) if objective is not None else {}
+        scales = dict(compile_economic_overlay(objective)) if objective is not None and economics else {}
         unknown = [k for k in scales if k not in TERM_METRICS or k == "pose_tracking"]
         if unknown:
             raise ConfigError("objective", f"extra_weights.{unknown[0]}", "the mjx backend has no reward term of this "
@@ -157,7 +161,8 @@ class MjxCourierEnv:
         self.references = {k: v for k, v in refs.items() if k in scales}
         self.factors = cf.overlay_factors(self.scales, self.references)
         self._coef = cf.potential_coefficients(self.factors, self.control_dt_s)
-        self.metric_keys: tuple[str, ...] = BASE_METRIC_KEYS + tuple(f"overlay_{k}_raw" for k in self.scales)
+        self.metric_keys: tuple[str, ...] = BASE_METRIC_KEYS + tuple(f"overlay_{k}_raw" for k in self.scales) \
+            if economics else ("length_steps", "return", "fell")
         self._init_qpos = jnp.asarray(self.mj_model.qpos0, dtype=jnp.float32)
         self._template = mjx.make_data(self.model)
         self.observation_size = int(jax.eval_shape(lambda d: self._obs(d, self.model), self._template).shape[0])
@@ -274,6 +279,10 @@ class MjxCourierEnv:
         fell = jnp.logical_not(healthy) if p["terminate_when_unhealthy"] else jnp.zeros((), bool)
         task_r = self._task_reward(x_before, data, m, action, healthy.astype(jnp.float32))
         obs = self._noisy_obs(self._obs(data, m), k_obs)
+        if not self.economics:
+            new = {**ep, "steps": ep["steps"] + 1.0, "task_return": ep["task_return"] + task_r}
+            finished = {"length_steps": new["steps"], "return": new["task_return"], "fell": fell.astype(jnp.float32)}
+            return data, obs, task_r, fell, new, counts, finished
         # metering
         gain, best_x = cf.high_water_units(qpos[0], ep["best_x"], s.leg_distance_m, jnp)
         lo, hi = self._dof_lo, self._dof_hi
@@ -330,7 +339,7 @@ class MjxCourierEnv:
         data, obs, episode, dr = jax.vmap(self._reset_one)(reset_keys)
         zeros = jnp.zeros((num_envs,), jnp.float32)
         finished = {k: zeros for k in self.metric_keys}
-        counts = jnp.zeros((num_envs, self.settings.novelty_table_size), jnp.int32)
+        counts = jnp.zeros((num_envs, self.settings.novelty_table_size if self.economics else 1), jnp.int32)
         return EnvState(data, obs, zeros, zeros, zeros, episode, finished, env_keys, counts, dr)
 
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
@@ -362,6 +371,8 @@ class MjxCourierEnv:
         Keys and types as ``mujoco/evaluation.py``'s ``flatten_episode``: the meter's raw metrics,
         ``overlay_return``, ``total_return`` and ``overlay_<key>_raw`` / ``overlay_<key>_weighted``.
         """
+        if not self.economics:
+            raise ValueError("an env built with economics=False has no raw economic metrics")
         cols = {k: np.asarray(v, dtype=np.float64).reshape(-1) for k, v in finished.items()}
         n = len(next(iter(cols.values()))) if cols else 0
         rows = []

@@ -34,19 +34,10 @@ OWN_KEYS = ("inherit", "num_envs", "cpu_num_envs_cap", "normalize_obs", "checkpo
 
 @dataclass(frozen=True)
 class MjxTaskSettings:
-    """How the mjx backend runs one catalog task."""
+    """How the mjx backend runs one catalog task; the :data:`INHERITED_KEYS` read through to ``metering``."""
 
     task_id: str
-    env_id: str
-    leg_distance_m: float = 10.0
-    drivetrain_efficiency: float = 0.6
-    idle_power_w: float = 20.0
-    tilt_margin_rad: float = 0.2
-    fall_tilt_rad: float = 1.0
-    novelty_dims: int = 5
-    novelty_bin: float = 0.25
-    overlay_normalization: str = "human_baseline"
-    env_kwargs: dict[str, Any] = field(default_factory=dict)
+    metering: MujocoTaskSettings  # env_id, leg_distance_m, ... validated by the mujoco backend's parser
     num_envs: int = 2048
     cpu_num_envs_cap: int = 64
     normalize_obs: bool = True
@@ -55,8 +46,15 @@ class MjxTaskSettings:
     ppo: dict[str, Any] = field(default_factory=dict)
     source: str = "<catalog>"
 
+    def __getattr__(self, name: str) -> Any:
+        if name in INHERITED_KEYS:
+            return getattr(self.metering, name)
+        raise AttributeError(name)
+
     def to_dict(self) -> dict[str, Any]:
-        return {f.name: getattr(self, f.name) for f in fields(self)}
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "metering"}
+        out.update({k: getattr(self.metering, k) for k in INHERITED_KEYS})
+        return out
 
 
 def parse_mjx_settings(spec: TaskSpec) -> MjxTaskSettings:
@@ -77,8 +75,7 @@ def parse_mjx_settings(spec: TaskSpec) -> MjxTaskSettings:
         proxy = TaskSpec(spec.task_id, spec.description, spec.unit, spec.error_definition, spec.economics,
                          {"mujoco": metering}, spec.tags, src)
         base = parse_mujoco_settings(proxy)
-    kw: dict[str, Any] = {k: getattr(base, k) for k in INHERITED_KEYS}
-    kw.update(task_id=spec.task_id, source=src)
+    kw: dict[str, Any] = {"task_id": spec.task_id, "metering": base, "source": src}
     for name in ("num_envs", "cpu_num_envs_cap", "checkpoint_every_steps", "novelty_table_size"):
         if name in entry:
             kw[name] = as_int(entry[name], src, key(name), min_value=1)

@@ -308,6 +308,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
     def episode_raw_metrics(self, fell: bool, with_pose: bool = False) -> dict[str, Any]:
         """The episode's raw metrics so far (keys in the module docstring)."""
         t = self.tally
+        _, _, _, risk_score, novelty_score, _ = t.running_metrics()
         out: dict[str, Any] = {
             "units_completed": t.units,
             "units_attempted": t.units + t.errors,
@@ -316,8 +317,8 @@ class EconomicMeteringWrapper(gym.Wrapper):
             "length_steps": float(t.steps),
             "control_dt_s": self.dt_s,
             "energy_wh": t.energy_wh,
-            "risk_score": t.risk_score(),
-            "novelty_score": t.novelty_score(),
+            "risk_score": risk_score,
+            "novelty_score": novelty_score,
             "return": t.task_return,
             "forward_distance_m": self._best_x - self._x0,
             "termination_reason": "fall" if fell else "max_steps",
