@@ -65,7 +65,13 @@ def test_report_on_mjx_trains_evaluates_records_and_writes_reports(workdir: Path
     (run_dir,) = [p for p in (workdir / "runs").rglob("run_config.json") if "eval" not in p.parent.name]
     config = json.loads(run_dir.read_text())
     assert config["backend"] == "mjx" and config["device"].startswith("CPU") and config["num_envs"] == 8
-    assert (run_dir.parent / "policy.onnx").is_file() and list((run_dir.parent / "tb").rglob("events.*"))
+    assert (run_dir.parent / "policy.onnx").is_file()
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    (events,) = (run_dir.parent / "tb").rglob("events.*")
+    tags = set(EventAccumulator(str(events)).Reload().Tags()["scalars"])
+    assert {"rollout/ep_rew_mean", "overlay/return", "econ/energy_wh", "train/value_loss"} <= tags
+    assert {f"overlay/{k}_{kind}" for k in config["overlay"] for kind in ("raw", "weighted")} <= tags
 
 
 @pytest.mark.slow

@@ -19,6 +19,7 @@ lets later processes skip most of it.
 from __future__ import annotations
 
 import json
+import math
 import os
 import time
 from collections.abc import Sequence
@@ -150,10 +151,7 @@ class MjxBackend:
     def ppo_config(self, settings: MjxTaskSettings, overrides: dict[str, Any] | None) -> ppo.PPOConfig:
         source = f"{settings.source}: backend_entries.mjx.{settings.task_id}.ppo"
         cfg = ppo.PPOConfig.from_mapping({"normalize_obs": settings.normalize_obs, **settings.ppo}, source)
-        if overrides:
-            cfg = replace(cfg, **vars(ppo.PPOConfig.from_mapping(
-                {**cfg.to_dict(), **overrides}, "<hyperparameters>")))
-        return cfg
+        return ppo.PPOConfig.from_mapping({**cfg.to_dict(), **overrides}, "<hyperparameters>") if overrides else cfg
 
     # --- the MotorBackend protocol ---------------------------------------------------------
     def train_policy(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str],
@@ -176,6 +174,11 @@ class MjxBackend:
         env, described = self.env(task_id, objective, datapack_ids, datapack_configs)
         cfg = self.ppo_config(settings, hyperparameters)
         used_envs, note = self.resolve_num_envs(settings, int(num_envs))
+        batch = used_envs * cfg.unroll_length
+        if batch % cfg.num_minibatches and "num_minibatches" not in (hyperparameters or {}):
+            fitted = math.gcd(batch, cfg.num_minibatches)  # small runs (a sweep's 1 env): fewer minibatches
+            note += f"; num_minibatches {cfg.num_minibatches} -> {fitted} (must divide num_envs * unroll_length)"
+            cfg = replace(cfg, num_minibatches=fitted)
         if output_dir is None:
             if resume:
                 raise ConfigError("<train>", "output_dir", "resume needs the run directory to continue")
