@@ -19,6 +19,10 @@ import time
 START = time.perf_counter()  # before the heavy imports: compilation and imports count
 
 import argparse  # noqa: E402
+import os  # noqa: E402
+
+# single-threaded Eigen inside XLA's CPU kernels: measured 172 vs 137 hopper env steps/s (8 envs, 2 cores)
+os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1")
 
 import jax  # noqa: E402
 
@@ -48,6 +52,7 @@ def main() -> None:
     overrides = {"hidden_sizes": args.hidden_sizes} if args.hidden_sizes else None
     cfg = backend.ppo_config(settings, overrides)
     num_envs, note = backend.resolve_num_envs(settings, args.num_envs)
+    cfg, note = backend.fit_minibatches(cfg, num_envs, note, overrides)
     print(f"{args.task_id} on {device_description()}: {num_envs} envs ({note}), goal: 0 falls in "
           f"{args.eval_episodes} episodes and >= {human_legs_per_hour:g} legs/h", flush=True)
     state = ppo.init_train_state(env, cfg, num_envs, args.seed)

@@ -148,6 +148,18 @@ class MjxBackend:
                                                "on a CPU (cpu_num_envs_cap in the task's mjx entry)")
         return wanted, "as requested" if requested > 0 else "the task's default"
 
+    @staticmethod
+    def fit_minibatches(cfg: ppo.PPOConfig, num_envs: int, note: str = "",
+                        requested: dict[str, Any] | None = None) -> tuple[ppo.PPOConfig, str]:
+        """Fewer minibatches when the catalog's do not divide ``num_envs * unroll_length`` (small
+        runs, e.g. a sweep's 1 env); an explicitly requested count is left for PPO to reject."""
+        batch = num_envs * cfg.unroll_length
+        if batch % cfg.num_minibatches == 0 or "num_minibatches" in (requested or {}):
+            return cfg, note
+        fitted = math.gcd(batch, cfg.num_minibatches)
+        note += f"; num_minibatches {cfg.num_minibatches} -> {fitted} (must divide num_envs * unroll_length)"
+        return replace(cfg, num_minibatches=fitted), note
+
     def ppo_config(self, settings: MjxTaskSettings, overrides: dict[str, Any] | None) -> ppo.PPOConfig:
         source = f"{settings.source}: backend_entries.mjx.{settings.task_id}.ppo"
         cfg = ppo.PPOConfig.from_mapping({"normalize_obs": settings.normalize_obs, **settings.ppo}, source)
@@ -174,11 +186,7 @@ class MjxBackend:
         env, described = self.env(task_id, objective, datapack_ids, datapack_configs)
         cfg = self.ppo_config(settings, hyperparameters)
         used_envs, note = self.resolve_num_envs(settings, int(num_envs))
-        batch = used_envs * cfg.unroll_length
-        if batch % cfg.num_minibatches and "num_minibatches" not in (hyperparameters or {}):
-            fitted = math.gcd(batch, cfg.num_minibatches)  # small runs (a sweep's 1 env): fewer minibatches
-            note += f"; num_minibatches {cfg.num_minibatches} -> {fitted} (must divide num_envs * unroll_length)"
-            cfg = replace(cfg, num_minibatches=fitted)
+        cfg, note = self.fit_minibatches(cfg, used_envs, note, hyperparameters)
         if output_dir is None:
             if resume:
                 raise ConfigError("<train>", "output_dir", "resume needs the run directory to continue")
