@@ -27,6 +27,8 @@ import tempfile
 import time
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
+# single-threaded Eigen inside XLA's CPU kernels (measured 172 vs 137 hopper env steps/s, 8 envs, 2 cores)
+os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1")
 
 TASK = "hopper_courier"
 
