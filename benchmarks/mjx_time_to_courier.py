@@ -56,40 +56,46 @@ def main() -> None:
     print(f"{args.task_id} on {device_description()}: {num_envs} envs ({note}), goal: 0 falls in "
           f"{args.eval_episodes} episodes and >= {human_legs_per_hour:g} legs/h", flush=True)
     state = ppo.init_train_state(env, cfg, num_envs, args.seed)
+    first_s = float("nan")
     iteration = ppo.make_train_iteration(env, cfg, num_envs)
     evaluate = ppo.make_evaluate(env, cfg, args.eval_episodes)
     per_iteration = num_envs * cfg.unroll_length
-    steps, next_eval, verdict = 0, args.eval_every_steps, "max-steps reached"
+    steps, next_eval, verdict, last = 0, args.eval_every_steps, "max-steps reached", None
     print(f"{'wall_s':>8} {'env_steps':>11} {'steps/s':>9} {'falls':>5} {'legs/h':>8} {'return':>8}", flush=True)
     t_prev, s_prev = time.perf_counter(), 0
     while steps < args.max_steps:
         state, metrics = iteration(state)
         steps += per_iteration
-        if steps < next_eval and time.perf_counter() - START < args.deadline_s:
+        if steps == per_iteration:
+            jax.block_until_ready(metrics)
+            first_s = time.perf_counter() - START
+        if time.perf_counter() - START >= args.deadline_s:  # no evaluation (its compilation) past the deadline
+            jax.block_until_ready(metrics)
+            verdict = f"deadline of {args.deadline_s:g} s reached"
+            break
+        if steps < next_eval:
             continue
         jax.block_until_ready(metrics)
         next_eval = (steps // args.eval_every_steps + 1) * args.eval_every_steps
-        now = time.perf_counter()
-        rate = (steps - s_prev) / (now - t_prev)
+        rate = (steps - s_prev) / (time.perf_counter() - t_prev)
         rows = evaluate_episodes(evaluate, args.eval_episodes, env, state.learner, args.eval_episodes, args.seed + 1)
         raw, econ, _ = summarize_episodes(rows, backend.catalog.get(args.task_id).economics)
-        wall = time.perf_counter() - START
-        falls, legs = round(raw["errors"]), econ["mpl_units_per_hour"]
-        print(f"{wall:8.1f} {steps:11,d} {rate:9,.0f} {falls:5d} {legs:8.1f} {raw['return']:8.1f}", flush=True)
+        last = (round(raw["errors"]), econ["mpl_units_per_hour"])
+        print(f"{time.perf_counter() - START:8.1f} {steps:11,d} {rate:9,.0f} {last[0]:5d} {last[1]:8.1f} "
+              f"{raw['return']:8.1f}", flush=True)
         t_prev, s_prev = time.perf_counter(), steps
-        if falls == 0 and legs >= human_legs_per_hour:
+        if last[0] == 0 and last[1] >= human_legs_per_hour:
             verdict = "GOAL"
-            break
-        if wall >= args.deadline_s:
-            verdict = f"deadline of {args.deadline_s:g} s reached"
             break
     wall = time.perf_counter() - START
     if verdict == "GOAL":
-        print(f"time to courier: {wall:.1f} s wall (compilation included), {steps:,d} env steps, {falls} falls, "
-              f"{legs:.0f} legs/h >= {human_legs_per_hour:g}")
+        print(f"time to courier: {wall:.1f} s wall (compilation included), {steps:,d} env steps, "
+              f"{last[0]} falls, {last[1]:.0f} legs/h >= {human_legs_per_hour:g}")
     else:
-        print(f"goal NOT reached ({verdict}) after {wall:.1f} s wall and {steps:,d} env steps: "
-              f"last evaluation {falls} falls, {legs:.0f} legs/h (goal 0 falls, >= {human_legs_per_hour:g} legs/h)")
+        seen = f"last evaluation {last[0]} falls, {last[1]:.0f} legs/h" if last else "no evaluation finished"
+        print(f"goal NOT reached ({verdict}) after {wall:.1f} s wall and {steps:,d} env steps "
+              f"(first iteration, compilation included, done at {first_s:.1f} s): {seen} "
+              f"(goal 0 falls, >= {human_legs_per_hour:g} legs/h)")
 
 
 if __name__ == "__main__":
