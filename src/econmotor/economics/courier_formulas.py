@@ -14,8 +14,9 @@ Per control step of ``dt_s`` seconds (see ``mujoco/metering.py`` for the story):
 
 - units: ``best_x' = max(best_x, x)``; ``units += (best_x' - best_x) / leg_distance_m``
   (a high-water mark: moving back and forth earns nothing),
-- mechanical power ``sum_j |qfrc_actuator_j * qvel_j|`` W over the actuated dofs; electrical
-  ``P_el = P_mech / drivetrain_efficiency + idle_power_w``; ``energy_wh += P_el * dt_s / 3600``,
+- energy (:func:`step_energy_wh`): mechanical power ``sum_j |qfrc_actuator_j * qvel_j|`` W over the
+  actuated dofs; electrical ``P_el = P_mech / drivetrain_efficiency + idle_power_w``;
+  ``energy_wh += P_el * dt_s / 3600``,
 - tilt: planar robots ``|root hinge angle|``; free-floating ``acos(1 - 2 (qx^2 + qy^2))``;
   risk ``clip((tilt - tilt_margin_rad) / (fall_tilt_rad - tilt_margin_rad), 0, 1)``,
 - falls: Gymnasium's v5 healthy checks (:func:`healthy_rule`, :func:`is_healthy`): not healthy = one fall = one error,
@@ -94,15 +95,18 @@ def high_water_units(x: Any, best_x: Any, leg_distance_m: float, xp: Any) -> tup
     return (best - best_x) / leg_distance_m, best
 
 
-def mechanical_power_w(qfrc_actuator: Any, qvel: Any, xp: Any) -> Any:
-    """``sum_j |qfrc_actuator_j * qvel_j|``, W, over the last axis (the actuated dofs)."""
-    if xp is PY:
-        return sum(map(abs, map(mul, qfrc_actuator, qvel)))
-    return xp.sum(xp.abs(qfrc_actuator * qvel), axis=-1)
+def step_energy_wh(qfrc_actuator: Any, qvel: Any, inv_efficiency: float, idle_power_w: float, dt_s: float,
+                   xp: Any) -> Any:
+    """Electrical Wh of one control step over the actuated dofs (the last axis).
 
-
-def step_energy_wh(mech_w: Any, inv_efficiency: float, idle_power_w: float, dt_s: float) -> Any:
-    """Electrical Wh of one control step: ``(P_mech / efficiency + P_idle) * dt / 3600``."""
+    Mechanical power ``P_mech = sum_j |qfrc_actuator_j * qvel_j|`` W; electrical
+    ``P_el = P_mech * inv_efficiency + idle_power_w`` (``inv_efficiency = 1 / drivetrain_efficiency``);
+    energy ``P_el * dt_s / 3600`` Wh.
+    """
+    if xp is PY:  # memoryviews or sequences of floats: summed in C without numpy's per-call cost
+        mech_w = sum(map(abs, map(mul, qfrc_actuator, qvel)))
+    else:
+        mech_w = xp.sum(xp.abs(qfrc_actuator * qvel), axis=-1)
     return (mech_w * inv_efficiency + idle_power_w) * (dt_s / SECONDS_PER_HOUR)
 
 
@@ -239,7 +243,11 @@ def overlay_potential(coef: Sequence[float], sums: Any, xp: Any) -> Any:
     per_step = c_units * units + c_risk * sums.risk_sum
     if c_novelty:
         per_step = per_step + c_novelty * sums.novelty_sum
-    j = safe_div(per_step, sums.steps, xp) + c_energy * sums.energy_wh
+    if xp is PY:  # the CPU's per-step path: safe_div's guards inline (one call per step in all)
+        steps = sums.steps
+        j = (per_step / steps if steps > 0 else 0.0) + c_energy * sums.energy_wh
+    else:
+        j = safe_div(per_step, sums.steps, xp) + c_energy * sums.energy_wh
     if c_pose:
         j = j + c_pose * sums.pose_sum
     if c_error:

@@ -177,7 +177,7 @@ class MjxCourierEnv:
         if robot == "ant":
             lo, hi = self.robot["contact_force_range"]
             return jnp.concatenate([d.qpos[2:], d.qvel, jnp.clip(cfrc[1:], lo, hi).ravel()])
-        return jnp.concatenate([d.qpos[2:], d.qvel, d.cinert[1:].ravel(), d.cvel[1:].ravel(),
+        return jnp.concatenate([d.qpos[2:], d.qvel, d._impl.cinert[1:].ravel(), d.cvel[1:].ravel(),
                                 d.qfrc_actuator[6:], cfrc[1:].ravel()])
 
     def _forward_x(self, d: Any, m: Any) -> jax.Array:
@@ -286,15 +286,15 @@ class MjxCourierEnv:
         # metering
         gain, best_x = cf.high_water_units(qpos[0], ep["best_x"], s.leg_distance_m, jnp)
         lo, hi = self._dof_lo, self._dof_hi
-        mech_w = cf.mechanical_power_w(data.qfrc_actuator[lo:hi], qvel[lo:hi], jnp)
         tilt = cf.free_tilt_rad(qpos[4], qpos[5], jnp) if self._free_root else cf.planar_tilt_rad(qpos[2], jnp)
         counts, bonus = self._novelty_visit(counts, obs[: s.novelty_dims])
         new = {
             "steps": ep["steps"] + 1.0,
             "units": ep["units"] + gain,
             "errors": ep["errors"] + fell.astype(jnp.float32),
-            "energy_wh": ep["energy_wh"] + cf.step_energy_wh(mech_w, 1.0 / s.drivetrain_efficiency, s.idle_power_w,
-                                                             self.control_dt_s),
+            "energy_wh": ep["energy_wh"] + cf.step_energy_wh(data.qfrc_actuator[lo:hi], qvel[lo:hi],
+                                                             1.0 / s.drivetrain_efficiency, s.idle_power_w,
+                                                             self.control_dt_s, jnp),
             "risk_sum": ep["risk_sum"] + cf.tilt_risk(tilt, s.tilt_margin_rad, s.fall_tilt_rad - s.tilt_margin_rad,
                                                       jnp),
             "novelty_sum": ep["novelty_sum"] + bonus,

@@ -47,7 +47,6 @@ from econmotor.economics.courier_formulas import (
     RUNNING_METRIC_KEYS,
     free_tilt_rad,
     high_water_units,
-    mechanical_power_w,
     novelty_bonus,
     novelty_cell,
     planar_tilt_rad,
@@ -165,8 +164,8 @@ class EpisodeTally:
 __all__ = ["RUNNING_METRIC_KEYS", "EconomicMeteringWrapper", "EpisodeTally", "VisitNovelty", "actuated_dof_span",
            "find_wrapper"]
 
-#: at most this many actuated dofs: power summed over Python floats; more: one numpy call.
-_SMALL_DOFS = 8
+#: at most this many actuated dofs: power summed over Python floats (humanoid: 17); more: numpy.
+_SMALL_DOFS = 32
 
 #: queued novelty points are counted at the latest after this many steps (episodes without an end)
 _MAX_PENDING_VISITS = 4096
@@ -230,10 +229,11 @@ class EconomicMeteringWrapper(gym.Wrapper):
         self._qpos = memoryview(base.data.qpos)
         lo, hi = actuated_dof_span(base.model)
         self._qfrc, self._qvel = base.data.qfrc_actuator[lo:hi], base.data.qvel[lo:hi]
-        if hi - lo <= _SMALL_DOFS:  # a few dofs: Python floats beat numpy's per-call cost
-            self._power_args = (memoryview(self._qfrc), memoryview(self._qvel), PY)
+        if hi - lo <= _SMALL_DOFS:  # up to a few dozen dofs: Python floats beat numpy's per-call cost
+            self._energy_args = (memoryview(self._qfrc), memoryview(self._qvel))
+            self._energy_xp = PY
         else:
-            self._power_args = (self._qfrc, self._qvel, np)
+            self._energy_args, self._energy_xp = (self._qfrc, self._qvel), np
         self.dt_s = float(base.dt)
         self.leg_distance_m = float(leg_distance_m)
         self._inv_eff = 1.0 / float(drivetrain_efficiency)
@@ -279,8 +279,8 @@ class EconomicMeteringWrapper(gym.Wrapper):
         if x > self._best_x:  # else no progress: the high-water mark stays
             gain, self._best_x = high_water_units(x, self._best_x, self.leg_distance_m, PY)
             tally.units += gain
-        tally.energy_wh += step_energy_wh(mechanical_power_w(*self._power_args), self._inv_eff, self._idle_w,
-                                          self.dt_s)
+        f, v = self._energy_args
+        tally.energy_wh += step_energy_wh(f, v, self._inv_eff, self._idle_w, self.dt_s, self._energy_xp)
         if terminated:
             tally.errors += 1.0
         if self._free_root:
@@ -288,9 +288,9 @@ class EconomicMeteringWrapper(gym.Wrapper):
             if 1.0 - 2.0 * (qx * qx + qy * qy) < self._cos_margin:
                 tally.risk_sum += tilt_risk(free_tilt_rad(qx, qy, PY), self._tilt_margin, self._tilt_span, PY)
         else:
-            tilt = planar_tilt_rad(qpos[2], PY)
-            if tilt > self._tilt_margin:
-                tally.risk_sum += tilt_risk(tilt, self._tilt_margin, self._tilt_span, PY)
+            angle = qpos[2]
+            if angle > self._tilt_margin or -angle > self._tilt_margin:  # else the risk is 0
+                tally.risk_sum += tilt_risk(planar_tilt_rad(angle, PY), self._tilt_margin, self._tilt_span, PY)
         pending = self._pending_visits
         pending.append(obs)  # its novelty cell is counted when novelty_sum is read
         if len(pending) >= _MAX_PENDING_VISITS:

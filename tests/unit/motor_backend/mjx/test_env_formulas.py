@@ -20,7 +20,7 @@ from econmotor.motor_backend.mujoco.settings import parse_mujoco_settings
 from econmotor.tasks import load_catalog
 from econmotor.tasks.catalog import TaskSpec
 
-FORMULAS = ("high_water_units", "mechanical_power_w", "step_energy_wh", "planar_tilt_rad", "free_tilt_rad",
+FORMULAS = ("high_water_units", "step_energy_wh", "planar_tilt_rad", "free_tilt_rad",
             "tilt_risk", "novelty_bonus", "novelty_cell", "running_metrics")
 
 
@@ -64,9 +64,8 @@ def test_formulas_give_the_same_numbers_in_every_namespace(xp):
     assert float(gain) == 0.0 and float(best) == 1.0
     f, v = [2.0, -3.0, 0.5], [1.0, 2.0, -4.0]
     args = (f, v) if xp == "py" else (space.asarray(f), space.asarray(v))
-    mech = cf.mechanical_power_w(*args, space)
-    assert float(mech) == pytest.approx(10.0)
-    assert float(cf.step_energy_wh(mech, 1 / 0.5, 20.0, 0.008)) == pytest.approx((20 + 20) * 0.008 / 3600, rel=1e-6)
+    wh = cf.step_energy_wh(*args, 1 / 0.5, 20.0, 0.008, space)  # |2*1| + |-3*2| + |0.5*-4| = 10 W mechanical
+    assert float(wh) == pytest.approx((10 / 0.5 + 20) * 0.008 / 3600, rel=1e-6)
     assert float(cf.tilt_risk(cf.planar_tilt_rad(conv(-0.15), space), 0.1, 0.1, space)) == pytest.approx(0.5, rel=1e-5)
     assert float(cf.free_tilt_rad(conv(np.sin(0.3)), conv(0.0), space)) == pytest.approx(0.6, rel=1e-5)
     m = cf.running_metrics(conv(10.0), conv(0.5), conv(1.0), conv(2.0), conv(3.0), conv(4.0), 0.0, 0.01, space)
@@ -142,3 +141,18 @@ def test_friction_and_mass_are_drawn_per_env_at_reset():
     np.testing.assert_allclose(np.asarray(model.geom_friction[:, 0]), env.mj_model.geom_friction[:, 0] * friction[0],
                                rtol=1e-6)
     np.testing.assert_allclose(np.asarray(model.body_mass), env.mj_model.body_mass * mass[0], rtol=1e-6)
+
+
+@pytest.mark.parametrize("task_id", ["walker_courier", "ant_courier", "humanoid_courier"])
+def test_every_courier_has_the_gymnasium_layout(task_id):
+    """Traced without compiling (eval_shape): obs/action sizes and bounds, control dt, metric keys."""
+    env = mjx_env.MjxCourierEnv(task_id)
+    gym_env = gym.make(env.settings.env_id)
+    assert env.observation_size == gym_env.observation_space.shape[0]
+    np.testing.assert_array_equal(env.action_low, gym_env.action_space.low)
+    np.testing.assert_array_equal(env.action_high, gym_env.action_space.high)
+    assert env.control_dt_s == pytest.approx(gym_env.unwrapped.dt)
+    state = jax.eval_shape(lambda k: env.reset(k, 3), jax.random.PRNGKey(0))
+    after = jax.eval_shape(env.step, state, jax.ShapeDtypeStruct((3, env.action_size), jnp.float32))
+    assert after.obs.shape == (3, env.observation_size) and after.reward.shape == (3,)
+    assert jax.tree_util.tree_structure(after) == jax.tree_util.tree_structure(state)  # scan-able

@@ -46,8 +46,10 @@ def state_from_c(state, meter):
     def batch(x):
         return jnp.broadcast_to(jnp.asarray(np.asarray(x), jnp.float32), (n, *np.shape(x)))
 
+    # xpos / xipos: the task reward's x before the step (ant: the torso, humanoid: the mass centre)
+    # reads the kinematics the last step left, as Gymnasium does
     data = state.data.replace(qpos=batch(c.qpos), qvel=batch(c.qvel), qacc_warmstart=batch(c.qacc_warmstart),
-                              time=batch(c.time))
+                              time=batch(c.time), xpos=batch(c.xpos), xipos=batch(c.xipos))
     episode = {k: jnp.zeros_like(v) for k, v in state.episode.items()}
     episode["best_x"] = batch(meter._best_x)
     episode["x0"] = batch(meter._x0)
