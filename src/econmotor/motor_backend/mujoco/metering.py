@@ -135,30 +135,33 @@ class EpisodeTally:
         return self._novelty_sum
 
     # running episode metrics (the values the episode would report if it ended now)
+    def _metrics(self, novelty_sum: float = 0.0) -> tuple[float, float, float, float, float, float]:
+        return running_metrics(self.steps, self.units, self.errors, self.energy_wh, self.risk_sum, novelty_sum,
+                               self.pose_sum, self.dt_s, PY)
+
     def mpl_per_hour(self) -> float:
         """Good units per hour so far: ``units / (steps * dt / 3600)``."""
-        return self.running_metrics()[0]
+        return self._metrics()[0]
 
     def error_rate(self) -> float:
         """Errors per attempted unit so far: ``errors / (units + errors)``."""
-        return self.running_metrics()[1]
+        return self._metrics()[1]
 
     def energy_kwh(self) -> float:
-        return self.running_metrics()[2]
+        return self._metrics()[2]
 
     def risk_score(self) -> float:
-        return self.running_metrics()[3]
+        return self._metrics()[3]
 
     def novelty_score(self) -> float:
-        return self.running_metrics()[4]
+        return self._metrics(self.novelty_sum)[4]  # reading novelty_sum counts the queued visits
 
     def pose_tracking(self) -> float:
         return self.pose_sum
 
     def running_metrics(self) -> tuple[float, float, float, float, float, float]:
         """All six running metrics at once, in :data:`RUNNING_METRIC_KEYS` order."""
-        return running_metrics(self.steps, self.units, self.errors, self.energy_wh, self.risk_sum, self.novelty_sum,
-                               self.pose_sum, self.dt_s, PY)
+        return self._metrics(self.novelty_sum)
 
 
 __all__ = ["RUNNING_METRIC_KEYS", "EconomicMeteringWrapper", "EpisodeTally", "VisitNovelty", "actuated_dof_span",
