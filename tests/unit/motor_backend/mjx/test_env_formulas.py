@@ -48,7 +48,8 @@ def test_the_mjx_step_traces_through_the_shared_functions(monkeypatch, hopper):
         monkeypatch.setattr(cf, name, spy)
     env = hopper.env
     state = jax.eval_shape(lambda k: env.reset(k, 2), jax.random.PRNGKey(0))
-    jax.eval_shape(env.step, state, jax.ShapeDtypeStruct((2, env.action_size), jnp.float32))
+    # a fresh function: a traced env.step may be cached from another test's jit
+    jax.eval_shape(lambda s, a: env.step(s, a), state, jax.ShapeDtypeStruct((2, env.action_size), jnp.float32))
     expected = set(FORMULAS) - {"free_tilt_rad"} | {"overlay_potential", "is_healthy"}  # the hopper is planar
     assert expected <= set(calls)
     assert all(all(calls[name]) for name in expected), calls  # called on traced JAX arrays
