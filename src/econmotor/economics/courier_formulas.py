@@ -51,9 +51,7 @@ class _PythonFloats:
     floor = staticmethod(math.floor)
     isfinite = staticmethod(math.isfinite)
 
-    @staticmethod
-    def arccos(c: float) -> float:
-        return math.acos(c)
+    arccos = staticmethod(math.acos)
 
     @staticmethod
     def clip(x: float, lo: float, hi: float) -> float:
@@ -117,12 +115,18 @@ def planar_tilt_rad(root_angle: Any, xp: Any) -> Any:
 
 def free_tilt_rad(qx: Any, qy: Any, xp: Any) -> Any:
     """Tilt from upright of a free root with quaternion ``(w, qx, qy, qz)``: ``acos(1 - 2 (qx^2 + qy^2))``."""
-    return xp.arccos(xp.clip(1.0 - 2.0 * (qx * qx + qy * qy), -1.0, 1.0))
+    c = 1.0 - 2.0 * (qx * qx + qy * qy)
+    if xp is PY:  # the clip inline (c <= 1 always)
+        return math.acos(c if c > -1.0 else -1.0)
+    return xp.arccos(xp.clip(c, -1.0, 1.0))
 
 
 def tilt_risk(tilt_rad: Any, tilt_margin_rad: float, tilt_span_rad: float, xp: Any) -> Any:
     """Risk in [0, 1]: ``clip((tilt - margin) / span, 0, 1)``, ``span = fall_tilt - margin``."""
-    return xp.clip((tilt_rad - tilt_margin_rad) / tilt_span_rad, 0.0, 1.0)
+    risk = (tilt_rad - tilt_margin_rad) / tilt_span_rad
+    if xp is PY:  # the clip inline
+        return 0.0 if risk < 0.0 else 1.0 if risk > 1.0 else risk
+    return xp.clip(risk, 0.0, 1.0)
 
 
 def novelty_bonus(visits: Any) -> Any:

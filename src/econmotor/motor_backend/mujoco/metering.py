@@ -15,10 +15,9 @@ Per control step (duration ``dt = frame_skip * timestep`` s), from ``env.unwrapp
   tilt = the torso's angle from upright (planar robots: the root hinge; free-floating robots:
   from the root quaternion, ``cos(tilt) = 1 - 2 (qx^2 + qy^2)``).
 - novelty: ``1 / sqrt(n(s))`` where ``n`` counts visits (kept across episodes of this env) to
-  the cell ``floor(obs[:novelty_dims] / novelty_bin)``. The step only queues its observation
-  array (Gymnasium's MuJoCo envs return a fresh array every step); the visits are counted, in
-  step order, when ``tally.novelty_sum`` is read (by the overlay when it weights novelty, at the
-  episode's end, or every 4096 steps), which gives the same numbers.
+  the cell ``floor(obs[:novelty_dims] / novelty_bin)``. The step only queues ``obs[:novelty_dims]``;
+  the visits are counted, in step order, when ``tally.novelty_sum`` is read (by the overlay when
+  it weights novelty, at the episode's end, or every 4096 steps), which gives the same numbers.
 
 Every formula is :mod:`econmotor.economics.courier_formulas`' (called here with Python floats,
 ``xp=PY``), the one definition the ``mjx`` backend's jitted step calls with ``jax.numpy``.
@@ -67,21 +66,24 @@ class VisitNovelty:
         self.inv_bin = 1.0 / float(novelty_bin)
         self.dims = int(dims)
 
-    def visit_all(self, observations: list[Any], total: float) -> float:
-        """Count the cells of ``observations[i][:dims]`` in order; ``total`` plus the sum of their scores."""
-        if not observations:
+    def visit_all(self, points: list[list[float]], total: float) -> float:
+        """Count the cells of ``points`` (``obs[:dims]`` lists) in step order; ``total`` plus their scores."""
+        inv, counts = self.inv_bin, self.counts
+        if len(points) < _VECTORIZE_VISITS:  # short episodes: Python floats beat numpy's per-call cost
+            for point in points:
+                key = novelty_cell(point, inv, PY)
+                n = counts.get(key, 0) + 1
+                counts[key] = n
+                total += novelty_bonus(n)
             return total
-        points = np.asarray(observations, dtype=np.float64)[:, : self.dims]
-        # the cells (novelty_cell) and bonuses (novelty_bonus) of all points at once; only the
-        # visit counts go point by point, in step order
-        cells = novelty_cell(points, self.inv_bin, np).astype(np.int64).tolist()
-        counts, visits = self.counts, []
-        get, append = counts.get, visits.append
+        # many points: the cells and bonuses at once; only the visit counts go point by point, in step order
+        cells = novelty_cell(np.array(points, dtype=np.float64), inv, np).astype(np.int64).tolist()
+        visits, get = [], counts.get
         for cell in cells:
             key = tuple(cell)
             n = get(key, 0) + 1
             counts[key] = n
-            append(n)
+            visits.append(n)
         return total + float(novelty_bonus(np.asarray(visits, dtype=np.float64)).sum())
 
 
@@ -110,7 +112,7 @@ class EpisodeTally:
     def __init__(self, dt_s: float, novelty: VisitNovelty | None = None) -> None:
         self.dt_s = dt_s
         self._novelty = novelty
-        self.pending_visits: list[Any] = []  # observations whose novelty cells are not counted yet
+        self.pending_visits: list[list[float]] = []  # obs[:dims] whose novelty cells are not counted yet
         self.reset()
 
     def reset(self) -> None:
@@ -167,8 +169,11 @@ class EpisodeTally:
 __all__ = ["RUNNING_METRIC_KEYS", "EconomicMeteringWrapper", "EpisodeTally", "VisitNovelty", "actuated_dof_span",
            "find_wrapper"]
 
-#: at most this many actuated dofs: power summed over Python floats (humanoid: 17); more: numpy.
+#: at most this many actuated dofs: power summed over Python floats; more (humanoid: 17): numpy.
 _SMALL_DOFS = 32
+
+#: at least this many queued novelty points: cells computed by numpy in one pass
+_VECTORIZE_VISITS = 64
 
 #: queued novelty points are counted at the latest after this many steps (episodes without an end)
 _MAX_PENDING_VISITS = 4096
@@ -232,7 +237,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
         self._qpos = memoryview(base.data.qpos)
         lo, hi = actuated_dof_span(base.model)
         self._qfrc, self._qvel = base.data.qfrc_actuator[lo:hi], base.data.qvel[lo:hi]
-        if hi - lo <= _SMALL_DOFS:  # up to a few dozen dofs: Python floats beat numpy's per-call cost
+        if hi - lo <= _SMALL_DOFS:  # a few dofs: Python floats beat numpy's per-call cost
             self._energy_args = (memoryview(self._qfrc), memoryview(self._qvel))
             self._energy_xp = PY
         else:
@@ -295,7 +300,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
             if angle > self._tilt_margin or -angle > self._tilt_margin:  # else the risk is 0
                 tally.risk_sum += tilt_risk(planar_tilt_rad(angle, PY), self._tilt_margin, self._tilt_span, PY)
         pending = self._pending_visits
-        pending.append(obs)  # its novelty cell is counted when novelty_sum is read
+        pending.append(obs[: self._novelty_dims].tolist())  # its cell is counted when novelty_sum is read
         if len(pending) >= _MAX_PENDING_VISITS:
             tally.flush_visits()
         if info:
