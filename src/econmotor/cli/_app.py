@@ -15,7 +15,16 @@ from collections.abc import Iterator
 
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    ProgressColumn,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+from rich.text import Text
 
 app = typer.Typer(
     name="econmotor",
@@ -47,6 +56,19 @@ def set_cpu_threads() -> None:
 
 #: progress labels longer than this are messages: printed whole above the bars instead of cut to fit one.
 MAX_BAR_LABEL = 40
+def announce_device(backend: object, doing: str = "training") -> None:
+    """Say which device a backend computes on, for backends that know (mjx: the JAX device)."""
+    describe = getattr(backend, "device_description", None)
+    if callable(describe):
+        err_console.print(f"{getattr(backend, 'name', 'backend')}: {doing} on {describe()}", highlight=False)
+
+
+class RateColumn(ProgressColumn):
+    """Units per second of a bar (env steps/s while training, episodes/s while evaluating)."""
+
+    def render(self, task) -> Text:
+        speed = task.finished_speed or task.speed
+        return Text(f"{speed:,.0f}/s" if speed else "", style="progress.data.speed")
 
 
 @contextlib.contextmanager
@@ -56,6 +78,7 @@ def progress_bars() -> Iterator:
         TextColumn("[bold]{task.description}"),
         BarColumn(),
         MofNCompleteColumn(),
+        RateColumn(),
         TimeElapsedColumn(),
         TimeRemainingColumn(),
         console=err_console,

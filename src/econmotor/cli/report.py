@@ -21,7 +21,7 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from econmotor.cli._app import app, console, err_console, progress_bars, set_cpu_threads
+from econmotor.cli._app import announce_device, app, console, err_console, progress_bars, set_cpu_threads
 from econmotor.cli.train import interrupted_note
 from econmotor.cli.validation import (
     check_db_url,
@@ -56,7 +56,7 @@ from econmotor.valuation import default_objective_vector
 NO_BACKEND = "none"
 #: backend -> (num_envs, max_steps) when the flags are not given; num_envs 0 = the task's catalog default.
 BACKEND_DEFAULTS: dict[str, tuple[int, int]] = {"dishwashing": (1, 5_000), "mujoco": (0, 100_000),
-                                                "holosoma": (0, 50_000)}
+                                                "holosoma": (0, 50_000), "mjx": (0, 10_000_000)}
 
 
 def split_datapack_values(values: list[str]) -> list[str]:
@@ -157,7 +157,7 @@ def show_outcome(outcome: ReportOutcome) -> None:
 def report_command(
     task_id: str = typer.Option(..., "--task-id", help="Task id from the catalog (`econmotor tasks`)."),
     motor_backend: str = typer.Option("mujoco", "--motor-backend",
-                                      help="mujoco | dishwashing | holosoma | none (report from recorded runs)."),
+                                      help="mujoco | mjx | dishwashing | holosoma | none (report from recorded runs)."),
     objective_config: Path = typer.Option(None, "--objective-config", help="Objective YAML (3 forms)."),
     datapacks: list[str] = typer.Option([], "--datapacks", help="Datapack YAML paths or registered ids; "
                                         "comma separated, repeated, or space separated."),
@@ -167,7 +167,7 @@ def report_command(
     notes: str = typer.Option("", "--notes", help="Free text recorded with the runs and the report."),
     num_envs: int = typer.Option(None, "--num-envs", min=0, help="Environments (default: the backend's)."),
     max_steps: int = typer.Option(None, "--max-steps", min=1, help="Training environment steps "
-                                  "(default: dishwashing 5,000, mujoco 100,000, holosoma 50,000)."),
+                                  "(default: dishwashing 5,000, mujoco 100,000, holosoma 50,000, mjx 10,000,000)."),
     eval_episodes: int = typer.Option(0, "--eval-episodes", min=0,
                                       help="Add an evaluation run of N episodes after training and price it."),
     seed: int = typer.Option(0, "--seed", help="Seed of training (evaluation uses seed + 1000)."),
@@ -228,6 +228,7 @@ def report_command(
     default_envs, default_steps = BACKEND_DEFAULTS.get(motor_backend, (1, 10_000))
     backend = _make_backend(motor_backend, tasks_file)
     run_dir = new_run_dir(Path("runs"), task_id, seed)
+    announce_device(backend)
     request = TrainRequest(task=task, backend_name=motor_backend, objective=objective, datapacks=tuple(packs),
                            num_envs=default_envs if num_envs is None else num_envs,
                            max_steps=max_steps or default_steps, seed=seed, eval_episodes=eval_episodes,

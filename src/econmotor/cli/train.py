@@ -9,7 +9,7 @@ from typing import Any
 import typer
 from rich.table import Table
 
-from econmotor.cli._app import app, console, err_console, progress_bars, set_cpu_threads
+from econmotor.cli._app import announce_device, app, console, err_console, progress_bars, set_cpu_threads
 from econmotor.cli.validation import check_choice, check_db_url, check_flags, check_output_dir, check_output_file
 from econmotor.config.objective_profile import OBJECTIVE_PRESETS, ObjectiveVector
 from econmotor.errors import ConfigError
@@ -65,25 +65,33 @@ def write_json(path: Path | None, payload: dict[str, Any]) -> None:
         path.write_text(json.dumps(payload, indent=2, default=str), encoding="utf-8")
 
 
+#: the final policy and the checkpoint files of the backends that resume (mujoco: SB3 zips, mjx: npz).
+FINAL_POLICY = {"mujoco": "policy.zip", "mjx": "policy.npz"}
+CHECKPOINT_GLOB = {"mujoco": "*.zip", "mjx": "ckpt_*_steps.npz"}
+
+
 def completed_run_note(run_dir: Path) -> str | None:
-    """What a finished MuJoCo run holds, or ``None`` when ``run_dir`` has no final policy."""
+    """What a finished MuJoCo or MJX run holds, or ``None`` when ``run_dir`` has no final policy."""
     from econmotor.motor_backend.mujoco.run import RUN_CONFIG_FILE, read_run_config
 
-    if not (run_dir / "policy.zip").is_file() or not (run_dir / RUN_CONFIG_FILE).is_file():
+    final = next((name for name in FINAL_POLICY.values() if (run_dir / name).is_file()), None)
+    if final is None or not (run_dir / RUN_CONFIG_FILE).is_file():
         return None
     config = read_run_config(run_dir)
     return (f"{run_dir} is a complete run ({config.get('algorithm', '?')}, {config.get('max_steps', '?'):,} "
-            "steps, final policy.zip)" if isinstance(config.get("max_steps"), int)
-            else f"{run_dir} is a complete run (final policy.zip)")
+            f"steps, final {final})" if isinstance(config.get("max_steps"), int)
+            else f"{run_dir} is a complete run (final {final})")
 
 
 def interrupted_note(backend: str, task: str, run_dir: Path, max_steps: int, run_id: str) -> str:
     """What an interrupted training run kept and how to go on."""
-    checkpoints = sorted((run_dir / "checkpoints").glob("*.zip")) if (run_dir / "checkpoints").is_dir() else []
-    if backend == "mujoco" and checkpoints:
+    pattern = CHECKPOINT_GLOB.get(backend)
+    folder = run_dir / "checkpoints"
+    checkpoints = sorted(folder.glob(pattern)) if pattern and folder.is_dir() else []
+    if checkpoints:
         return (f"{run_id} recorded as interrupted. Kept: {len(checkpoints)} checkpoint(s) in {run_dir}/checkpoints "
-                f"(newest {checkpoints[-1].name}). Resume with: econmotor train --task-id {task} --output-dir "
-                f"{run_dir} --max-steps {max_steps} --resume")
+                f"(newest {checkpoints[-1].name}). Resume with: econmotor train --task-id {task} --motor-backend "
+                f"{backend} --output-dir {run_dir} --max-steps {max_steps} --resume")
     kept = f"the partial run directory {run_dir}" if run_dir.exists() else "no files"
     return (f"{run_id} recorded as interrupted. Kept: {kept}; no checkpoint to resume from, so start again: "
             f"econmotor train --task-id {task} --motor-backend {backend} --max-steps {max_steps}")
@@ -129,9 +137,9 @@ def train_command(
         extra["resume"] = True
     if algorithm:
         extra["algorithm"] = algorithm
-    if (extra or vec_env) and backend != "mujoco":
+    if (extra and backend not in ("mujoco", "mjx")) or (vec_env and backend != "mujoco"):
         raise ConfigError("<command line>", "--resume/--algorithm/--vec-env",
-                          f"backend '{backend}' does not support them", ["mujoco"])
+                          f"backend '{backend}' does not support them", ["mujoco", "mjx (--resume, --algorithm)"])
     if resume and output_dir is None:
         raise ConfigError("<command line>", "--resume", "needs --output-dir: the run directory to continue")
     if resume:
@@ -141,10 +149,12 @@ def train_command(
                           "(a new --output-dir, or none for a fresh directory).", highlight=False)
             return
     motor = make_motor_backend(backend, **({"vec_env": vec_env} if vec_env else {}))
+    announce_device(motor)
     url = check_db_url(db_url)
     run_dir = output_dir or new_run_dir(Path("runs"), task, seed)
     request = TrainRequest(task=spec, backend_name=backend, objective=objective, datapacks=tuple(configs),
-                           num_envs=num_envs if (num_envs > 0 or backend == "mujoco") else 1, max_steps=max_steps,
+                           num_envs=num_envs if (num_envs > 0 or backend in ("mujoco", "mjx")) else 1,
+                           max_steps=max_steps,
                            seed=seed, train_eval_episodes=eval_episodes, output_dir=run_dir, backend_options=extra)
     registry = None
     try:
@@ -190,6 +200,7 @@ def evaluate_command(
     objective = resolve_objective(objective_config, objective_preset)
     configs = load_datapack_configs(datapacks)
     motor = make_motor_backend(backend)
+    announce_device(motor, "evaluating")
     with progress_bars() as progress:
         result = motor.evaluate_policy(policy, task, objective, episodes, seed, datapack_configs=configs,
                                        output_dir=output_dir, progress=progress)

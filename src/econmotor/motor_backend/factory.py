@@ -16,6 +16,7 @@ _REGISTRY: dict[str, str] = {
     "mujoco": "econmotor.motor_backend.mujoco_backend:MujocoBackend",
     "dishwashing": "econmotor.motor_backend.dishwashing_backend:DishwashingBackend",
     "holosoma": "econmotor.motor_backend.holosoma_backend:HolosomaBackend",
+    "mjx": "econmotor.motor_backend.mjx.backend:MjxBackend",
 }
 
 

@@ -18,12 +18,18 @@ order; a user file may add tasks or replace a shipped one whole. File schema::
           max_error_rate: {value: 0.05, source: "..."}     # upper bound of the error rate (default: human's)
           min_units_per_hour: {value: 30, source: "..."}   # lower bound of MPL (default: any work)
           error_name: "broken dish"                        # one error, in sentences
+
+A file may instead add one backend's entries to tasks other files define (``mjx.yaml``)::
+
+    backend_entries:
+      <backend>:
+        <task_id>: {...}                    # becomes tasks.<task_id>.backends.<backend>
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -63,6 +69,12 @@ class TaskSpec:
     def acceptance(self) -> Acceptance:
         """The catalog's acceptance rule, or the default (no worse than a human)."""
         return self.acceptance_rule or Acceptance.default_for(self.economics.error_rate_human)
+    #: backend -> the file its entry came from, where not ``source`` (``backend_entries`` files)
+    backend_sources: Mapping[str, str] = field(default_factory=dict)
+
+    def backend_source(self, backend: str) -> str:
+        """The file that holds this task's ``backend`` entry."""
+        return self.backend_sources.get(backend, self.source)
 
     def backend_entry(self, backend: str) -> dict[str, Any]:
         """The backend's own settings for this task; a ConfigError if it cannot run it."""
@@ -176,14 +188,39 @@ def read_task_file(path: str | Path) -> dict[str, TaskSpec]:
     return {path_name(tid, path, f"tasks.{tid}"): parse_task(tid, entry, path) for tid, entry in tasks.items()}
 
 
+def add_backend_entries(tasks: dict[str, TaskSpec], path: str | Path, data: Mapping[str, Any]) -> None:
+    """Attach a ``backend_entries`` file's entries to the tasks already in ``tasks`` (in place)."""
+    entries = require_mapping(data["backend_entries"], path, "backend_entries")
+    for backend, per_task in entries.items():
+        per_task = require_mapping(per_task, path, f"backend_entries.{backend}")
+        for tid, entry in per_task.items():
+            key = f"backend_entries.{backend}.{tid}"
+            if tid not in tasks:
+                raise ConfigError(path, key, f"no task '{tid}' to add a '{backend}' entry to", sorted(tasks))
+            spec = tasks[tid]
+            if backend in spec.backends:
+                raise ConfigError(path, key, f"task '{tid}' already has a '{backend}' entry in {spec.source}")
+            backends = {**spec.backends, str(backend): require_mapping(entry or {}, path, key)}
+            tasks[tid] = replace(spec, backends=backends,
+                                 backend_sources={**spec.backend_sources, str(backend): str(path)})
+
+
 @lru_cache(maxsize=1)
 def _builtin_tasks() -> dict[str, TaskSpec]:
     tasks: dict[str, TaskSpec] = {}
+    entry_files = []
     for path in sorted(_PACKAGE_DIR.glob("*.yaml")):
+        data = read_yaml_mapping(path)
+        if "backend_entries" in data:
+            check_keys(data, ("backend_entries",), path)
+            entry_files.append((path, data))
+            continue
         for tid, spec in read_task_file(path).items():
             if tid in tasks:
                 raise ConfigError(path, f"tasks.{tid}", f"task id already defined in {tasks[tid].source}")
             tasks[tid] = spec
+    for path, data in entry_files:  # after every task file: entries may name any shipped task
+        add_backend_entries(tasks, path, data)
     return tasks
 
 

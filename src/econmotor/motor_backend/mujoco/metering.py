@@ -19,6 +19,9 @@ Per control step (duration ``dt = frame_skip * timestep`` s), from ``env.unwrapp
   the visits are counted, in step order, when ``tally.novelty_sum`` is read (by the overlay when
   it weights novelty, at the episode's end, or every 4096 steps), which gives the same numbers.
 
+Every formula is :mod:`econmotor.economics.courier_formulas`' (called here with Python floats,
+``xp=PY``), the one definition the ``mjx`` backend's jitted step calls with ``jax.numpy``.
+
 Episode raw metrics (``info["econ_episode"]`` on the last step) use the keys
 :class:`~econmotor.economics.EconomicMeter` reads: ``units_completed``, ``units_attempted``
 (``= units_completed + errors``: the leg during which the robot fell counts as attempted and
@@ -32,35 +35,56 @@ pose-tracking wrapper reports ``info["pose_tracking"]``.
 from __future__ import annotations
 
 import math
-from math import floor
-from operator import mul
 from typing import Any
 
 import gymnasium as gym
 import mujoco
 import numpy as np
 
+from econmotor.economics.courier_formulas import (
+    PY,
+    RUNNING_METRIC_KEYS,
+    free_tilt_rad,
+    high_water_units,
+    novelty_bonus,
+    novelty_cell,
+    planar_tilt_rad,
+    running_metrics,
+    step_energy_wh,
+    tilt_risk,
+)
 from econmotor.errors import ConfigError
 
 
 class VisitNovelty:
     """Visit counts over coarse cells: the n-th visit to cell ``floor(x * inv_bin)`` scores ``1 / sqrt(n)``."""
 
-    __slots__ = ("counts", "inv_bin")
+    __slots__ = ("counts", "dims", "inv_bin")
 
-    def __init__(self, novelty_bin: float) -> None:
+    def __init__(self, novelty_bin: float, dims: int = 5) -> None:
         self.counts: dict[tuple[int, ...], int] = {}  # cell -> visits, kept across episodes
         self.inv_bin = 1.0 / float(novelty_bin)
+        self.dims = int(dims)
 
     def visit_all(self, points: list[list[float]], total: float) -> float:
-        """Count ``points`` in order; ``total`` plus their scores, added one by one."""
+        """Count the cells of ``points`` (``obs[:dims]`` lists) in step order; ``total`` plus their scores."""
         inv, counts = self.inv_bin, self.counts
-        for point in points:
-            key = tuple([floor(v * inv) for v in point])
-            n = counts.get(key, 0) + 1
+        if len(points) < _VECTORIZE_VISITS:  # short episodes: Python floats beat numpy's per-call cost
+            for point in points:
+                key = novelty_cell(point, inv, PY)
+                n = counts.get(key, 0) + 1
+                counts[key] = n
+                total += novelty_bonus(n)
+            return total
+        # many points: the cells and bonuses at once; only the visit counts go point by point, in step order
+        cells = novelty_cell(np.array(points, dtype=np.float64), inv, np).astype(np.int64).tolist()
+        visits, get = [], counts.get
+        for cell in cells:
+            key = tuple(cell)
+            n = get(key, 0) + 1
             counts[key] = n
-            total += n ** -0.5
-        return total
+            visits.append(n)
+        return total + float(novelty_bonus(np.asarray(visits, dtype=np.float64)).sum())
 
 
 class EpisodeTally:
@@ -88,7 +112,7 @@ class EpisodeTally:
     def __init__(self, dt_s: float, novelty: VisitNovelty | None = None) -> None:
         self.dt_s = dt_s
         self._novelty = novelty
-        self.pending_visits: list[list[float]] = []
+        self.pending_visits: list[list[float]] = []  # obs[:dims] whose novelty cells are not counted yet
         self.reset()
 
     def reset(self) -> None:
@@ -113,44 +137,43 @@ class EpisodeTally:
         return self._novelty_sum
 
     # running episode metrics (the values the episode would report if it ended now)
+    def _metrics(self, novelty_sum: float = 0.0) -> tuple[float, float, float, float, float, float]:
+        return running_metrics(self.steps, self.units, self.errors, self.energy_wh, self.risk_sum, novelty_sum,
+                               self.pose_sum, self.dt_s, PY)
+
     def mpl_per_hour(self) -> float:
         """Good units per hour so far: ``units / (steps * dt / 3600)``."""
-        return self.units * 3600.0 / (self.steps * self.dt_s) if self.steps else 0.0
+        return self._metrics()[0]
 
     def error_rate(self) -> float:
         """Errors per attempted unit so far: ``errors / (units + errors)``."""
-        attempted = self.units + self.errors
-        return self.errors / attempted if attempted > 0 else 0.0
+        return self._metrics()[1]
 
     def energy_kwh(self) -> float:
-        return self.energy_wh / 1000.0
+        return self._metrics()[2]
 
     def risk_score(self) -> float:
-        return self.risk_sum / self.steps if self.steps else 0.0
+        return self._metrics()[3]
 
     def novelty_score(self) -> float:
-        return self.novelty_sum / self.steps if self.steps else 0.0
+        return self._metrics(self.novelty_sum)[4]  # reading novelty_sum counts the queued visits
 
     def pose_tracking(self) -> float:
         return self.pose_sum
 
     def running_metrics(self) -> tuple[float, float, float, float, float, float]:
-        """All six running metrics at once, in :data:`RUNNING_METRIC_KEYS` order (one call per step)."""
-        steps, units, errors = self.steps, self.units, self.errors
-        attempted = units + errors
-        if steps:
-            return (units * 3600.0 / (steps * self.dt_s), errors / attempted if attempted > 0 else 0.0,
-                    self.energy_wh / 1000.0, self.risk_sum / steps, self.novelty_sum / steps, self.pose_sum)
-        return (0.0, 0.0, self.energy_wh / 1000.0, 0.0, 0.0, self.pose_sum)
+        """All six running metrics at once, in :data:`RUNNING_METRIC_KEYS` order."""
+        return self._metrics(self.novelty_sum)
 
 
-#: overlay keys in the order of :meth:`EpisodeTally.running_metrics`.
-RUNNING_METRIC_KEYS = ("mpl_per_hour", "error_rate", "energy_kwh", "risk_score", "novelty_score", "pose_tracking")
+__all__ = ["RUNNING_METRIC_KEYS", "EconomicMeteringWrapper", "EpisodeTally", "VisitNovelty", "actuated_dof_span",
+           "find_wrapper"]
 
+#: at most this many actuated dofs: power summed over Python floats; more (humanoid: 17): numpy.
+_SMALL_DOFS = 32
 
-#: at most this many actuated dofs: power summed over Python floats; more: one numpy dot.
-_SMALL_DOFS = 8
-_absolute = np.absolute
+#: at least this many queued novelty points: cells computed by numpy in one pass
+_VECTORIZE_VISITS = 64
 
 #: queued novelty points are counted at the latest after this many steps (episodes without an end)
 _MAX_PENDING_VISITS = 4096
@@ -214,9 +237,11 @@ class EconomicMeteringWrapper(gym.Wrapper):
         self._qpos = memoryview(base.data.qpos)
         lo, hi = actuated_dof_span(base.model)
         self._qfrc, self._qvel = base.data.qfrc_actuator[lo:hi], base.data.qvel[lo:hi]
-        self._qfrc_mv, self._qvel_mv = memoryview(self._qfrc), memoryview(self._qvel)
-        self._small_power = hi - lo <= _SMALL_DOFS
-        self._absf, self._absv = np.empty(hi - lo), np.empty(hi - lo)
+        if hi - lo <= _SMALL_DOFS:  # a few dofs: Python floats beat numpy's per-call cost
+            self._energy_args = (memoryview(self._qfrc), memoryview(self._qvel))
+            self._energy_xp = PY
+        else:
+            self._energy_args, self._energy_xp = (self._qfrc, self._qvel), np
         self.dt_s = float(base.dt)
         self.leg_distance_m = float(leg_distance_m)
         self._inv_eff = 1.0 / float(drivetrain_efficiency)
@@ -225,11 +250,11 @@ class EconomicMeteringWrapper(gym.Wrapper):
         self._tilt_span = float(fall_tilt_rad - tilt_margin_rad)
         self._novelty_dims = int(novelty_dims)
         self._free_root = int(base.model.jnt_type[0]) == int(mujoco.mjtJoint.mjJNT_FREE)
-        # free root: tilt > margin <=> cos(tilt) < cos(margin), so acos runs only near or past the
-        # margin (the 1e-9 slack keeps every step acos would have scored > 0)
+        # risk is 0 while tilt <= margin, so tilt_risk runs only past it. Free root: tilt > margin
+        # <=> cos(tilt) < cos(margin), so acos runs only near or past the margin (the 1e-9 slack
+        # keeps every step acos would have scored > 0)
         self._cos_margin = math.cos(self._tilt_margin) + 1e-9
-        self._wh_per_w = self.dt_s / 3600.0
-        self._novelty = VisitNovelty(novelty_bin)
+        self._novelty = VisitNovelty(novelty_bin, novelty_dims)
         self.tally = EpisodeTally(self.dt_s, self._novelty)
         self._pending_visits = self.tally.pending_visits  # the same list object for the env's life
         self._x0 = self._best_x = 0.0
@@ -244,9 +269,8 @@ class EconomicMeteringWrapper(gym.Wrapper):
         """The torso's angle from upright, rad."""
         qpos = self._data.qpos
         if self._free_root:
-            c = 1.0 - 2.0 * (qpos[4] * qpos[4] + qpos[5] * qpos[5])
-            return math.acos(max(-1.0, min(1.0, c)))
-        return abs(float(qpos[2]))
+            return free_tilt_rad(float(qpos[4]), float(qpos[5]), PY)
+        return planar_tilt_rad(float(qpos[2]), PY)
 
     def reset(self, **kwargs: Any):
         obs, info = self.env.reset(**kwargs)
@@ -260,34 +284,31 @@ class EconomicMeteringWrapper(gym.Wrapper):
         tally.steps += 1
         tally.task_return += float(reward)
         x = qpos[0]
-        if x > self._best_x:
-            tally.units += (x - self._best_x) / self.leg_distance_m
-            self._best_x = x
-        if self._small_power:  # a few dofs: Python floats beat numpy's per-call cost
-            mech_w = sum(map(abs, map(mul, self._qfrc_mv, self._qvel_mv)))
-        else:  # sum_j |f_j v_j| = |f| . |v|
-            absf, absv = self._absf, self._absv
-            _absolute(self._qfrc, absf)
-            _absolute(self._qvel, absv)
-            mech_w = float(absf.dot(absv))
-        tally.energy_wh += (mech_w * self._inv_eff + self._idle_w) * self._wh_per_w
+        if x > self._best_x:  # else no progress: the high-water mark stays
+            gain, self._best_x = high_water_units(x, self._best_x, self.leg_distance_m, PY)
+            tally.units += gain
+        f, v = self._energy_args
+        tally.energy_wh += step_energy_wh(f, v, self._inv_eff, self._idle_w, self.dt_s, self._energy_xp)
         if terminated:
             tally.errors += 1.0
         if self._free_root:
             qx, qy = qpos[4], qpos[5]
-            c = 1.0 - 2.0 * (qx * qx + qy * qy)
-            excess = math.acos(max(-1.0, c)) - self._tilt_margin if c < self._cos_margin else 0.0
+            if 1.0 - 2.0 * (qx * qx + qy * qy) < self._cos_margin:
+                tally.risk_sum += tilt_risk(free_tilt_rad(qx, qy, PY), self._tilt_margin, self._tilt_span, PY)
         else:
-            excess = abs(qpos[2]) - self._tilt_margin
-        if excess > 0:
-            tally.risk_sum += min(1.0, excess / self._tilt_span)
+            angle = qpos[2]
+            if angle > self._tilt_margin or -angle > self._tilt_margin:  # else the risk is 0
+                tally.risk_sum += tilt_risk(planar_tilt_rad(angle, PY), self._tilt_margin, self._tilt_span, PY)
         pending = self._pending_visits
-        pending.append(obs[: self._novelty_dims].tolist())  # counted when novelty_sum is read
+        pending.append(obs[: self._novelty_dims].tolist())  # its cell is counted when novelty_sum is read
         if len(pending) >= _MAX_PENDING_VISITS:
             tally.flush_visits()
-        pose = info.get("pose_tracking")
-        if pose is not None:
-            tally.pose_sum += pose
+        if info:
+            pose = info.get("pose_tracking")
+            if pose is not None:
+                tally.pose_sum += pose
+        else:
+            pose = None
         if terminated or truncated:
             info["econ_episode"] = self.episode_raw_metrics(terminated, pose is not None)
         return obs, reward, terminated, truncated, info
@@ -295,6 +316,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
     def episode_raw_metrics(self, fell: bool, with_pose: bool = False) -> dict[str, Any]:
         """The episode's raw metrics so far (keys in the module docstring)."""
         t = self.tally
+        _, _, _, risk_score, novelty_score, _ = t.running_metrics()
         out: dict[str, Any] = {
             "units_completed": t.units,
             "units_attempted": t.units + t.errors,
@@ -303,8 +325,8 @@ class EconomicMeteringWrapper(gym.Wrapper):
             "length_steps": float(t.steps),
             "control_dt_s": self.dt_s,
             "energy_wh": t.energy_wh,
-            "risk_score": t.risk_score(),
-            "novelty_score": t.novelty_score(),
+            "risk_score": risk_score,
+            "novelty_score": novelty_score,
             "return": t.task_return,
             "forward_distance_m": self._best_x - self._x0,
             "termination_reason": "fall" if fell else "max_steps",

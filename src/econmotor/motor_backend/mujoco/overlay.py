@@ -37,13 +37,16 @@ from typing import Any
 
 import gymnasium as gym
 
-from econmotor.errors import ConfigError
-from econmotor.motor_backend.mujoco.metering import (
+from econmotor.economics import courier_formulas
+from econmotor.economics.courier_formulas import (
+    PY,
     RUNNING_METRIC_KEYS,
-    EconomicMeteringWrapper,
-    EpisodeTally,
-    find_wrapper,
+    overlay_factors,
+    overlay_potential,
+    potential_coefficients,
 )
+from econmotor.errors import ConfigError
+from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper, EpisodeTally, find_wrapper
 
 #: overlay keys this backend can weight (each an EpisodeTally running metric of the same name).
 TERM_METRICS: tuple[str, ...] = RUNNING_METRIC_KEYS
@@ -65,17 +68,8 @@ def human_baseline_references(mp_human_units_per_hour: float, error_rate_human: 
     }
 
 
-def episode_metric(raw_episode: Mapping[str, Any], key: str) -> float:
-    """The episode metric of overlay ``key`` from an episode's raw metrics (the invariant's right side)."""
-    units, errors = float(raw_episode["units_completed"]), float(raw_episode["errors"])
-    if key == "mpl_per_hour":
-        hours = float(raw_episode["episode_length_s"]) / 3600.0
-        return units / hours if hours > 0 else 0.0
-    if key == "error_rate":
-        return errors / (units + errors) if units + errors > 0 else 0.0
-    if key == "energy_kwh":
-        return float(raw_episode["energy_wh"]) / 1000.0
-    return float(raw_episode.get(key, 0.0))
+#: the episode metric of an overlay key from an episode's raw metrics (the invariant's right side).
+episode_metric = courier_formulas.episode_metric
 
 
 class EconomicOverlayWrapper(gym.Wrapper):
@@ -104,21 +98,13 @@ class EconomicOverlayWrapper(gym.Wrapper):
             raise ConfigError("EconomicOverlayWrapper", f"references.{bad[0]}", "must be > 0")
         self.scales = {k: float(v) for k, v in scales.items()}
         #: the per-step multiplier of each term: scale / reference
-        self.factors = {k: self.scales[k] / float(refs.get(k, 1.0)) for k in self.scales}
+        self.factors = overlay_factors(self.scales, refs)
         self.keep_task_reward = bool(keep_task_reward)
         self._tally: EpisodeTally = meter.tally
         self._keys = list(self.factors)
         # sum_k factor_k * term_k(t) = J(t) - J(t-1) with J(t) = sum_k factor_k * m_k(t), so one
-        # scalar per step; J's coefficients on the tally's running sums (m_k as in EpisodeTally):
-        f = self.factors
-        self._coef = (
-            f.get("mpl_per_hour", 0.0) * 3600.0 / meter.dt_s,  # x units / steps
-            f.get("risk_score", 0.0),  # x risk_sum / steps
-            f.get("novelty_score", 0.0),  # x novelty_sum / steps
-            f.get("error_rate", 0.0),  # x errors / (units + errors)
-            f.get("energy_kwh", 0.0) / 1000.0,  # x energy_wh
-            f.get("pose_tracking", 0.0),  # x pose_sum
-        )
+        # scalar per step (overlay_potential: J's coefficients on the tally's running sums)
+        self._coef = potential_coefficients(self.factors, meter.dt_s)
         self._metric_index = [RUNNING_METRIC_KEYS.index(k) for k in self._keys]
         self._prev_j = 0.0  # J at the previous step (J(0) = 0: every running metric is 0 after reset)
 
@@ -129,15 +115,7 @@ class EconomicOverlayWrapper(gym.Wrapper):
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
         t = self._tally
-        c_units, c_risk, c_novelty, c_error, c_energy, c_pose = self._coef
-        steps = t.steps
-        per_step = c_units * t.units + c_risk * t.risk_sum
-        if c_novelty:  # reading novelty_sum counts the meter's queued visits
-            per_step += c_novelty * t.novelty_sum
-        j = (per_step / steps if steps else 0.0) + c_energy * t.energy_wh + c_pose * t.pose_sum
-        errors = t.errors
-        if errors and c_error:
-            j += c_error * errors / (t.units + errors)
+        j = overlay_potential(self._coef, t, PY)  # reads t.novelty_sum (counting queued visits) only if weighted
         overlay_r = j - self._prev_j
         self._prev_j = j
         total = float(reward) + overlay_r if self.keep_task_reward else overlay_r

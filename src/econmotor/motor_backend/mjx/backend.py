@@ -1,0 +1,258 @@
+"""MjxBackend: the GPU-native motor backend (factory name ``mjx``).
+
+The mujoco couriers (``tasks/mjx.yaml``) simulated by MuJoCo's JAX port in batches
+(:class:`~econmotor.motor_backend.mjx.env.MjxCourierEnv`, the economics inside the compiled
+step), trained by the JAX PPO of ``mjx/ppo.py`` on whatever device JAX sees (GPU when present,
+CPU otherwise), evaluated in batches, deployed to ONNX. Same contract, result types, raw-metric
+keys, run-directory layout and ConfigError rules as the ``mujoco`` backend, so the registry,
+``econmotor report --motor-backend mjx``, ``solve`` and ``sweep`` work unchanged.
+
+On a CPU ``num_envs`` is capped at the task's ``cpu_num_envs_cap`` (64 by default: MJX on a
+CPU runs a batch of envs about as fast per env as a few, and compiles slower with more); the
+result config records the request, the value used and why (``num_envs_note``).
+
+XLA compiles each jitted function once per process; a persistent compilation cache
+(``compilation_cache_dir``, default ``$ECONMOTOR_JAX_CACHE_DIR`` or ``~/.cache/econmotor/jax``)
+lets later processes skip most of it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import jax
+
+from econmotor.errors import ConfigError
+from econmotor.motor_backend.base import (
+    MotorEvalResult,
+    MotorTrainingResult,
+    ProgressFn,
+    no_progress,
+    summarize_episodes,
+)
+from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
+from econmotor.motor_backend.mjx import ppo
+from econmotor.motor_backend.mjx.export import MjxOnnxPolicyHandle, export_onnx
+from econmotor.motor_backend.mjx.settings import MjxTaskSettings, parse_mjx_settings
+from econmotor.motor_backend.mjx.training import (
+    RUN_CONFIG_FILE,
+    MjxTrainingRun,
+    evaluate_episodes,
+    load_learner,
+    read_run_config,
+)
+from econmotor.objectives.economic_objective import EconomicObjectiveSpec
+from econmotor.tasks import load_catalog
+
+ONNX_FILE = "policy.onnx"
+ONNX_METADATA_KEYS = ("task_id", "overlay", "overlay_references", "objective", "datapack_ids", "economics",
+                      "algorithm", "obs_layout", "action_layout", "seed")
+CACHE_ENV = "ECONMOTOR_JAX_CACHE_DIR"
+
+
+def device_description() -> str:
+    """The device JAX trains on, e.g. ``GPU (NVIDIA H100 80GB HBM3)`` or ``CPU (cpu)``."""
+    device = jax.devices()[0]
+    return f"{device.platform.upper()} ({device.device_kind})"
+
+
+def enable_compilation_cache(path: str | Path | None) -> None:
+    """Point JAX's persistent compilation cache at ``path`` unless the user configured one."""
+    if path is None or jax.config.jax_compilation_cache_dir:
+        return
+    Path(path).mkdir(parents=True, exist_ok=True)
+    jax.config.update("jax_compilation_cache_dir", str(path))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+
+
+class MjxBackend:
+    """Train, evaluate and deploy JAX PPO policies on the MJX couriers.
+
+    Args:
+        task_files: extra task catalog YAML files (besides the shipped ones).
+        datapack_provider: registered datapacks that ids may refer to.
+        keep_task_reward: add the overlay to the task's reward (True) or replace it (False).
+        runs_dir: where runs go when ``output_dir`` is not given.
+        eval_batch: episodes evaluated at once (a fixed batch: one compiled evaluation).
+        compilation_cache_dir: JAX's persistent compilation cache ("" or None: off).
+    """
+
+    name = "mjx"
+
+    def __init__(self, task_files: Sequence[str | Path] = (), datapack_provider: DatapackProvider | None = None,
+                 keep_task_reward: bool = True, runs_dir: str | Path = "runs/mjx", eval_batch: int = 10,
+                 compilation_cache_dir: str | Path | None = os.environ.get(
+                     CACHE_ENV, str(Path.home() / ".cache" / "econmotor" / "jax"))) -> None:
+        if eval_batch < 1:
+            raise ConfigError("<mjx backend>", "eval_batch", "must be >= 1")
+        self.catalog = load_catalog(task_files)
+        self.provider = datapack_provider or DatapackProvider()
+        self.keep_task_reward = keep_task_reward
+        self.runs_dir = Path(runs_dir)
+        self.eval_batch = int(eval_batch)
+        enable_compilation_cache(compilation_cache_dir or None)
+        self._envs: dict[str, Any] = {}
+        self._evaluators: dict[tuple[int, str], Any] = {}
+
+    @staticmethod
+    def device_description() -> str:
+        return device_description()
+
+    # --- configuration -------------------------------------------------------------------
+    def settings(self, task_id: str) -> MjxTaskSettings:
+        return parse_mjx_settings(self.catalog.get(task_id))
+
+    def env(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str] = (),
+            datapack_configs: Sequence[DatapackConfig] | None = None) -> tuple[Any, dict[str, Any]]:
+        """The (memoised) env for a task, objective and datapacks, and a JSON-able description."""
+        from econmotor.motor_backend.mjx.env import MjxCourierEnv
+
+        configs = list(datapack_configs or ())
+        bundle = self.provider.resolve(task_id, datapack_ids, configs)
+        memo = json.dumps([task_id, objective.to_dict(), [p.to_dict() for p in configs], list(bundle.datapack_ids)],
+                          sort_keys=True, default=str)
+        if memo not in self._envs:
+            self._envs[memo] = MjxCourierEnv(task_id, objective=objective, datapacks=[bundle] if configs or
+                                             bundle.datapack_ids else [], catalog=self.catalog,
+                                             keep_task_reward=self.keep_task_reward)
+        env = self._envs[memo]
+        spec = self.catalog.get(task_id)
+        described = {
+            "task_id": task_id, "objective": objective.to_dict(), "overlay": dict(env.scales),
+            "overlay_references": dict(env.references), "datapack_ids": list(bundle.datapack_ids),
+            "datapacks": [p.to_dict() for p in configs],
+            "economics": {r["name"]: r["value"] for r in spec.economics.parameters()},
+            "settings": env.settings.to_dict(), "keep_task_reward": self.keep_task_reward,
+        }
+        return env, described
+
+    def _evaluator(self, env: Any, cfg: ppo.PPOConfig) -> Any:
+        key = (id(env), json.dumps(cfg.to_dict(), sort_keys=True))
+        if key not in self._evaluators:
+            self._evaluators[key] = ppo.make_evaluate(env, cfg, self.eval_batch)
+        return self._evaluators[key]
+
+    @staticmethod
+    def resolve_num_envs(settings: MjxTaskSettings, requested: int) -> tuple[int, str]:
+        """``(num_envs, note)``: the request (or the catalog default), capped on a CPU."""
+        wanted = requested if requested > 0 else settings.num_envs
+        if jax.default_backend() == "cpu" and wanted > settings.cpu_num_envs_cap:
+            return settings.cpu_num_envs_cap, (f"{wanted} envs requested; capped at {settings.cpu_num_envs_cap} "
+                                               "on a CPU (cpu_num_envs_cap in the task's mjx entry)")
+        return wanted, "as requested" if requested > 0 else "the task's default"
+
+    @staticmethod
+    def fit_minibatches(cfg: ppo.PPOConfig, num_envs: int, note: str = "",
+                        requested: dict[str, Any] | None = None) -> tuple[ppo.PPOConfig, str]:
+        """Fewer minibatches when the catalog's do not divide ``num_envs * unroll_length`` (small
+        runs, e.g. a sweep's 1 env); an explicitly requested count is left for PPO to reject."""
+        batch = num_envs * cfg.unroll_length
+        if batch % cfg.num_minibatches == 0 or "num_minibatches" in (requested or {}):
+            return cfg, note
+        fitted = math.gcd(batch, cfg.num_minibatches)
+        note += f"; num_minibatches {cfg.num_minibatches} -> {fitted} (must divide num_envs * unroll_length)"
+        return replace(cfg, num_minibatches=fitted), note
+
+    def ppo_config(self, settings: MjxTaskSettings, overrides: dict[str, Any] | None) -> ppo.PPOConfig:
+        source = f"{settings.source}: backend_entries.mjx.{settings.task_id}.ppo"
+        cfg = ppo.PPOConfig.from_mapping({"normalize_obs": settings.normalize_obs, **settings.ppo}, source)
+        return ppo.PPOConfig.from_mapping({**cfg.to_dict(), **overrides}, "<hyperparameters>") if overrides else cfg
+
+    # --- the MotorBackend protocol ---------------------------------------------------------
+    def train_policy(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str],
+                     num_envs: int, max_steps: int, seed: int, *,
+                     datapack_configs: Sequence[DatapackConfig] | None = None,
+                     output_dir: str | Path | None = None, eval_episodes: int = 5,
+                     progress: ProgressFn = no_progress, resume: bool = False, algorithm: str | None = None,
+                     hyperparameters: dict[str, Any] | None = None,
+                     checkpoint_every_steps: int | None = None) -> MotorTrainingResult:
+        """Train with JAX PPO, export ONNX, evaluate ``eval_episodes`` deterministic episodes.
+
+        ``num_envs <= 0`` uses the catalog's default (capped on a CPU); ``resume=True`` continues
+        the run in ``output_dir`` from its newest checkpoint up to ``max_steps`` total env steps.
+        """
+        if algorithm not in (None, "ppo"):
+            raise ConfigError("<train>", "algorithm", f"the mjx backend trains PPO only, not '{algorithm}'", ["ppo"])
+        if max_steps < 1:
+            raise ConfigError("<train>", "max_steps", "must be >= 1")
+        settings = self.settings(task_id)
+        env, described = self.env(task_id, objective, datapack_ids, datapack_configs)
+        cfg = self.ppo_config(settings, hyperparameters)
+        used_envs, note = self.resolve_num_envs(settings, int(num_envs))
+        cfg, note = self.fit_minibatches(cfg, used_envs, note, hyperparameters)
+        if output_dir is None:
+            if resume:
+                raise ConfigError("<train>", "output_dir", "resume needs the run directory to continue")
+            output_dir = self.runs_dir / f"{task_id}_{time.strftime('%Y%m%d-%H%M%S')}_s{seed}"
+        run = MjxTrainingRun(
+            run_dir=Path(output_dir), env=env, described=described, cfg=cfg,
+            requested_hyperparameters=hyperparameters, num_envs=used_envs, max_steps=int(max_steps), seed=int(seed),
+            checkpoint_every_steps=int(checkpoint_every_steps or settings.checkpoint_every_steps),
+            extra_config={"device": device_description(), "num_envs_requested": int(num_envs),
+                          "num_envs_note": note})
+        learner, curve, timing = run.train(resume=resume, progress=progress)
+        config = {**run.config, "timing": timing}
+        artifacts = {"policy": str(run.run_dir / "policy.npz"), "tensorboard": str(run.run_dir / "tb"),
+                     "run_config": str(run.run_dir / RUN_CONFIG_FILE),
+                     "onnx": str(self._export(run.run_dir, learner, run.cfg, config))}
+        raw, econ, episodes = {}, {}, []
+        if eval_episodes > 0:
+            rows = evaluate_episodes(self._evaluator(env, run.cfg), self.eval_batch, env, learner, eval_episodes,
+                                     seed + 10_000, progress)
+            raw, econ, episodes = summarize_episodes(rows, self.catalog.get(task_id).economics)
+        return MotorTrainingResult(policy_id=str(run.run_dir), task_id=task_id, backend=self.name,
+                                   raw_metrics=raw, econ_metrics=econ, episodes=episodes,
+                                   training_curve=curve, config=config, artifacts=artifacts)
+
+    def evaluate_policy(self, policy_id: str, task_id: str, objective: EconomicObjectiveSpec, num_episodes: int,
+                        seed: int, *, datapack_configs: Sequence[DatapackConfig] | None = None,
+                        output_dir: str | Path | None = None, progress: ProgressFn = no_progress,
+                        datapack_ids: Sequence[str] = ()) -> MotorEvalResult:
+        """Run ``num_episodes`` deterministic episodes (``eval_batch`` at a time, keyed by ``seed``)."""
+        config = read_run_config(policy_id)
+        if config.get("task_id") != task_id:
+            raise ConfigError(str(Path(policy_id) / RUN_CONFIG_FILE), "task_id",
+                              f"policy was trained on '{config.get('task_id')}', not '{task_id}'")
+        env, described = self.env(task_id, objective, datapack_ids, datapack_configs)
+        cfg = ppo.PPOConfig.from_mapping(config["hyperparameters"], str(Path(policy_id) / RUN_CONFIG_FILE))
+        learner = load_learner(policy_id, config, cfg)
+        rows = evaluate_episodes(self._evaluator(env, cfg), self.eval_batch, env, learner, num_episodes, seed,
+                                 progress)
+        raw, econ, episodes = summarize_episodes(rows, self.catalog.get(task_id).economics)
+        eval_config = {**described, "policy_id": str(policy_id), "num_episodes": num_episodes, "seed": seed,
+                       "algorithm": "ppo", "deterministic": True, "device": device_description()}
+        if output_dir is not None:
+            out = Path(output_dir)
+            out.mkdir(parents=True, exist_ok=True)
+            (out / "evaluation.json").write_text(json.dumps(
+                {"raw_metrics": raw, "econ_metrics": econ, "episodes": episodes, "config": eval_config},
+                indent=2, default=str), encoding="utf-8")
+        return MotorEvalResult(policy_id=str(policy_id), task_id=task_id, backend=self.name, raw_metrics=raw,
+                               econ_metrics=econ, episodes=episodes, config=eval_config)
+
+    def deploy_policy_handle(self, policy_id: str) -> MjxOnnxPolicyHandle:
+        """An onnxruntime handle on the run's ``policy.onnx`` (exported now if missing)."""
+        path = Path(policy_id) / ONNX_FILE
+        if not path.is_file():
+            config = read_run_config(policy_id)
+            cfg = ppo.PPOConfig.from_mapping(config["hyperparameters"], str(Path(policy_id) / RUN_CONFIG_FILE))
+            self._export(Path(policy_id), load_learner(policy_id, config, cfg), cfg, config)
+        return MjxOnnxPolicyHandle(path)
+
+    # --- extras ------------------------------------------------------------------------------
+    @staticmethod
+    def _export(run_dir: Path, learner: ppo.Learner, cfg: ppo.PPOConfig, config: dict[str, Any]) -> Path:
+        """Write ``policy.onnx`` with the mujoco backend's metadata keys (bounds from the run config)."""
+        learner = jax.device_get(learner)
+        stats = (learner.stats.mean, learner.stats.var) if cfg.normalize_obs else None
+        metadata = {key: config.get(key) for key in ONNX_METADATA_KEYS}
+        action = config["action_layout"]
+        return export_onnx(learner.params, stats, cfg.clip_obs, action["low"], action["high"],
+                           run_dir / ONNX_FILE, metadata)

@@ -1,0 +1,298 @@
+"""PPO in JAX over a batched MJX env: one jitted training iteration, one jitted evaluation.
+
+Read top to bottom (CleanRL / PureJaxRL style). Why not Brax's trainer: brax 0.14.2 calls
+``jax.device_put_replicated``, which current JAX (0.10, 0.11) has removed (AttributeError),
+and under current ``pmap`` it recompiled its training and evaluation functions more than once
+per run. This module jits plain functions on one device instead, so each compiles once:
+
+``make_train_iteration(env, cfg, num_envs)`` returns ``iteration(state) -> (state, metrics)``:
+
+1. rollout: ``lax.scan`` of ``cfg.unroll_length`` steps of ``env.step`` over ``num_envs``
+   envs; actions sampled from the Gaussian policy on normalised observations, clipped to
+   ``[env.action_low, env.action_high]`` for the env (the log-probability is of the sample);
+2. observation statistics: the rollout's raw observations merged into the running mean/var
+   (the rollout itself used the statistics from before it, so the stored log-probabilities and
+   the normalised observations the update sees agree);
+3. GAE(gamma, lambda) with Brax's treatment of auto-reset: a step that ended by falling stops
+   the bootstrap (``termination = done * (1 - truncated)``); a step that ended at the time
+   limit is masked out of the advantages (its next observation is already the reset one);
+4. ``cfg.num_epochs`` epochs of ``cfg.num_minibatches`` shuffled minibatches of the
+   clipped-surrogate loss ``-min(r A, clip(r, 1 +- eps) A) + value_cost (V - R)^2 - entropy_cost H``
+   with Adam (optax) after global-norm gradient clipping.
+
+``metrics`` holds the losses and, over the episodes that ended during the rollout, the count
+and the sums of every raw metric the env reports in ``finished`` (returns, overlay terms, ...).
+
+``make_evaluate(env, cfg, num_envs)`` returns ``evaluate(params, stats, key) -> (finished,
+seen)``: ``num_envs`` deterministic episodes (action ``clip(mean, low, high)``), stepped
+until every env has finished one (at most ``env.max_episode_steps`` steps, a ``lax.while_loop``);
+the first episode each env finishes is returned.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, fields
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import optax
+
+from econmotor.errors import ConfigError
+from econmotor.motor_backend.mjx import networks as nets
+
+
+@dataclass(frozen=True)
+class PPOConfig:
+    """PPO hyperparameters (catalog ``backends.mjx.hyperparameters.ppo`` and per-run overrides).
+
+    Attributes:
+        learning_rate: Adam step size.
+        unroll_length: env steps per env per iteration (an iteration is ``num_envs * unroll_length``
+            env steps).
+        num_minibatches: minibatches per epoch (the batch is ``num_envs * unroll_length``).
+        num_epochs: passes over each rollout.
+        gamma / gae_lambda: discount and GAE lambda.
+        clip_epsilon: PPO ratio clip epsilon.
+        entropy_cost / value_cost: entropy bonus and value-loss weights.
+        max_grad_norm: global-norm gradient clip.
+        hidden_sizes: tanh hidden layers of the policy and the value MLPs.
+        init_log_std: initial log standard deviation of the Gaussian policy.
+        normalize_obs: running observation normalisation (exported into the ONNX graph).
+        clip_obs: clip of the normalised observations.
+        normalize_advantages: standardise advantages per minibatch.
+        reward_scaling: rewards are multiplied by this for learning only (metrics stay in task units).
+    """
+
+    learning_rate: float = 3e-4
+    unroll_length: int = 32
+    num_minibatches: int = 4
+    num_epochs: int = 4
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    clip_epsilon: float = 0.2
+    entropy_cost: float = 0.0
+    value_cost: float = 0.5
+    max_grad_norm: float = 0.5
+    hidden_sizes: tuple[int, ...] = (64, 64)
+    init_log_std: float = 0.0
+    normalize_obs: bool = True
+    clip_obs: float = 10.0
+    normalize_advantages: bool = True
+    reward_scaling: float = 1.0
+
+    @classmethod
+    def from_mapping(cls, values: Mapping[str, Any] | None, source: str = "<hyperparameters>") -> PPOConfig:
+        """Build from YAML/JSON values; unknown keys or wrong types are a ConfigError naming the key."""
+        known = {f.name: f for f in fields(cls)}
+        kw: dict[str, Any] = {}
+        for key, raw in (values or {}).items():
+            if key not in known:
+                raise ConfigError(source, key, "unknown mjx PPO hyperparameter", sorted(known))
+            default = getattr(cls, key)
+            try:
+                if isinstance(default, bool):
+                    if not isinstance(raw, bool):
+                        raise TypeError("expected true or false")
+                    kw[key] = raw
+                elif isinstance(default, tuple):
+                    kw[key] = tuple(int(v) for v in raw)
+                    if not kw[key] or min(kw[key]) < 1:
+                        raise ValueError("expected a non-empty list of positive layer sizes")
+                elif isinstance(default, int):
+                    kw[key] = int(raw)
+                    if kw[key] < 1:
+                        raise ValueError("expected an integer >= 1")
+                else:
+                    kw[key] = float(raw)
+            except (TypeError, ValueError) as exc:
+                raise ConfigError(source, key, f"bad value {raw!r}: {exc}") from exc
+        return cls(**kw)
+
+    def to_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["hidden_sizes"] = list(self.hidden_sizes)
+        return out
+
+
+class Learner(NamedTuple):
+    """What training changes and a checkpoint keeps."""
+
+    params: nets.Params
+    opt_state: Any
+    stats: nets.RunningStats
+
+
+class TrainState(NamedTuple):
+    learner: Learner
+    env_state: Any
+    key: jax.Array
+
+
+class Transition(NamedTuple):
+    x: jax.Array  # normalised observation the action was taken on
+    raw_obs: jax.Array
+    action: jax.Array  # the Gaussian sample (before clipping to the env's bounds)
+    log_prob: jax.Array
+    value: jax.Array
+    reward: jax.Array
+    done: jax.Array
+    truncated: jax.Array
+
+
+def make_optimizer(cfg: PPOConfig) -> optax.GradientTransformation:
+    return optax.chain(optax.clip_by_global_norm(cfg.max_grad_norm), optax.adam(cfg.learning_rate, eps=1e-5))
+
+
+def init_learner(key: jax.Array, obs_size: int, action_size: int, cfg: PPOConfig) -> Learner:
+    params = nets.init_params(key, obs_size, action_size, cfg.hidden_sizes, cfg.init_log_std)
+    return Learner(params, make_optimizer(cfg).init(params), nets.init_stats(obs_size))
+
+
+def init_train_state(env: Any, cfg: PPOConfig, num_envs: int, seed: int,
+                     learner: Learner | None = None, key: jax.Array | None = None) -> TrainState:
+    """A fresh learner (or the given one, e.g. from a checkpoint) and ``num_envs`` reset envs."""
+    root = jax.random.PRNGKey(seed) if key is None else key
+    k_params, k_env, k_run = jax.random.split(root, 3)
+    if learner is None:
+        learner = init_learner(k_params, env.observation_size, env.action_size, cfg)
+    env_state = jax.jit(env.reset, static_argnums=1)(k_env, num_envs)
+    return TrainState(learner, env_state, k_run)
+
+
+def observe(stats: nets.RunningStats, obs: jax.Array, cfg: PPOConfig) -> jax.Array:
+    return nets.normalize(stats, obs, cfg.clip_obs) if cfg.normalize_obs else obs
+
+
+def deterministic_action(params: nets.Params, stats: nets.RunningStats, obs: jax.Array, cfg: PPOConfig,
+                         low: jax.Array, high: jax.Array) -> jax.Array:
+    """``clip(mean(normalise(obs)), low, high)`` (what the ONNX graph computes)."""
+    return jnp.clip(nets.policy_mean(params, observe(stats, obs, cfg)), low, high)
+
+
+def gae(tr: Transition, last_value: jax.Array, gamma: float, lam: float) -> tuple[jax.Array, jax.Array]:
+    """Advantages and value targets ``[T, N]`` (auto-reset handling in the module docstring)."""
+    next_values = jnp.concatenate([tr.value[1:], last_value[None]], axis=0)
+    termination = tr.done * (1.0 - tr.truncated)
+    keep = 1.0 - tr.truncated
+    deltas = (tr.reward + gamma * (1.0 - termination) * next_values - tr.value) * keep
+
+    def backward(acc, xs):
+        delta, term, kp = xs
+        acc = delta + gamma * lam * (1.0 - term) * kp * acc
+        return acc, acc
+
+    _, adv = jax.lax.scan(backward, jnp.zeros_like(last_value), (deltas, termination, keep), reverse=True)
+    return adv, adv + tr.value
+
+
+def ppo_loss(params: nets.Params, batch: tuple[jax.Array, ...], cfg: PPOConfig) -> tuple[jax.Array, dict]:
+    x, action, old_log_prob, advantage, target, mask = batch
+    mean = nets.policy_mean(params, x)
+    log_prob = nets.gaussian_log_prob(action, mean, params["log_std"])
+    ratio = jnp.exp(log_prob - old_log_prob)
+    weight = mask / jnp.maximum(jnp.sum(mask), 1.0)
+    if cfg.normalize_advantages:
+        mu = jnp.sum(advantage * weight)
+        sd = jnp.sqrt(jnp.sum((advantage - mu) ** 2 * weight))
+        advantage = (advantage - mu) / (sd + 1e-8)
+    surrogate = jnp.minimum(ratio * advantage, jnp.clip(ratio, 1 - cfg.clip_epsilon, 1 + cfg.clip_epsilon) * advantage)
+    policy_loss = -jnp.sum(surrogate * weight)
+    value_loss = jnp.sum((nets.value(params, x) - target) ** 2 * weight)
+    entropy = nets.gaussian_entropy(params["log_std"])
+    loss = policy_loss + cfg.value_cost * value_loss - cfg.entropy_cost * entropy
+    clip_fraction = jnp.sum((jnp.abs(ratio - 1.0) > cfg.clip_epsilon) * weight)
+    return loss, {"policy_loss": policy_loss, "value_loss": value_loss, "entropy": entropy,
+                  "clip_fraction": clip_fraction}
+
+
+def make_train_iteration(env: Any, cfg: PPOConfig, num_envs: int):
+    """The jitted ``iteration(state) -> (state, metrics)`` (one rollout + the PPO update)."""
+    low, high = jnp.asarray(env.action_low, jnp.float32), jnp.asarray(env.action_high, jnp.float32)
+    optimizer = make_optimizer(cfg)
+    batch_size = num_envs * cfg.unroll_length
+    if batch_size % cfg.num_minibatches:
+        raise ConfigError("<hyperparameters>", "num_minibatches",
+                          f"num_envs * unroll_length = {batch_size} must be divisible by {cfg.num_minibatches}")
+    minibatch = batch_size // cfg.num_minibatches
+    metric_keys = tuple(env.metric_keys)
+
+    def env_step(carry, _):
+        learner, env_state, key = carry
+        key, k_act = jax.random.split(key)
+        x = observe(learner.stats, env_state.obs, cfg)
+        mean = nets.policy_mean(learner.params, x)
+        log_std = learner.params["log_std"]
+        action = mean + jnp.exp(log_std) * jax.random.normal(k_act, mean.shape)
+        log_prob = nets.gaussian_log_prob(action, mean, log_std)
+        v = nets.value(learner.params, x)
+        nxt = env.step(env_state, jnp.clip(action, low, high))
+        done = nxt.done.astype(jnp.float32)
+        tr = Transition(x, env_state.obs, action, log_prob, v, nxt.reward * cfg.reward_scaling, done,
+                        nxt.truncated.astype(jnp.float32))
+        ended = {k: jnp.sum(jnp.where(done > 0, nxt.finished[k].astype(jnp.float32), 0.0)) for k in metric_keys}
+        return (learner, nxt, key), (tr, ended)
+
+    def update_minibatch(carry, batch):
+        params, opt_state = carry
+        (_, info), grads = jax.value_and_grad(ppo_loss, has_aux=True)(params, batch, cfg)
+        updates, opt_state = optimizer.update(grads, opt_state, params)
+        return (optax.apply_updates(params, updates), opt_state), info
+
+    def update_epoch(carry, key):
+        params, opt_state, flat = carry
+        perm = jax.random.permutation(key, batch_size)
+        shuffled = jax.tree_util.tree_map(lambda a: a[perm].reshape(cfg.num_minibatches, minibatch, *a.shape[1:]),
+                                          flat)
+        (params, opt_state), info = jax.lax.scan(update_minibatch, (params, opt_state), shuffled)
+        return (params, opt_state, flat), info
+
+    def iteration(state: TrainState) -> tuple[TrainState, dict[str, jax.Array]]:
+        learner = state.learner
+        (_, env_state, key), (tr, ended) = jax.lax.scan(env_step, (learner, state.env_state, state.key), None,
+                                                        length=cfg.unroll_length)
+        last_value = nets.value(learner.params, observe(learner.stats, env_state.obs, cfg))
+        advantage, target = gae(tr, last_value, cfg.gamma, cfg.gae_lambda)
+        stats = nets.update_stats(learner.stats, tr.raw_obs) if cfg.normalize_obs else learner.stats
+        mask = 1.0 - tr.truncated
+        flat = jax.tree_util.tree_map(lambda a: a.reshape(batch_size, *a.shape[2:]),
+                                      (tr.x, tr.action, tr.log_prob, advantage, target, mask))
+        key, k_epochs = jax.random.split(key)
+        (params, opt_state, _), info = jax.lax.scan(update_epoch, (learner.params, learner.opt_state, flat),
+                                                    jax.random.split(k_epochs, cfg.num_epochs))
+        metrics = {k: jnp.mean(v) for k, v in info.items()}
+        metrics["episodes"] = jnp.sum(tr.done)
+        metrics.update({f"sum/{k}": jnp.sum(v) for k, v in ended.items()})
+        metrics["reward_mean"] = jnp.mean(tr.reward) / cfg.reward_scaling
+        return TrainState(Learner(params, opt_state, stats), env_state, key), metrics
+
+    return jax.jit(iteration, donate_argnums=0)
+
+
+def make_evaluate(env: Any, cfg: PPOConfig, num_envs: int):
+    """The jitted ``evaluate(params, stats, key) -> (finished, seen)`` (module docstring)."""
+    low, high = jnp.asarray(env.action_low, jnp.float32), jnp.asarray(env.action_high, jnp.float32)
+    metric_keys = tuple(env.metric_keys)
+
+    def evaluate(params: nets.Params, stats: nets.RunningStats, key: jax.Array):
+        env_state = env.reset(key, num_envs)
+        first = {k: jnp.zeros_like(env_state.finished[k]) for k in metric_keys}
+        seen = jnp.zeros((num_envs,), bool)
+
+        def running(carry):
+            _, _, seen, t = carry
+            return jnp.logical_and(t < env.max_episode_steps, jnp.logical_not(jnp.all(seen)))
+
+        def step(carry):
+            env_state, first, seen, t = carry
+            action = deterministic_action(params, stats, env_state.obs, cfg, low, high)
+            nxt = env.step(env_state, action)
+            take = (nxt.done > 0) & ~seen
+            first = {k: jnp.where(take, nxt.finished[k].astype(first[k].dtype), first[k]) for k in metric_keys}
+            return nxt, first, seen | (nxt.done > 0), t + 1
+
+        _, first, seen, _ = jax.lax.while_loop(running, step, (env_state, first, seen, jnp.asarray(0, jnp.int32)))
+        return first, seen
+
+    return jax.jit(evaluate)

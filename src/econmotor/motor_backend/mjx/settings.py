@@ -1,0 +1,88 @@
+"""MjxTaskSettings: a task's ``backends.mjx`` entry (``tasks/mjx.yaml``), validated.
+
+Schema::
+
+    backends:
+      mjx:
+        inherit: mujoco              # metering keys from the task's backends.mujoco entry (below)
+        num_envs: 2048               # environments simulated at once (capped to cpu_num_envs_cap on a CPU)
+        normalize_obs: true
+        checkpoint_every_steps: 5000000
+        ppo: {unroll_length: 20, ...}   # the JAX PPO trainer's hyperparameters, passed through
+
+The metering keys (:data:`INHERITED_KEYS`) are the ``mujoco`` backend's own: with
+``inherit: mujoco`` they are read from that entry (validated by ``parse_mujoco_settings``), so
+the two backends cannot drift; without it they may be written here with the same meaning.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+from econmotor.config.loading import as_int, as_str, check_keys, require_mapping
+from econmotor.errors import ConfigError
+from econmotor.motor_backend.mujoco.settings import MujocoTaskSettings, parse_mujoco_settings
+from econmotor.tasks.catalog import TaskSpec
+
+#: keys shared with the mujoco backend's entry (the economics of the physics).
+INHERITED_KEYS = ("env_id", "leg_distance_m", "drivetrain_efficiency", "idle_power_w", "tilt_margin_rad",
+                  "fall_tilt_rad", "novelty_dims", "novelty_bin", "overlay_normalization", "env_kwargs")
+OWN_KEYS = ("inherit", "num_envs", "cpu_num_envs_cap", "normalize_obs", "checkpoint_every_steps", "ppo",
+            "novelty_table_size")
+
+
+@dataclass(frozen=True)
+class MjxTaskSettings:
+    """How the mjx backend runs one catalog task; the :data:`INHERITED_KEYS` read through to ``metering``."""
+
+    task_id: str
+    metering: MujocoTaskSettings  # env_id, leg_distance_m, ... validated by the mujoco backend's parser
+    num_envs: int = 2048
+    cpu_num_envs_cap: int = 64
+    normalize_obs: bool = True
+    checkpoint_every_steps: int = 5_000_000
+    novelty_table_size: int = 4096
+    ppo: dict[str, Any] = field(default_factory=dict)
+    source: str = "<catalog>"
+
+    def __getattr__(self, name: str) -> Any:
+        if name in INHERITED_KEYS:
+            return getattr(self.metering, name)
+        raise AttributeError(name)
+
+    def to_dict(self) -> dict[str, Any]:
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "metering"}
+        out.update({k: getattr(self.metering, k) for k in INHERITED_KEYS})
+        return out
+
+
+def parse_mjx_settings(spec: TaskSpec) -> MjxTaskSettings:
+    """Validate ``spec``'s ``backends.mjx`` entry; errors name the catalog file and key."""
+    entry = spec.backend_entry("mjx")
+    src, prefix = spec.backend_source("mjx"), f"backend_entries.mjx.{spec.task_id}"
+    check_keys(entry, OWN_KEYS + INHERITED_KEYS, src, prefix)
+    key = lambda name: f"{prefix}.{name}"
+    inherit = entry.get("inherit")
+    if inherit is not None:
+        as_str(inherit, src, key("inherit"), ("mujoco",))
+        repeated = [k for k in INHERITED_KEYS if k in entry]
+        if repeated:
+            raise ConfigError(src, key(repeated[0]), "comes from the mujoco entry (inherit: mujoco); remove it here")
+        base: MujocoTaskSettings = parse_mujoco_settings(spec)
+    else:  # the metering keys written here: validate them with the mujoco parser's rules
+        metering = {k: entry[k] for k in INHERITED_KEYS if k in entry}
+        proxy = TaskSpec(spec.task_id, spec.description, spec.unit, spec.error_definition, spec.economics,
+                         {"mujoco": metering}, spec.tags, src)
+        base = parse_mujoco_settings(proxy)
+    kw: dict[str, Any] = {"task_id": spec.task_id, "metering": base, "source": src}
+    for name in ("num_envs", "cpu_num_envs_cap", "checkpoint_every_steps", "novelty_table_size"):
+        if name in entry:
+            kw[name] = as_int(entry[name], src, key(name), min_value=1)
+    if "normalize_obs" in entry:
+        if not isinstance(entry["normalize_obs"], bool):
+            raise ConfigError(src, key("normalize_obs"), "expected true or false")
+        kw["normalize_obs"] = entry["normalize_obs"]
+    if entry.get("ppo"):
+        kw["ppo"] = dict(require_mapping(entry["ppo"], src, key("ppo")))
+    return MjxTaskSettings(**kw)

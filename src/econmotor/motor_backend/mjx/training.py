@@ -1,0 +1,222 @@
+"""MjxTrainingRun: one JAX PPO run in a run directory, fresh or resumed; and batched evaluation.
+
+Run directory (``policy_id``), as the mujoco backend's::
+
+    run_config.json                     # task, objective, datapacks, hyperparameters, seed, device, num_envs
+    checkpoints/ckpt_<N>_steps.npz      # every checkpoint_every_steps and at the end (checkpoint.py)
+    tb/                                 # TensorBoard: rollout/, train/, overlay/<key>_raw|_weighted, econ/<key>
+    policy.npz                          # the final learner (params, optimizer state, normaliser)
+    policy.onnx                         # the deployed actor (export.py)
+
+The host loop calls the one jitted iteration (``ppo.make_train_iteration``) until ``max_steps``
+env steps (rounded up to whole iterations of ``num_envs * unroll_length``), reporting progress,
+writing TensorBoard scalars of the episodes that ended, the training curve and checkpoints.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import jax
+import numpy as np
+
+from econmotor.errors import BackendError, ConfigError
+from econmotor.motor_backend.base import ProgressFn, no_progress
+from econmotor.motor_backend.mjx import checkpoint as ckpt
+from econmotor.motor_backend.mjx import ppo
+
+RUN_CONFIG_FILE = "run_config.json"
+POLICY_FILE = "policy.npz"
+
+
+def read_run_config(run_dir: str | Path) -> dict[str, Any]:
+    """The ``run_config.json`` of an mjx run directory (a ConfigError if it is not one)."""
+    path = Path(run_dir) / RUN_CONFIG_FILE
+    if not path.is_file():
+        raise ConfigError(str(run_dir), None, f"not an mjx run directory (no {RUN_CONFIG_FILE})")
+    config = json.loads(path.read_text(encoding="utf-8"))
+    if config.get("backend") != "mjx":
+        raise ConfigError(str(path), "backend", f"a '{config.get('backend', 'mujoco')}' run, not an mjx one")
+    return config
+
+
+def write_json_atomic(path: Path, payload: dict[str, Any]) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(payload, indent=2, default=str), encoding="utf-8")
+    tmp.replace(path)
+
+
+def load_learner(run_dir: str | Path, config: dict[str, Any], cfg: ppo.PPOConfig) -> ppo.Learner:
+    """The final learner of a run (``policy.npz``; sizes from the run config's layouts)."""
+    path = Path(run_dir) / POLICY_FILE
+    if not path.is_file():
+        raise BackendError(f"no trained policy in {run_dir} (no {POLICY_FILE}): training did not finish; "
+                           "continue it with `econmotor train --motor-backend mjx --resume --output-dir <run dir>`")
+    template = ppo.init_learner(jax.random.PRNGKey(0), int(config["obs_layout"]["obs_dim"]),
+                                int(config["action_layout"]["action_dim"]), cfg)
+    learner, _, _, _ = ckpt.load_tree(path, template)
+    return learner
+
+
+def env_layout(env: Any, normalized: bool) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Observation and action layout of the env, for the ONNX metadata (as the mujoco backend's)."""
+    import mujoco
+
+    model = env.mj_model
+    obs = {"obs_dim": int(env.observation_size), "dtype": "float32", "normalized_in_graph": bool(normalized),
+           "joints": [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(model.njnt)],
+           "note": "Gymnasium v5 observation of the env id (the mujoco backend's layout)"}
+    action = {"action_dim": int(env.action_size), "low": np.asarray(env.action_low).tolist(),
+              "high": np.asarray(env.action_high).tolist(),
+              "actuators": [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in range(model.nu)]}
+    return obs, action
+
+
+def evaluate_episodes(evaluate: Any, batch: int, env: Any, learner: ppo.Learner, num_episodes: int, seed: int,
+                      progress: ProgressFn = no_progress, label: str = "evaluate") -> list[dict[str, Any]]:
+    """``num_episodes`` deterministic episodes, ``batch`` at a time (batch j keyed by ``seed`` and j).
+
+    ``evaluate`` is ``ppo.make_evaluate(env, cfg, batch)``; one raw-metrics dict per episode.
+    """
+    rows: list[dict[str, Any]] = []
+    progress(label, 0, num_episodes)
+    for j in range(math.ceil(num_episodes / batch) if num_episodes > 0 else 0):
+        key = jax.random.fold_in(jax.random.PRNGKey(seed), j)
+        first, seen = jax.device_get(evaluate(learner.params, learner.stats, key))
+        keep = np.asarray(seen, bool)
+        rows += env.finished_to_dicts({k: np.asarray(v)[keep] for k, v in first.items()})
+        progress(label, min(len(rows), num_episodes), num_episodes)
+    return rows[:num_episodes]
+
+
+def episode_scalars(metrics: dict[str, Any], factors: dict[str, float]) -> dict[str, float]:
+    """TensorBoard scalars of the episodes that ended in one iteration (means over them)."""
+    count = float(metrics["episodes"])
+    if count <= 0:
+        return {}
+    out: dict[str, float] = {}
+    for name, total in metrics.items():
+        if not name.startswith("sum/"):
+            continue
+        key, mean = name[4:], float(total) / count
+        if key == "return":
+            out["rollout/ep_rew_mean"] = mean
+        elif key == "length_steps":
+            out["rollout/ep_len_mean"] = mean
+        elif key == "overlay_return":
+            out["overlay/return"] = mean
+        elif key.startswith("overlay_") and key.endswith("_raw"):
+            term = key[len("overlay_"):-len("_raw")]
+            out[f"overlay/{term}_raw"] = mean
+            out[f"overlay/{term}_weighted"] = factors.get(term, 0.0) * mean
+        else:
+            out[f"econ/{key}"] = mean
+    return out
+
+
+@dataclass
+class MjxTrainingRun:
+    """One training run (fields are the run's configuration; ``config`` is filled by ``train``)."""
+
+    run_dir: Path
+    env: Any
+    described: dict[str, Any]
+    cfg: ppo.PPOConfig
+    requested_hyperparameters: dict[str, Any] | None
+    num_envs: int
+    max_steps: int
+    seed: int
+    checkpoint_every_steps: int
+    extra_config: dict[str, Any] = field(default_factory=dict)
+    config: dict[str, Any] = field(default_factory=dict)
+
+    def _check_resume_request(self, previous: dict[str, Any]) -> None:
+        """As the mujoco backend: a resumed run keeps its recorded hyperparameters; asking for others fails."""
+        source = str(self.run_dir / RUN_CONFIG_FILE)
+        if previous.get("task_id") != self.described["task_id"]:
+            raise ConfigError(source, "task_id",
+                              f"cannot resume a '{previous.get('task_id')}' run as '{self.described['task_id']}'")
+        recorded = previous.get("hyperparameters") or {}
+        for key, value in (self.requested_hyperparameters or {}).items():
+            if key in recorded and recorded[key] != json.loads(json.dumps(value, default=str)):
+                raise ConfigError(source, f"hyperparameters.{key}", f"the run was trained with {recorded[key]!r}; "
+                                  f"resume keeps the recorded value, not {value!r} (use a new --output-dir)")
+
+    def train(self, resume: bool = False, progress: ProgressFn = no_progress
+              ) -> tuple[ppo.Learner, list[dict[str, float]], dict[str, Any]]:
+        """Train to ``max_steps``; returns (learner, training curve, timing)."""
+        started = time.perf_counter()
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        found = None
+        if resume:
+            previous = read_run_config(self.run_dir)
+            self._check_resume_request(previous)
+            self.cfg = ppo.PPOConfig.from_mapping(previous["hyperparameters"], str(self.run_dir / RUN_CONFIG_FILE))
+            found = ckpt.latest_checkpoint(self.run_dir)
+        env, cfg = self.env, self.cfg
+        template = ppo.init_learner(jax.random.PRNGKey(self.seed), env.observation_size, env.action_size, cfg)
+        learner, key, steps = None, None, 0
+        if found:
+            learner, key, steps, _ = ckpt.load_tree(found[0], template)
+        obs_layout, action_layout = env_layout(env, cfg.normalize_obs)
+        self.config = {
+            **self.described, "backend": "mjx", "algorithm": "ppo", "hyperparameters": cfg.to_dict(),
+            "num_envs": self.num_envs, "max_steps": self.max_steps, "seed": self.seed,
+            "checkpoint_every_steps": self.checkpoint_every_steps, "obs_layout": obs_layout,
+            "action_layout": action_layout, "resumed_from_steps": steps, **self.extra_config,
+        }
+        write_json_atomic(self.run_dir / RUN_CONFIG_FILE, self.config)
+
+        state = ppo.init_train_state(env, cfg, self.num_envs, self.seed, learner=learner, key=key)
+        iteration = ppo.make_train_iteration(env, cfg, self.num_envs)
+        per_iteration = self.num_envs * cfg.unroll_length
+        from torch.utils.tensorboard import SummaryWriter
+
+        writer = SummaryWriter(str(self.run_dir / "tb" / "run"))
+        curve: list[dict[str, float]] = []
+        every_curve = max(per_iteration, self.max_steps // 50)
+        next_curve = (steps // every_curve + 1) * every_curve
+        next_ckpt = (steps // self.checkpoint_every_steps + 1) * self.checkpoint_every_steps
+        window: list[tuple[float, float, float]] = []  # (return sum, length sum, count) of recent iterations
+        progress("train", min(steps, self.max_steps), self.max_steps)
+        first_done, t_loop = None, time.perf_counter()
+        try:
+            while steps < self.max_steps:
+                state, metrics = iteration(state)
+                metrics = jax.device_get(metrics)
+                steps += per_iteration
+                if first_done is None:  # the first iteration includes XLA compilation
+                    first_done, t_loop = time.perf_counter() - started, time.perf_counter()
+                for name, value in episode_scalars(metrics, env.factors).items():
+                    writer.add_scalar(name, value, steps)
+                for name in ("policy_loss", "value_loss", "entropy", "clip_fraction", "reward_mean"):
+                    writer.add_scalar(f"train/{name}", float(metrics[name]), steps)
+                window = [*window[-9:], (float(metrics["sum/return"]), float(metrics["sum/length_steps"]),
+                                         float(metrics["episodes"]))]
+                if steps >= next_curve or steps >= self.max_steps:
+                    next_curve = (steps // every_curve + 1) * every_curve
+                    count = sum(w[2] for w in window)
+                    if count > 0:
+                        curve.append({"timesteps": float(steps), "mean_return": sum(w[0] for w in window) / count,
+                                      "mean_length": sum(w[1] for w in window) / count})
+                if steps >= next_ckpt:
+                    next_ckpt = (steps // self.checkpoint_every_steps + 1) * self.checkpoint_every_steps
+                    ckpt.save_tree(ckpt.checkpoint_path(self.run_dir, steps), state.learner, state.key, steps)
+                progress("train", min(steps, self.max_steps), self.max_steps)
+        finally:
+            writer.close()
+        if first_done is not None:
+            ckpt.save_tree(ckpt.checkpoint_path(self.run_dir, steps), state.learner, state.key, steps)
+        ckpt.save_tree(self.run_dir / POLICY_FILE, state.learner, state.key, steps)
+        trained = steps - int(self.config["resumed_from_steps"])
+        loop_s = time.perf_counter() - t_loop
+        timing = {"total_steps": steps, "first_iteration_s": first_done or 0.0, "train_wall_s":
+                  time.perf_counter() - started,
+                  "env_steps_per_s_after_compile": (trained - per_iteration) / loop_s
+                  if trained > per_iteration and loop_s > 0 else None}
+        return state.learner, curve, timing

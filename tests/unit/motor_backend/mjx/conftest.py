@@ -1,0 +1,61 @@
+"""Shared fixtures of the mjx tests: one jitted env per courier for the whole session.
+
+MJX compiles slowly on a CPU (the hopper's step: ~45 s of CPU), so every test of a courier
+shares one :class:`MjxCourierEnv` with jitted ``reset``/``step`` at :data:`NUM_ENVS` envs, and
+compiled programs persist across runs in a JAX compilation cache under the system temp dir.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1")
+
+import jax
+import pytest
+
+jax.config.update("jax_compilation_cache_dir", str(Path(tempfile.gettempdir()) / "econmotor-jax-cache"))
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+
+#: envs per jitted env in these tests (one compile per courier).
+NUM_ENVS = 2
+
+
+class JittedEnv:
+    """An env with its jitted reset (``num_envs`` static) and step."""
+
+    def __init__(self, env) -> None:
+        self.env = env
+        self.reset = jax.jit(env.reset, static_argnums=1)
+        self.step = jax.jit(env.step)
+
+
+_ENVS: dict[str, JittedEnv] = {}
+
+
+def every_term_objective():
+    from econmotor.objectives import EconomicObjectiveSpec
+
+    return EconomicObjectiveSpec(mpl_weight=1.0, energy_weight=0.5, error_weight=0.2, novelty_weight=0.3,
+                                 risk_weight=0.4, name="every_term")
+
+
+def jitted_env(task_id: str) -> JittedEnv:
+    """The session's env of ``task_id`` (every overlay term weighted), built and jitted once."""
+    if task_id not in _ENVS:
+        from econmotor.motor_backend.mjx.env import MjxCourierEnv
+
+        _ENVS[task_id] = JittedEnv(MjxCourierEnv(task_id, objective=every_term_objective()))
+    return _ENVS[task_id]
+
+
+@pytest.fixture(scope="session")
+def hopper() -> JittedEnv:
+    return jitted_env("hopper_courier")
+
+
+@pytest.fixture(scope="session")
+def humanoid() -> JittedEnv:
+    return jitted_env("humanoid_courier")
