@@ -1,11 +1,21 @@
 """Every test gets its own registry: a command that records runs (train, shadow, report) never
-writes into the directory pytest was started from, nor into another test's registry."""
+writes into the directory pytest was started from, nor into another test's registry.
+
+Hypothesis: in CI (``CI`` set) the property tests draw a fixed, derandomised sequence of
+examples, so a CI verdict is reproducible; elsewhere they explore new examples each run.
+"""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
+
+settings.register_profile("ci", derandomize=True, print_blob=True)
+if os.environ.get("CI", "").strip().lower() not in ("", "0", "false", "no"):
+    settings.load_profile("ci")
 
 
 @pytest.fixture(autouse=True)
