@@ -83,6 +83,12 @@ def test_train_resume_continues_from_the_last_checkpoint(workdir: Path) -> None:
             "--eval-episodes", "0", "--output-dir", str(run)]
     econmotor([*base, "--max-steps", "320"], workdir)
     assert (run / "checkpoints" / "ckpt_320_steps.npz").is_file()
+    # a complete run is left as it is (issue 13): resuming it changes nothing
+    before = {p: p.stat().st_mtime_ns for p in run.rglob("*") if p.is_file()}
+    assert "complete run" in econmotor([*base, "--max-steps", "640", "--resume"], workdir).stdout
+    assert {p: p.stat().st_mtime_ns for p in run.rglob("*") if p.is_file()} == before
+    # the state a run killed after its last checkpoint leaves behind: checkpoints, no final policy
+    (run / "policy.npz").unlink()
     econmotor([*base, "--max-steps", "640", "--resume"], workdir)
     config = json.loads((run / "run_config.json").read_text())
     assert config["resumed_from_steps"] == 320 and config["max_steps"] == 640

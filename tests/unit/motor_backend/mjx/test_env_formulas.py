@@ -3,6 +3,8 @@ the same functions of ``econmotor.economics.courier_formulas``; the catalog shar
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import gymnasium as gym
 import jax
 import jax.numpy as jnp
@@ -18,7 +20,6 @@ from econmotor.motor_backend.mjx.settings import INHERITED_KEYS, parse_mjx_setti
 from econmotor.motor_backend.mujoco import metering, overlay
 from econmotor.motor_backend.mujoco.settings import parse_mujoco_settings
 from econmotor.tasks import load_catalog
-from econmotor.tasks.catalog import TaskSpec
 
 FORMULAS = ("high_water_units", "step_energy_wh", "planar_tilt_rad", "free_tilt_rad",
             "tilt_risk", "novelty_bonus", "novelty_cell", "running_metrics")
@@ -111,8 +112,7 @@ def test_mjx_catalog_entries_inherit_the_mujoco_metering():
 def test_an_inherited_key_written_again_is_a_config_error():
     spec = load_catalog().get("hopper_courier")
     entry = {**spec.backends["mjx"], "idle_power_w": 5.0}
-    bad = TaskSpec(spec.task_id, spec.description, spec.unit, spec.error_definition, spec.economics,
-                   {**spec.backends, "mjx": entry}, spec.tags, spec.source, {"mjx": "my_mjx.yaml"})
+    bad = replace(spec, backends={**spec.backends, "mjx": entry}, backend_sources={"mjx": "my_mjx.yaml"})
     with pytest.raises(ConfigError, match=r"my_mjx.yaml.*idle_power_w"):
         parse_mjx_settings(bad)
 
