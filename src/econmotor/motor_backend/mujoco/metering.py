@@ -69,21 +69,22 @@ class VisitNovelty:
     def visit_all(self, points: list[list[float]], total: float) -> float:
         """Count the cells of ``points`` (``obs[:dims]`` lists) in step order; ``total`` plus their scores."""
         inv, counts = self.inv_bin, self.counts
-        if len(points) < _VECTORIZE_VISITS:  # short episodes: Python floats beat numpy's per-call cost
+        get = counts.get
+        if len(points) < _VECTORIZE_VISITS:  # a few points: Python floats beat numpy's per-call cost
             for point in points:
                 key = novelty_cell(point, inv, PY)
-                n = counts.get(key, 0) + 1
+                n = get(key, 0) + 1
                 counts[key] = n
                 total += novelty_bonus(n)
             return total
         # many points: the cells and bonuses at once; only the visit counts go point by point, in step order
         cells = novelty_cell(np.array(points, dtype=np.float64), inv, np).astype(np.int64).tolist()
-        visits, get = [], counts.get
-        for cell in cells:
-            key = tuple(cell)
+        visits = []
+        append = visits.append
+        for key in map(tuple, cells):
             n = get(key, 0) + 1
             counts[key] = n
-            visits.append(n)
+            append(n)
         return total + float(novelty_bonus(np.asarray(visits, dtype=np.float64)).sum())
 
 
@@ -172,8 +173,8 @@ __all__ = ["RUNNING_METRIC_KEYS", "EconomicMeteringWrapper", "EpisodeTally", "Vi
 #: at most this many actuated dofs: power summed over Python floats; more (humanoid: 17): numpy.
 _SMALL_DOFS = 32
 
-#: at least this many queued novelty points: cells computed by numpy in one pass
-_VECTORIZE_VISITS = 64
+#: at least this many queued novelty points (a Hopper episode of random actions: ~40): cells by numpy
+_VECTORIZE_VISITS = 16
 
 #: queued novelty points are counted at the latest after this many steps (episodes without an end)
 _MAX_PENDING_VISITS = 4096
@@ -238,10 +239,9 @@ class EconomicMeteringWrapper(gym.Wrapper):
         lo, hi = actuated_dof_span(base.model)
         self._qfrc, self._qvel = base.data.qfrc_actuator[lo:hi], base.data.qvel[lo:hi]
         if hi - lo <= _SMALL_DOFS:  # a few dofs: Python floats beat numpy's per-call cost
-            self._energy_args = (memoryview(self._qfrc), memoryview(self._qvel))
-            self._energy_xp = PY
+            energy_views, energy_xp = (memoryview(self._qfrc), memoryview(self._qvel)), PY
         else:
-            self._energy_args, self._energy_xp = (self._qfrc, self._qvel), np
+            energy_views, energy_xp = (self._qfrc, self._qvel), np
         self.dt_s = float(base.dt)
         self.leg_distance_m = float(leg_distance_m)
         self._inv_eff = 1.0 / float(drivetrain_efficiency)
@@ -249,6 +249,9 @@ class EconomicMeteringWrapper(gym.Wrapper):
         self._tilt_margin = float(tilt_margin_rad)
         self._tilt_span = float(fall_tilt_rad - tilt_margin_rad)
         self._novelty_dims = int(novelty_dims)
+        #: step_energy_wh's arguments, fixed for the env's life (the views read the current step's data)
+        self._energy_args = (*energy_views, self._inv_eff, self._idle_w, self.dt_s, energy_xp)
+        self._env_step = env.step  # the inner step, bound once (no Wrapper attribute lookups per step)
         self._free_root = int(base.model.jnt_type[0]) == int(mujoco.mjtJoint.mjJNT_FREE)
         # risk is 0 while tilt <= margin, so tilt_risk runs only past it. Free root: tilt > margin
         # <=> cos(tilt) < cos(margin), so acos runs only near or past the margin (the 1e-9 slack
@@ -279,7 +282,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
         return obs, info
 
     def step(self, action):
-        obs, reward, terminated, truncated, info = self.env.step(action)
+        obs, reward, terminated, truncated, info = self._env_step(action)
         tally, qpos = self.tally, self._qpos
         tally.steps += 1
         tally.task_return += float(reward)
@@ -287,10 +290,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
         if x > self._best_x:  # else no progress: the high-water mark stays
             gain, self._best_x = high_water_units(x, self._best_x, self.leg_distance_m, PY)
             tally.units += gain
-        f, v = self._energy_args
-        tally.energy_wh += step_energy_wh(f, v, self._inv_eff, self._idle_w, self.dt_s, self._energy_xp)
-        if terminated:
-            tally.errors += 1.0
+        tally.energy_wh += step_energy_wh(*self._energy_args)
         if self._free_root:
             qx, qy = qpos[4], qpos[5]
             if 1.0 - 2.0 * (qx * qx + qy * qy) < self._cos_margin:
@@ -301,16 +301,15 @@ class EconomicMeteringWrapper(gym.Wrapper):
                 tally.risk_sum += tilt_risk(planar_tilt_rad(angle, PY), self._tilt_margin, self._tilt_span, PY)
         pending = self._pending_visits
         pending.append(obs[: self._novelty_dims].tolist())  # its cell is counted when novelty_sum is read
-        if len(pending) >= _MAX_PENDING_VISITS:
-            tally.flush_visits()
-        if info:
-            pose = info.get("pose_tracking")
-            if pose is not None:
-                tally.pose_sum += pose
-        else:
-            pose = None
+        pose = info.get("pose_tracking") if info else None
+        if pose is not None:
+            tally.pose_sum += pose
         if terminated or truncated:
+            if terminated:  # the env's own unhealthy termination: one fall
+                tally.errors += 1.0
             info["econ_episode"] = self.episode_raw_metrics(terminated, pose is not None)
+        elif len(pending) >= _MAX_PENDING_VISITS:
+            tally.flush_visits()
         return obs, reward, terminated, truncated, info
 
     def episode_raw_metrics(self, fell: bool, with_pose: bool = False) -> dict[str, Any]:

@@ -107,21 +107,22 @@ class EconomicOverlayWrapper(gym.Wrapper):
         self._coef = potential_coefficients(self.factors, meter.dt_s)
         self._metric_index = [RUNNING_METRIC_KEYS.index(k) for k in self._keys]
         self._prev_j = 0.0  # J at the previous step (J(0) = 0: every running metric is 0 after reset)
+        self._env_step = env.step  # the inner step, bound once (no Wrapper attribute lookups per step)
 
     def reset(self, **kwargs: Any):
         self._prev_j = 0.0
         return self.env.reset(**kwargs)
 
     def step(self, action):
-        obs, reward, terminated, truncated, info = self.env.step(action)
+        obs, reward, terminated, truncated, info = self._env_step(action)
         t = self._tally
         j = overlay_potential(self._coef, t, PY)  # reads t.novelty_sum (counting queued visits) only if weighted
         overlay_r = j - self._prev_j
         self._prev_j = j
         total = float(reward) + overlay_r if self.keep_task_reward else overlay_r
         if terminated or truncated:  # each term's episode sum telescopes to the episode's metric m_k(T)
-            metrics = t.running_metrics()
-            raw = {k: metrics[i] for k, i in zip(self._keys, self._metric_index, strict=True)}
-            info["overlay_terms"] = {k: {"raw": raw[k], "weighted": self.factors[k] * raw[k]} for k in self._keys}
+            metrics, factors = t.running_metrics(), self.factors
+            info["overlay_terms"] = {k: {"raw": metrics[i], "weighted": factors[k] * metrics[i]}
+                                     for k, i in zip(self._keys, self._metric_index, strict=True)}
             info["overlay_return"] = j  # J(T) = sum_k factor_k * m_k(T), the weighted terms' sum
         return obs, total, terminated, truncated, info
