@@ -35,6 +35,7 @@ pose-tracking wrapper reports ``info["pose_tracking"]``.
 from __future__ import annotations
 
 import math
+from itertools import chain
 from typing import Any
 
 import gymnasium as gym
@@ -78,7 +79,8 @@ class VisitNovelty:
                 total += novelty_bonus(n)
             return total
         # many points: the cells and bonuses at once; only the visit counts go point by point, in step order
-        cells = novelty_cell(np.array(points, dtype=np.float64), inv, np).astype(np.int64).tolist()
+        flat = np.fromiter(chain.from_iterable(points), np.float64)  # no per-list shape discovery
+        cells = novelty_cell(flat.reshape(len(points), -1), inv, np).astype(np.int64).tolist()
         visits = []
         append = visits.append
         for key in map(tuple, cells):
@@ -170,11 +172,12 @@ class EpisodeTally:
 __all__ = ["RUNNING_METRIC_KEYS", "EconomicMeteringWrapper", "EpisodeTally", "VisitNovelty", "actuated_dof_span",
            "find_wrapper"]
 
-#: at most this many actuated dofs: power summed over Python floats; more (humanoid: 17): numpy.
+#: at most this many actuated dofs (hopper: 3, humanoid: 17): power summed over Python floats; more: numpy.
 _SMALL_DOFS = 32
 
-#: at least this many queued novelty points (a Hopper episode of random actions: ~40): cells by numpy
-_VECTORIZE_VISITS = 16
+#: at least this many queued novelty points: cells by numpy in one pass (fewer, e.g. a Hopper episode of random
+#: actions, ~40: Python floats, fewer instructions than numpy's per-call cost)
+_VECTORIZE_VISITS = 64
 
 #: queued novelty points are counted at the latest after this many steps (episodes without an end)
 _MAX_PENDING_VISITS = 4096
