@@ -242,9 +242,10 @@ class EconomicMeteringWrapper(gym.Wrapper):
         lo, hi = actuated_dof_span(base.model)
         self._qfrc, self._qvel = base.data.qfrc_actuator[lo:hi], base.data.qvel[lo:hi]
         if hi - lo <= _SMALL_DOFS:  # a few dofs: Python floats beat numpy's per-call cost
-            energy_views, energy_xp = (memoryview(self._qfrc), memoryview(self._qvel)), PY
+            self._energy_args = (memoryview(self._qfrc), memoryview(self._qvel))
+            self._energy_xp = PY
         else:
-            energy_views, energy_xp = (self._qfrc, self._qvel), np
+            self._energy_args, self._energy_xp = (self._qfrc, self._qvel), np
         self.dt_s = float(base.dt)
         self.leg_distance_m = float(leg_distance_m)
         self._inv_eff = 1.0 / float(drivetrain_efficiency)
@@ -252,9 +253,6 @@ class EconomicMeteringWrapper(gym.Wrapper):
         self._tilt_margin = float(tilt_margin_rad)
         self._tilt_span = float(fall_tilt_rad - tilt_margin_rad)
         self._novelty_dims = int(novelty_dims)
-        #: step_energy_wh's arguments, fixed for the env's life (the views read the current step's data)
-        self._energy_args = (*energy_views, self._inv_eff, self._idle_w, self.dt_s, energy_xp)
-        self._env_step = env.step  # the inner step, bound once (no Wrapper attribute lookups per step)
         self._free_root = int(base.model.jnt_type[0]) == int(mujoco.mjtJoint.mjJNT_FREE)
         # risk is 0 while tilt <= margin, so tilt_risk runs only past it. Free root: tilt > margin
         # <=> cos(tilt) < cos(margin), so acos runs only near or past the margin (the 1e-9 slack
@@ -285,7 +283,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
         return obs, info
 
     def step(self, action):
-        obs, reward, terminated, truncated, info = self._env_step(action)
+        obs, reward, terminated, truncated, info = self.env.step(action)
         tally, qpos = self.tally, self._qpos
         tally.steps += 1
         tally.task_return += float(reward)
@@ -293,7 +291,8 @@ class EconomicMeteringWrapper(gym.Wrapper):
         if x > self._best_x:  # else no progress: the high-water mark stays
             gain, self._best_x = high_water_units(x, self._best_x, self.leg_distance_m, PY)
             tally.units += gain
-        tally.energy_wh += step_energy_wh(*self._energy_args)
+        f, v = self._energy_args  # a call with *args would leave CPython's inlined calls
+        tally.energy_wh += step_energy_wh(f, v, self._inv_eff, self._idle_w, self.dt_s, self._energy_xp)
         if self._free_root:
             qx, qy = qpos[4], qpos[5]
             if 1.0 - 2.0 * (qx * qx + qy * qy) < self._cos_margin:

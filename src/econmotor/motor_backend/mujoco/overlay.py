@@ -107,14 +107,13 @@ class EconomicOverlayWrapper(gym.Wrapper):
         self._coef = potential_coefficients(self.factors, meter.dt_s)
         self._metric_index = [RUNNING_METRIC_KEYS.index(k) for k in self._keys]
         self._prev_j = 0.0  # J at the previous step (J(0) = 0: every running metric is 0 after reset)
-        self._env_step = env.step  # the inner step, bound once (no Wrapper attribute lookups per step)
 
     def reset(self, **kwargs: Any):
         self._prev_j = 0.0
         return self.env.reset(**kwargs)
 
     def step(self, action):
-        obs, reward, terminated, truncated, info = self._env_step(action)
+        obs, reward, terminated, truncated, info = self.env.step(action)
         t = self._tally
         j = overlay_potential(self._coef, t, PY)  # reads t.novelty_sum (counting queued visits) only if weighted
         overlay_r = j - self._prev_j
