@@ -35,6 +35,7 @@ pose-tracking wrapper reports ``info["pose_tracking"]``.
 from __future__ import annotations
 
 import math
+from itertools import chain
 from typing import Any
 
 import gymnasium as gym
@@ -69,21 +70,23 @@ class VisitNovelty:
     def visit_all(self, points: list[list[float]], total: float) -> float:
         """Count the cells of ``points`` (``obs[:dims]`` lists) in step order; ``total`` plus their scores."""
         inv, counts = self.inv_bin, self.counts
-        if len(points) < _VECTORIZE_VISITS:  # short episodes: Python floats beat numpy's per-call cost
+        get = counts.get
+        if len(points) < _VECTORIZE_VISITS:  # a few points: Python floats beat numpy's per-call cost
             for point in points:
                 key = novelty_cell(point, inv, PY)
-                n = counts.get(key, 0) + 1
+                n = get(key, 0) + 1
                 counts[key] = n
                 total += novelty_bonus(n)
             return total
         # many points: the cells and bonuses at once; only the visit counts go point by point, in step order
-        cells = novelty_cell(np.array(points, dtype=np.float64), inv, np).astype(np.int64).tolist()
-        visits, get = [], counts.get
-        for cell in cells:
-            key = tuple(cell)
+        flat = np.fromiter(chain.from_iterable(points), np.float64)  # no per-list shape discovery
+        cells = novelty_cell(flat.reshape(len(points), -1), inv, np).astype(np.int64).tolist()
+        visits = []
+        append = visits.append
+        for key in map(tuple, cells):
             n = get(key, 0) + 1
             counts[key] = n
-            visits.append(n)
+            append(n)
         return total + float(novelty_bonus(np.asarray(visits, dtype=np.float64)).sum())
 
 
@@ -169,10 +172,11 @@ class EpisodeTally:
 __all__ = ["RUNNING_METRIC_KEYS", "EconomicMeteringWrapper", "EpisodeTally", "VisitNovelty", "actuated_dof_span",
            "find_wrapper"]
 
-#: at most this many actuated dofs: power summed over Python floats; more (humanoid: 17): numpy.
+#: at most this many actuated dofs (hopper: 3, humanoid: 17): power summed over Python floats; more: numpy.
 _SMALL_DOFS = 32
 
-#: at least this many queued novelty points: cells computed by numpy in one pass
+#: at least this many queued novelty points: cells by numpy in one pass (fewer, e.g. a Hopper episode of random
+#: actions, ~40: Python floats, fewer instructions than numpy's per-call cost)
 _VECTORIZE_VISITS = 64
 
 #: queued novelty points are counted at the latest after this many steps (episodes without an end)
@@ -287,10 +291,8 @@ class EconomicMeteringWrapper(gym.Wrapper):
         if x > self._best_x:  # else no progress: the high-water mark stays
             gain, self._best_x = high_water_units(x, self._best_x, self.leg_distance_m, PY)
             tally.units += gain
-        f, v = self._energy_args
+        f, v = self._energy_args  # a call with *args would leave CPython's inlined calls
         tally.energy_wh += step_energy_wh(f, v, self._inv_eff, self._idle_w, self.dt_s, self._energy_xp)
-        if terminated:
-            tally.errors += 1.0
         if self._free_root:
             qx, qy = qpos[4], qpos[5]
             if 1.0 - 2.0 * (qx * qx + qy * qy) < self._cos_margin:
@@ -301,16 +303,15 @@ class EconomicMeteringWrapper(gym.Wrapper):
                 tally.risk_sum += tilt_risk(planar_tilt_rad(angle, PY), self._tilt_margin, self._tilt_span, PY)
         pending = self._pending_visits
         pending.append(obs[: self._novelty_dims].tolist())  # its cell is counted when novelty_sum is read
-        if len(pending) >= _MAX_PENDING_VISITS:
-            tally.flush_visits()
-        if info:
-            pose = info.get("pose_tracking")
-            if pose is not None:
-                tally.pose_sum += pose
-        else:
-            pose = None
+        pose = info.get("pose_tracking") if info else None
+        if pose is not None:
+            tally.pose_sum += pose
         if terminated or truncated:
+            if terminated:  # the env's own unhealthy termination: one fall
+                tally.errors += 1.0
             info["econ_episode"] = self.episode_raw_metrics(terminated, pose is not None)
+        elif len(pending) >= _MAX_PENDING_VISITS:
+            tally.flush_visits()
         return obs, reward, terminated, truncated, info
 
     def episode_raw_metrics(self, fell: bool, with_pose: bool = False) -> dict[str, Any]:

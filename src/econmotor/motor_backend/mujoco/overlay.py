@@ -120,8 +120,8 @@ class EconomicOverlayWrapper(gym.Wrapper):
         self._prev_j = j
         total = float(reward) + overlay_r if self.keep_task_reward else overlay_r
         if terminated or truncated:  # each term's episode sum telescopes to the episode's metric m_k(T)
-            metrics = t.running_metrics()
-            raw = {k: metrics[i] for k, i in zip(self._keys, self._metric_index, strict=True)}
-            info["overlay_terms"] = {k: {"raw": raw[k], "weighted": self.factors[k] * raw[k]} for k in self._keys}
+            metrics, factors = t.running_metrics(), self.factors
+            info["overlay_terms"] = {k: {"raw": metrics[i], "weighted": factors[k] * metrics[i]}
+                                     for k, i in zip(self._keys, self._metric_index, strict=True)}
             info["overlay_return"] = j  # J(T) = sum_k factor_k * m_k(T), the weighted terms' sum
         return obs, total, terminated, truncated, info
