@@ -183,3 +183,21 @@ def summarize_episodes(
     raw = aggregate_raw(raw_episodes)
     econ = meter.summarize(raw) if raw_episodes else {}
     return raw, econ, [episode_summary(ep, meter, i) for i, ep in enumerate(raw_episodes)]
+
+
+def evaluation_result(backend: str, policy_id: str, task_id: str, raw_episodes: Sequence[Mapping[str, Any]],
+                      economics: TaskEconomics, config: Mapping[str, Any],
+                      output_dir: str | Path | None = None) -> MotorEvalResult:
+    """The :class:`MotorEvalResult` of evaluation episodes (see :func:`summarize_episodes`); with
+    ``output_dir``, also written there as ``evaluation.json`` (metrics, episodes, config)."""
+    import json
+
+    raw, econ, episodes = summarize_episodes(raw_episodes, economics)
+    if output_dir is not None:
+        out = Path(output_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "evaluation.json").write_text(json.dumps(
+            {"raw_metrics": raw, "econ_metrics": econ, "episodes": episodes, "config": dict(config)},
+            indent=2, default=str), encoding="utf-8")
+    return MotorEvalResult(policy_id=str(policy_id), task_id=task_id, backend=backend, raw_metrics=raw,
+                           econ_metrics=econ, episodes=episodes, config=dict(config))

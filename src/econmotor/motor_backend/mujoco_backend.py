@@ -13,7 +13,6 @@ datapacks add domain randomization, a curriculum and motion clips (``mujoco/rand
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -27,6 +26,7 @@ from econmotor.motor_backend.base import (
     MotorEvalResult,
     MotorTrainingResult,
     ProgressFn,
+    evaluation_result,
     no_progress,
     summarize_episodes,
 )
@@ -173,17 +173,10 @@ class MujocoBackend:
         env = make_env(self._eval_recipe(recipe), seed=seed)
         raw_eps = rollout_episodes(env, act, num_episodes, seed, progress)
         env.close()
-        raw, econ, episodes = summarize_episodes(raw_eps, self.catalog.get(task_id).economics)
         eval_config = {**described, "policy_id": str(policy_id), "num_episodes": num_episodes, "seed": seed,
                        "algorithm": config["algorithm"], "deterministic": True}
-        if output_dir is not None:
-            out = Path(output_dir)
-            out.mkdir(parents=True, exist_ok=True)
-            (out / "evaluation.json").write_text(json.dumps(
-                {"raw_metrics": raw, "econ_metrics": econ, "episodes": episodes, "config": eval_config},
-                indent=2, default=str), encoding="utf-8")
-        return MotorEvalResult(policy_id=str(policy_id), task_id=task_id, backend=self.name, raw_metrics=raw,
-                               econ_metrics=econ, episodes=episodes, config=eval_config)
+        return evaluation_result(self.name, policy_id, task_id, raw_eps, self.catalog.get(task_id).economics,
+                                 eval_config, output_dir)
 
     def deploy_policy_handle(self, policy_id: str) -> OnnxPolicyHandle:
         """An onnxruntime handle on the run's ``policy.onnx`` (exported now if missing)."""

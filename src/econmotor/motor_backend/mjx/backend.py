@@ -34,6 +34,7 @@ from econmotor.motor_backend.base import (
     MotorEvalResult,
     MotorTrainingResult,
     ProgressFn,
+    evaluation_result,
     no_progress,
     summarize_episodes,
 )
@@ -225,17 +226,10 @@ class MjxBackend:
         learner = load_learner(policy_id, config, cfg)
         rows = evaluate_episodes(self._evaluator(env, cfg), self.eval_batch, env, learner, num_episodes, seed,
                                  progress)
-        raw, econ, episodes = summarize_episodes(rows, self.catalog.get(task_id).economics)
         eval_config = {**described, "policy_id": str(policy_id), "num_episodes": num_episodes, "seed": seed,
                        "algorithm": "ppo", "deterministic": True, "device": device_description()}
-        if output_dir is not None:
-            out = Path(output_dir)
-            out.mkdir(parents=True, exist_ok=True)
-            (out / "evaluation.json").write_text(json.dumps(
-                {"raw_metrics": raw, "econ_metrics": econ, "episodes": episodes, "config": eval_config},
-                indent=2, default=str), encoding="utf-8")
-        return MotorEvalResult(policy_id=str(policy_id), task_id=task_id, backend=self.name, raw_metrics=raw,
-                               econ_metrics=econ, episodes=episodes, config=eval_config)
+        return evaluation_result(self.name, policy_id, task_id, rows, self.catalog.get(task_id).economics,
+                                 eval_config, output_dir)
 
     def deploy_policy_handle(self, policy_id: str) -> MjxOnnxPolicyHandle:
         """An onnxruntime handle on the run's ``policy.onnx`` (exported now if missing)."""
