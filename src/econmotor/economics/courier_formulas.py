@@ -89,7 +89,7 @@ def safe_div(num: Any, den: Any, xp: Any) -> Any:
 # ---------------------------------------------------------------- per-step metering
 def high_water_units(x: Any, best_x: Any, leg_distance_m: float, xp: Any) -> tuple[Any, Any]:
     """``(legs gained this step, new best x)``: forward progress past the best x so far, in legs."""
-    best = xp.maximum(best_x, x)
+    best = (x if x > best_x else best_x) if xp is PY else xp.maximum(best_x, x)
     return (best - best_x) / leg_distance_m, best
 
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from econmotor.errors import ConfigError, UnknownNameError
-from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper
+from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper, VisitNovelty
 from econmotor.motor_backend.mujoco.overlay import (
     TERM_METRICS,
     EconomicOverlayWrapper,
@@ -185,3 +185,21 @@ def test_overlay_step_reward_is_the_change_of_the_weighted_running_metrics():
             assert reward - task_reward == pytest.approx(expected, rel=1e-9, abs=1e-9)
             prev, prev_return, done, steps = now, tally.task_return, terminated or truncated, steps + 1
     assert steps > 10
+
+
+def test_visit_all_counts_a_batch_as_step_by_step_visits_would():
+    """Cells repeated inside one batch and across batches: the same counts and the same bonus sum
+    as visiting the points one at a time in order (visit n of a cell scores n ** -0.5)."""
+    rng = np.random.default_rng(3)
+    points = rng.uniform(-0.6, 0.6, (300, 7))  # 5 hashed dims at bin 0.25: many repeats
+    points[10:20] = points[3]  # one cell ten more times in the same batch
+    novelty, counts, expected, got = VisitNovelty(0.25, dims=5), {}, 0.0, 0.0
+    for batch in (points[:1], points[1:150], points[150:], points[:40]):
+        for p in batch:
+            cell = tuple(int(np.floor(v / 0.25)) for v in p[:5])
+            counts[cell] = counts.get(cell, 0) + 1
+            expected += counts[cell] ** -0.5
+        got = novelty.visit_all(batch, got)
+    assert novelty.counts == counts
+    assert max(counts.values()) >= 12
+    assert got == pytest.approx(expected, rel=1e-12)

@@ -15,9 +15,9 @@ Per control step (duration ``dt = frame_skip * timestep`` s), from ``env.unwrapp
   tilt = the torso's angle from upright (planar robots: the root hinge; free-floating robots:
   from the root quaternion, ``cos(tilt) = 1 - 2 (qx^2 + qy^2)``).
 - novelty: ``1 / sqrt(n(s))`` where ``n`` counts visits (kept across episodes of this env) to
-  the cell ``floor(obs[:novelty_dims] / novelty_bin)``. The step only queues ``obs[:novelty_dims]``;
-  the visits are counted, in step order, when ``tally.novelty_sum`` is read (by the overlay when
-  it weights novelty, at the episode's end, or every 4096 steps), which gives the same numbers.
+  the cell ``floor(obs[:novelty_dims] / novelty_bin)``. The step only queues ``obs[:novelty_dims]``'s
+  bytes; the visits are counted when ``tally.novelty_sum`` is read (by the overlay when it
+  weights novelty, at the episode's end, or every 1024 steps), which gives the same sum.
 
 Every formula is :mod:`econmotor.economics.courier_formulas`' (called here with Python floats,
 ``xp=PY``), the one definition the ``mjx`` backend's jitted step calls with ``jax.numpy``.
@@ -35,7 +35,9 @@ pose-tracking wrapper reports ``info["pose_tracking"]``.
 from __future__ import annotations
 
 import math
-from itertools import chain
+from collections import Counter
+from itertools import chain, repeat
+from operator import add
 from typing import Any
 
 import gymnasium as gym
@@ -67,35 +69,35 @@ class VisitNovelty:
         self.inv_bin = 1.0 / float(novelty_bin)
         self.dims = int(dims)
 
-    def visit_all(self, points: list[list[float]], total: float) -> float:
-        """Count the cells of ``points`` (``obs[:dims]`` lists) in step order; ``total`` plus their scores."""
-        inv, counts = self.inv_bin, self.counts
-        get = counts.get
-        if len(points) < _VECTORIZE_VISITS:  # a few points: Python floats beat numpy's per-call cost
-            for point in points:
-                key = novelty_cell(point, inv, PY)
-                n = get(key, 0) + 1
-                counts[key] = n
-                total += novelty_bonus(n)
-            return total
-        # many points: the cells and bonuses at once; only the visit counts go point by point, in step order
-        flat = np.fromiter(chain.from_iterable(points), np.float64)  # no per-list shape discovery
-        cells = novelty_cell(flat.reshape(len(points), -1), inv, np).astype(np.int64).tolist()
-        visits = []
-        append = visits.append
-        for key in map(tuple, cells):
-            n = get(key, 0) + 1
-            counts[key] = n
-            append(n)
-        return total + float(novelty_bonus(np.asarray(visits, dtype=np.float64)).sum())
+    def visit_all(self, points: np.ndarray, total: float) -> float:
+        """Count the cells of ``points`` (rows: observations' first ``dims`` entries); ``total`` plus their scores.
+
+        A cell seen ``c`` times before and ``k`` times among ``points`` scores its visits
+        ``c + 1 .. c + k``: the multiset of visit numbers, hence the sum, that counting point by
+        point in step order gives. Cells come from numpy in one pass, duplicates are tallied by
+        ``Counter`` and the counts updated per distinct cell, all in C loops.
+        """
+        cells = novelty_cell(points[:, : self.dims], self.inv_bin, np).astype(np.int64)
+        tally = Counter(map(tuple, cells.tolist()))
+        counts = self.counts
+        before = list(map(counts.get, tally, repeat(0)))  # c per distinct cell
+        after = list(map(add, before, tally.values()))  # c + k
+        counts.update(zip(tally, after, strict=True))
+        if len(after) == len(points):  # every cell once (k = 1): the visits are ``after``
+            visits = np.array(after, np.float64)
+        else:
+            firsts, ends = map(add, before, repeat(1)), map(add, after, repeat(1))  # visits c+1 .. c+k
+            visits = np.fromiter(chain.from_iterable(map(range, firsts, ends)), np.float64, count=len(points))
+        return total + float(novelty_bonus(visits).sum())
 
 
 class EpisodeTally:
     """Running sums of one episode; the overlay reads the running episode metrics from here.
 
-    The meter queues each step's novelty point in ``pending_visits``; reading ``novelty_sum``
-    counts the queued points first (in step order, so the sum is the same as counting at each
-    step), which keeps the hashing off the step path when nobody reads novelty every step.
+    The meter queues each step's novelty point in ``pending_visits`` (the raw bytes of the
+    observation or of its first ``dims`` entries, of dtype ``visit_dtype``); reading
+    ``novelty_sum`` counts the queued points first (the same sum as counting at each step),
+    which keeps the hashing off the step path when nobody reads novelty every step.
     """
 
     __slots__ = (
@@ -110,12 +112,14 @@ class EpisodeTally:
         "steps",
         "task_return",
         "units",
+        "visit_dtype",
     )
 
     def __init__(self, dt_s: float, novelty: VisitNovelty | None = None) -> None:
         self.dt_s = dt_s
         self._novelty = novelty
-        self.pending_visits: list[list[float]] = []  # obs[:dims] whose novelty cells are not counted yet
+        self.pending_visits: list[bytes] = []  # obs[:dims].tobytes() of steps whose cells are not counted yet
+        self.visit_dtype = np.dtype(np.float64)  # the dtype of those bytes (the meter sets the env's at reset)
         self.reset()
 
     def reset(self) -> None:
@@ -129,8 +133,12 @@ class EpisodeTally:
         """Count the queued novelty points into the visit counts and ``novelty_sum``."""
         if self._novelty is None:
             raise ValueError("EpisodeTally has queued visits but no VisitNovelty to count them")
-        self._novelty_sum = self._novelty.visit_all(self.pending_visits, self._novelty_sum)
-        self.pending_visits.clear()
+        pending = self.pending_visits
+        if not pending:
+            return
+        points = np.frombuffer(b"".join(pending), self.visit_dtype).reshape(len(pending), -1)
+        self._novelty_sum = self._novelty.visit_all(points, self._novelty_sum)
+        pending.clear()
 
     @property
     def novelty_sum(self) -> float:
@@ -175,12 +183,11 @@ __all__ = ["RUNNING_METRIC_KEYS", "EconomicMeteringWrapper", "EpisodeTally", "Vi
 #: at most this many actuated dofs (hopper: 3, humanoid: 17): power summed over Python floats; more: numpy.
 _SMALL_DOFS = 32
 
-#: at least this many queued novelty points: cells by numpy in one pass (fewer, e.g. a Hopper episode of random
-#: actions, ~40: Python floats, fewer instructions than numpy's per-call cost)
-_VECTORIZE_VISITS = 64
+#: observations up to this size are queued for novelty whole (hopper: 88 bytes), larger ones as obs[:dims]
+_QUEUE_WHOLE_OBS_BYTES = 256
 
-#: queued novelty points are counted at the latest after this many steps (episodes without an end)
-_MAX_PENDING_VISITS = 4096
+#: queued novelty points (observation bytes) are counted at the latest after this many steps
+_MAX_PENDING_VISITS = 1024
 
 
 def actuated_dof_span(model: Any) -> tuple[int, int]:
@@ -262,6 +269,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
         self.tally = EpisodeTally(self.dt_s, self._novelty)
         self._pending_visits = self.tally.pending_visits  # the same list object for the env's life
         self._x0 = self._best_x = 0.0
+        self._queue_whole_obs = False
 
     @property
     def visit_counts(self) -> dict[tuple[int, ...], int]:
@@ -278,7 +286,10 @@ class EconomicMeteringWrapper(gym.Wrapper):
 
     def reset(self, **kwargs: Any):
         obs, info = self.env.reset(**kwargs)
-        self.tally.reset()
+        self.tally.reset()  # counts the last episode's queued visits
+        self.tally.visit_dtype = obs.dtype
+        # a small observation is queued whole (one copy, no slice); a large one only obs[:dims]
+        self._queue_whole_obs = obs.nbytes <= _QUEUE_WHOLE_OBS_BYTES
         self._x0 = self._best_x = self._qpos[0]
         return obs, info
 
@@ -301,8 +312,8 @@ class EconomicMeteringWrapper(gym.Wrapper):
             angle = qpos[2]
             if angle > self._tilt_margin or -angle > self._tilt_margin:  # else the risk is 0
                 tally.risk_sum += tilt_risk(planar_tilt_rad(angle, PY), self._tilt_margin, self._tilt_span, PY)
-        pending = self._pending_visits
-        pending.append(obs[: self._novelty_dims].tolist())  # its cell is counted when novelty_sum is read
+        pending = self._pending_visits  # this step's cell is counted when novelty_sum is read:
+        pending.append(obs.tobytes() if self._queue_whole_obs else obs[: self._novelty_dims].tobytes())
         pose = info.get("pose_tracking") if info else None
         if pose is not None:
             tally.pose_sum += pose
