@@ -106,7 +106,7 @@ def parity_text(doc: Mapping[str, Any]) -> str:
     if parity < 0:
         return (f"The robot's labour is worth less than nothing: damage from its errors exceeds the value of its "
                 f"work (implied wage {fmt(wage)} USD/h against a human's {fmt(human)} USD/h).")
-    return (f"The robot's labour is worth {parity:.2g}x a human's wage{within}: its work, net of damage, is "
+    return (f"The robot's labour is worth {parity:.3g}x a human's wage{within}: its work, net of damage, is "
             f"worth {fmt(wage)} USD per hour against a human's {fmt(human)} USD/h.")
 
 
