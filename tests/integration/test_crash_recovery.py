@@ -87,7 +87,7 @@ MujocoBackend().train_policy("hopper_courier", EconomicObjectiveSpec(), [], 2, 1
 
 
 def test_kill_9_during_checkpoint_writes_then_resume_skips_truncated_checkpoints(tmp_path, capsys):
-    from econmotor.motor_backend.mujoco.run import read_run_config
+    from econmotor.motor_backend.base import read_run_config
     from econmotor.motor_backend.mujoco.training import checkpoint_vecnormalize, find_checkpoint
 
     run_dir = tmp_path / "run"
@@ -116,7 +116,7 @@ def test_kill_9_during_checkpoint_writes_then_resume_skips_truncated_checkpoints
                  "--output-dir", str(run_dir), "--resume", "--eval-episodes", "1"]) == 0
     err = capsys.readouterr().err
     assert err.count("skipped a damaged checkpoint") == 2 and f"ckpt_{intact_steps}_steps.zip" in err, err
-    config = read_run_config(run_dir)
+    config = read_run_config(run_dir, "mujoco")
     assert config["resumed_from_steps"] == intact_steps and len(config["skipped_checkpoints"]) == 2
     assert (run_dir / "policy.zip").is_file()
 

@@ -11,7 +11,7 @@ import pytest
 from stable_baselines3 import PPO
 
 from econmotor.cli import main
-from econmotor.motor_backend.mujoco.run import read_run_config
+from econmotor.motor_backend.base import read_run_config
 from econmotor.motor_backend.mujoco.training import latest_checkpoint
 
 pytestmark = pytest.mark.slow
@@ -51,7 +51,7 @@ def test_resume_after_kill_continues_from_the_last_checkpoint(tmp_path):
     target = ckpt_steps + 1024
     assert main(["train", "--task", "hopper_courier", "--num-envs", "2", "--max-steps", str(target),
                  "--output-dir", str(run_dir), "--resume", "--eval-episodes", "1"]) == 0
-    config = read_run_config(run_dir)
+    config = read_run_config(run_dir, "mujoco")
     assert config["resumed_from_steps"] == ckpt_steps and config["hyperparameters"]["n_steps"] == 128
     model = PPO.load(run_dir / "policy.zip", device="cpu")
     assert target <= model.num_timesteps < target + 2 * 128 * 2  # continued, not restarted from zero
@@ -79,4 +79,4 @@ def test_resume_refuses_a_different_algorithm_or_hyperparameter(tmp_path):
     # the same request (tuples and all) resumes
     backend.train_policy("hopper_courier", EconomicObjectiveSpec(), [], 1, 128, 0, output_dir=run_dir,
                          eval_episodes=0, resume=True, hyperparameters=hp)
-    assert read_run_config(run_dir)["max_steps"] == 128
+    assert read_run_config(run_dir, "mujoco")["max_steps"] == 128

@@ -72,12 +72,12 @@ CHECKPOINT_GLOB = {"mujoco": "*.zip", "mjx": "ckpt_*_steps.npz"}
 
 def completed_run_note(run_dir: Path) -> str | None:
     """What a finished MuJoCo or MJX run holds, or ``None`` when ``run_dir`` has no final policy."""
-    from econmotor.motor_backend.mujoco.run import RUN_CONFIG_FILE, read_run_config
+    from econmotor.motor_backend.base import RUN_CONFIG_FILE, read_run_config
 
     final = next((name for name in FINAL_POLICY.values() if (run_dir / name).is_file()), None)
     if final is None or not (run_dir / RUN_CONFIG_FILE).is_file():
         return None
-    config = read_run_config(run_dir)
+    config = read_run_config(run_dir, "trained")
     return (f"{run_dir} is a complete run ({config.get('algorithm', '?')}, {config.get('max_steps', '?'):,} "
             f"steps, final {final})" if isinstance(config.get("max_steps"), int)
             else f"{run_dir} is a complete run (final {final})")

@@ -22,6 +22,7 @@ the RewardBuilder names (``mpl_episode``, ``error_rate_episode``, ``energy_Wh``,
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,6 +32,7 @@ import numpy as np
 
 from econmotor.config.task_economics import TaskEconomics
 from econmotor.economics.meter import EconomicMeter
+from econmotor.errors import ConfigError
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 
 #: progress(label, completed, total): backends report long work through this; the CLI draws bars.
@@ -139,6 +141,51 @@ class MotorBackend(Protocol):
     ) -> MotorEvalResult: ...
 
     def deploy_policy_handle(self, policy_id: str) -> PolicyHandle: ...
+
+
+#: the file every trained run directory (mujoco, mjx) starts with: its task, settings and hyperparameters
+RUN_CONFIG_FILE = "run_config.json"
+
+
+def read_run_config(run_dir: str | Path, backend: str, task_id: str | None = None,
+                    check_backend: bool = False) -> dict[str, Any]:
+    """The ``run_config.json`` of a ``backend`` run directory; a ConfigError names what is wrong.
+
+    ``task_id``: the policy must have been trained on it. ``check_backend``: the recorded
+    ``backend`` (``mujoco`` when absent) must be ``backend``.
+    """
+    path = Path(run_dir) / RUN_CONFIG_FILE
+    a_backend = f"{'an' if backend == 'mjx' else 'a'} {backend}"  # "an mjx", "a mujoco", "a trained"
+    if not path.is_file():
+        raise ConfigError(str(run_dir), None, f"not {a_backend} run directory (no {RUN_CONFIG_FILE})")
+    config = json.loads(path.read_text(encoding="utf-8"))
+    recorded = config.get("backend", "mujoco")
+    if check_backend and recorded != backend:
+        raise ConfigError(str(path), "backend", f"a '{recorded}' run, not {a_backend} one")
+    if task_id is not None and config.get("task_id") != task_id:
+        raise ConfigError(str(path), "task_id", f"policy was trained on '{config.get('task_id')}', not '{task_id}'")
+    return config
+
+
+def write_run_config(run_dir: Path, config: Mapping[str, Any]) -> None:
+    """Write ``run_config.json`` atomically (a temporary file renamed over it): readers see the old or the new."""
+    tmp = run_dir / (RUN_CONFIG_FILE + ".tmp")
+    tmp.write_text(json.dumps(config, indent=2, default=str), encoding="utf-8")
+    tmp.replace(run_dir / RUN_CONFIG_FILE)
+
+
+def check_resume_request(run_dir: Path, previous: Mapping[str, Any], task_id: str,
+                         hyperparameters: Mapping[str, Any] | None) -> None:
+    """A resumed run continues its recorded task and hyperparameters; asking for others is an error
+    (start a new run directory to change them)."""
+    source = str(run_dir / RUN_CONFIG_FILE)
+    if previous.get("task_id") != task_id:
+        raise ConfigError(source, "task_id", f"cannot resume a '{previous.get('task_id')}' run as '{task_id}'")
+    recorded = previous.get("hyperparameters") or {}
+    for key, value in (hyperparameters or {}).items():
+        if key in recorded and recorded[key] != json.loads(json.dumps(value, default=str)):
+            raise ConfigError(source, f"hyperparameters.{key}", f"the run was trained with {recorded[key]!r}; "
+                              f"resume keeps the recorded value, not {value!r} (use a new --output-dir)")
 
 
 def aggregate_raw(raw_episodes: Sequence[Mapping[str, Any]]) -> dict[str, float]:

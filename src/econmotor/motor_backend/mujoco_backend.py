@@ -23,11 +23,13 @@ import torch
 
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import (
+    RUN_CONFIG_FILE,
     MotorEvalResult,
     MotorTrainingResult,
     ProgressFn,
     evaluation_result,
     no_progress,
+    read_run_config,
     summarize_episodes,
 )
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
@@ -37,7 +39,7 @@ from econmotor.motor_backend.mujoco.evaluation import load_policy, rollout_episo
 from econmotor.motor_backend.mujoco.export import OnnxPolicyHandle, export_onnx
 from econmotor.motor_backend.mujoco.overlay import human_baseline_references
 from econmotor.motor_backend.mujoco.randomization import parse_randomization
-from econmotor.motor_backend.mujoco.run import RUN_CONFIG_FILE, TrainingRun, read_run_config
+from econmotor.motor_backend.mujoco.run import TrainingRun
 from econmotor.motor_backend.mujoco.settings import MujocoTaskSettings, parse_mujoco_settings
 from econmotor.motor_backend.mujoco.training import obs_normalizer
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
@@ -163,10 +165,7 @@ class MujocoBackend:
         Datapacks given here (e.g. randomization) apply at full difficulty; without them the
         nominal task is evaluated.
         """
-        config = read_run_config(policy_id)
-        if config.get("task_id") != task_id:
-            raise ConfigError(str(Path(policy_id) / RUN_CONFIG_FILE), "task_id",
-                              f"policy was trained on '{config.get('task_id')}', not '{task_id}'")
+        config = read_run_config(policy_id, "mujoco", task_id)
         torch.set_num_threads(self.torch_threads)
         recipe, described = self.recipe(task_id, objective, datapack_ids, datapack_configs)
         _, act = load_policy(policy_id, config["algorithm"])
@@ -182,7 +181,7 @@ class MujocoBackend:
         """An onnxruntime handle on the run's ``policy.onnx`` (exported now if missing)."""
         path = Path(policy_id) / ONNX_FILE
         if not path.is_file():
-            config = read_run_config(policy_id)
+            config = read_run_config(policy_id, "mujoco")
             model, _ = load_policy(policy_id, config["algorithm"])
             export_onnx(model, obs_normalizer(policy_id), path, self._onnx_metadata(config))
         return OnnxPolicyHandle(path)
@@ -190,7 +189,7 @@ class MujocoBackend:
     # --- extras ------------------------------------------------------------------------------
     def record_clip(self, policy_id: str, path: str | Path, num_steps: int = 500, seed: int = 0) -> Path:
         """Roll the policy out deterministically and save the visited poses as a motion clip npz."""
-        config = read_run_config(policy_id)
+        config = read_run_config(policy_id, "mujoco")
         _, settings = self.task(config["task_id"])
         _, act = load_policy(policy_id, config["algorithm"])
         env = gym.make(settings.env_id, **settings.env_kwargs)

@@ -217,10 +217,7 @@ class MjxBackend:
                         output_dir: str | Path | None = None, progress: ProgressFn = no_progress,
                         datapack_ids: Sequence[str] = ()) -> MotorEvalResult:
         """Run ``num_episodes`` deterministic episodes (``eval_batch`` at a time, keyed by ``seed``)."""
-        config = read_run_config(policy_id)
-        if config.get("task_id") != task_id:
-            raise ConfigError(str(Path(policy_id) / RUN_CONFIG_FILE), "task_id",
-                              f"policy was trained on '{config.get('task_id')}', not '{task_id}'")
+        config = read_run_config(policy_id, task_id)
         env, described = self.env(task_id, objective, datapack_ids, datapack_configs)
         cfg = ppo.PPOConfig.from_mapping(config["hyperparameters"], str(Path(policy_id) / RUN_CONFIG_FILE))
         learner = load_learner(policy_id, config, cfg)

@@ -15,7 +15,6 @@ writing TensorBoard scalars of the episodes that ended, the training curve and c
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from dataclasses import dataclass, field
@@ -25,30 +24,18 @@ from typing import Any
 import jax
 import numpy as np
 
-from econmotor.errors import BackendError, ConfigError
-from econmotor.motor_backend.base import ProgressFn, no_progress
+from econmotor.errors import BackendError
+from econmotor.motor_backend import base
+from econmotor.motor_backend.base import RUN_CONFIG_FILE, ProgressFn, check_resume_request, no_progress
 from econmotor.motor_backend.mjx import checkpoint as ckpt
 from econmotor.motor_backend.mjx import ppo
 
-RUN_CONFIG_FILE = "run_config.json"
 POLICY_FILE = "policy.npz"
 
 
-def read_run_config(run_dir: str | Path) -> dict[str, Any]:
-    """The ``run_config.json`` of an mjx run directory (a ConfigError if it is not one)."""
-    path = Path(run_dir) / RUN_CONFIG_FILE
-    if not path.is_file():
-        raise ConfigError(str(run_dir), None, f"not an mjx run directory (no {RUN_CONFIG_FILE})")
-    config = json.loads(path.read_text(encoding="utf-8"))
-    if config.get("backend") != "mjx":
-        raise ConfigError(str(path), "backend", f"a '{config.get('backend', 'mujoco')}' run, not an mjx one")
-    return config
-
-
-def write_json_atomic(path: Path, payload: dict[str, Any]) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(payload, indent=2, default=str), encoding="utf-8")
-    tmp.replace(path)
+def read_run_config(run_dir: str | Path, task_id: str | None = None) -> dict[str, Any]:
+    """The ``run_config.json`` of an mjx run directory (the recorded backend must be ``mjx``)."""
+    return base.read_run_config(run_dir, "mjx", task_id, check_backend=True)
 
 
 def load_learner(run_dir: str | Path, config: dict[str, Any], cfg: ppo.PPOConfig) -> ppo.Learner:
@@ -137,15 +124,7 @@ class MjxTrainingRun:
 
     def _check_resume_request(self, previous: dict[str, Any]) -> None:
         """As the mujoco backend: a resumed run keeps its recorded hyperparameters; asking for others fails."""
-        source = str(self.run_dir / RUN_CONFIG_FILE)
-        if previous.get("task_id") != self.described["task_id"]:
-            raise ConfigError(source, "task_id",
-                              f"cannot resume a '{previous.get('task_id')}' run as '{self.described['task_id']}'")
-        recorded = previous.get("hyperparameters") or {}
-        for key, value in (self.requested_hyperparameters or {}).items():
-            if key in recorded and recorded[key] != json.loads(json.dumps(value, default=str)):
-                raise ConfigError(source, f"hyperparameters.{key}", f"the run was trained with {recorded[key]!r}; "
-                                  f"resume keeps the recorded value, not {value!r} (use a new --output-dir)")
+        check_resume_request(self.run_dir, previous, self.described["task_id"], self.requested_hyperparameters)
 
     def train(self, resume: bool = False, progress: ProgressFn = no_progress
               ) -> tuple[ppo.Learner, list[dict[str, float]], dict[str, Any]]:
@@ -170,7 +149,7 @@ class MjxTrainingRun:
             "checkpoint_every_steps": self.checkpoint_every_steps, "obs_layout": obs_layout,
             "action_layout": action_layout, "resumed_from_steps": steps, **self.extra_config,
         }
-        write_json_atomic(self.run_dir / RUN_CONFIG_FILE, self.config)
+        base.write_run_config(self.run_dir, self.config)
 
         state = ppo.init_train_state(env, cfg, self.num_envs, self.seed, learner=learner, key=key)
         iteration = ppo.make_train_iteration(env, cfg, self.num_envs)

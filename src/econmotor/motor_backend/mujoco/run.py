@@ -7,7 +7,6 @@ TensorBoard callbacks, and saves the final policy atomically.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -15,7 +14,14 @@ from typing import Any
 import mujoco
 
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.base import ProgressFn, no_progress
+from econmotor.motor_backend.base import (
+    RUN_CONFIG_FILE,
+    ProgressFn,
+    check_resume_request,
+    no_progress,
+    read_run_config,
+    write_run_config,
+)
 from econmotor.motor_backend.mujoco.env_factory import EnvRecipe, make_vec_env
 from econmotor.motor_backend.mujoco.settings import merge_hyperparameters
 from econmotor.motor_backend.mujoco.training import (
@@ -31,16 +37,6 @@ from econmotor.motor_backend.mujoco.training import (
     wrap_normalize,
 )
 from econmotor.motor_backend.sb3_callbacks import ProgressFnCallback, TrainingCurveCallback
-
-RUN_CONFIG_FILE = "run_config.json"
-
-
-def read_run_config(run_dir: str | Path) -> dict[str, Any]:
-    """The ``run_config.json`` of a run directory (a ConfigError if it is not one)."""
-    path = Path(run_dir) / RUN_CONFIG_FILE
-    if not path.is_file():
-        raise ConfigError(str(run_dir), None, f"not a mujoco run directory (no {RUN_CONFIG_FILE})")
-    return json.loads(path.read_text(encoding="utf-8"))
 
 
 def env_layout(venv: Any) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -81,17 +77,13 @@ class TrainingRun:
         return hp
 
     def _check_resume_request(self, previous: dict[str, Any]) -> None:
-        """A resumed run continues with its recorded algorithm and hyperparameters; an explicit
+        """A resumed run continues with its recorded task, algorithm and hyperparameters; an explicit
         request for different ones is an error (start a new run directory to change them)."""
-        source = str(self.run_dir / RUN_CONFIG_FILE)
+        check_resume_request(self.run_dir, previous, self.described["task_id"], self.hyperparameters)
         if self.requested_algorithm and self.requested_algorithm != previous.get("algorithm"):
-            raise ConfigError(source, "algorithm", f"the run was trained with {previous.get('algorithm')!r}; "
-                              f"resume cannot switch to {self.requested_algorithm!r} (use a new --output-dir)")
-        recorded = previous.get("hyperparameters") or {}
-        for key, value in (self.hyperparameters or {}).items():
-            if key in recorded and recorded[key] != json.loads(json.dumps(value, default=str)):
-                raise ConfigError(source, f"hyperparameters.{key}", f"the run was trained with {recorded[key]!r}; "
-                                  f"resume keeps the recorded value, not {value!r} (use a new --output-dir)")
+            raise ConfigError(str(self.run_dir / RUN_CONFIG_FILE), "algorithm",
+                              f"the run was trained with {previous.get('algorithm')!r}; resume cannot switch to "
+                              f"{self.requested_algorithm!r} (use a new --output-dir)")
 
     def train(self, resume: bool = False, progress: ProgressFn = no_progress) -> tuple[Any, list[dict[str, float]]]:
         """Train to ``max_steps`` total environment steps; returns (model, training curve)."""
@@ -101,10 +93,7 @@ class TrainingRun:
             log.warning("skipped a damaged checkpoint: %s; resuming from %s", problem,
                         f"{ckpt[0].name}" if ckpt else "the start (no intact checkpoint)")
         if resume:
-            previous = read_run_config(self.run_dir)
-            if previous.get("task_id") != self.described["task_id"]:
-                raise ConfigError(str(self.run_dir / RUN_CONFIG_FILE), "task_id",
-                                  f"cannot resume a '{previous.get('task_id')}' run as '{self.described['task_id']}'")
+            previous = read_run_config(self.run_dir, "mujoco")
             self._check_resume_request(previous)
             self.algorithm = previous["algorithm"]
         hp = previous["hyperparameters"] if resume else self._hyperparameters()
@@ -119,9 +108,7 @@ class TrainingRun:
             "action_layout": action_layout, "resumed_from_steps": ckpt[1] if ckpt else 0,
             "skipped_checkpoints": skipped,
         }
-        tmp = self.run_dir / (RUN_CONFIG_FILE + ".tmp")
-        tmp.write_text(json.dumps(self.config, indent=2, default=str), encoding="utf-8")
-        tmp.replace(self.run_dir / RUN_CONFIG_FILE)
+        write_run_config(self.run_dir, self.config)
         tb_dir = str(self.run_dir / "tb")
         if ckpt:
             model = load_checkpoint(self.algorithm, ckpt[0], ckpt[1], venv)
