@@ -31,7 +31,6 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from operator import mul
 from typing import Any
 
 #: overlay keys in the order :func:`running_metrics` returns them.
@@ -101,8 +100,10 @@ def step_energy_wh(qfrc_actuator: Any, qvel: Any, inv_efficiency: float, idle_po
     ``P_el = P_mech * inv_efficiency + idle_power_w`` (``inv_efficiency = 1 / drivetrain_efficiency``);
     energy ``P_el * dt_s / 3600`` Wh.
     """
-    if xp is PY:  # memoryviews or sequences of floats: summed in C without numpy's per-call cost
-        mech_w = sum(map(abs, map(mul, qfrc_actuator, qvel)))
+    if xp is PY:  # memoryviews or sequences of floats: a plain loop (no numpy per-call cost, warm bytecode)
+        mech_w = 0.0
+        for f, v in zip(qfrc_actuator, qvel, strict=True):
+            mech_w += abs(f * v)
     else:
         mech_w = xp.sum(xp.abs(qfrc_actuator * qvel), axis=-1)
     return (mech_w * inv_efficiency + idle_power_w) * (dt_s / SECONDS_PER_HOUR)

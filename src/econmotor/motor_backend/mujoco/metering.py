@@ -35,9 +35,6 @@ pose-tracking wrapper reports ``info["pose_tracking"]``.
 from __future__ import annotations
 
 import math
-from collections import Counter
-from itertools import chain, repeat
-from operator import add
 from typing import Any
 
 import gymnasium as gym
@@ -62,33 +59,37 @@ from econmotor.errors import ConfigError
 class VisitNovelty:
     """Visit counts over coarse cells: the n-th visit to cell ``floor(x * inv_bin)`` scores ``1 / sqrt(n)``."""
 
-    __slots__ = ("counts", "dims", "inv_bin")
+    __slots__ = ("_counts", "_key_dtype", "dims", "inv_bin")
 
     def __init__(self, novelty_bin: float, dims: int = 5) -> None:
-        self.counts: dict[tuple[int, ...], int] = {}  # cell -> visits, kept across episodes
+        self._counts: dict[bytes, int] = {}  # cell (its int64 indices' bytes) -> visits, kept across episodes
         self.inv_bin = 1.0 / float(novelty_bin)
         self.dims = int(dims)
+        self._key_dtype = np.dtype((np.void, 8 * self.dims))  # a row of ``dims`` int64 cell indices
+
+    @property
+    def counts(self) -> dict[tuple[int, ...], int]:
+        """Visits per cell, keyed by the cell's integer indices."""
+        return {tuple(np.frombuffer(key, np.int64).tolist()): n for key, n in self._counts.items()}
 
     def visit_all(self, points: np.ndarray, total: float) -> float:
         """Count the cells of ``points`` (rows: observations' first ``dims`` entries); ``total`` plus their scores.
 
-        A cell seen ``c`` times before and ``k`` times among ``points`` scores its visits
-        ``c + 1 .. c + k``: the multiset of visit numbers, hence the sum, that counting point by
-        point in step order gives. Cells come from numpy in one pass, duplicates are tallied by
-        ``Counter`` and the counts updated per distinct cell, all in C loops.
+        The points are visited in row order, as they were stepped: visit ``n`` of a cell scores
+        ``novelty_bonus(n)``. numpy computes the cells in one pass and hands each row over as the
+        bytes of its int64 indices (an exact dict key, cheap to hash); the loop is plain dict work.
         """
         cells = novelty_cell(points[:, : self.dims], self.inv_bin, np).astype(np.int64)
-        tally = Counter(map(tuple, cells.tolist()))
-        counts = self.counts
-        before = list(map(counts.get, tally, repeat(0)))  # c per distinct cell
-        after = list(map(add, before, tally.values()))  # c + k
-        counts.update(zip(tally, after, strict=True))
-        if len(after) == len(points):  # every cell once (k = 1): the visits are ``after``
-            visits = np.array(after, np.float64)
-        else:
-            firsts, ends = map(add, before, repeat(1)), map(add, after, repeat(1))  # visits c+1 .. c+k
-            visits = np.fromiter(chain.from_iterable(map(range, firsts, ends)), np.float64, count=len(points))
-        return total + float(novelty_bonus(visits).sum())
+        key_dtype = self._key_dtype
+        if key_dtype.itemsize != cells.itemsize * cells.shape[1]:  # fewer observation dims than ``dims``
+            key_dtype = self._key_dtype = np.dtype((np.void, cells.itemsize * cells.shape[1]))
+        counts = self._counts
+        get = counts.get
+        for key in cells.view(key_dtype).ravel().tolist():
+            n = get(key, 0) + 1
+            counts[key] = n
+            total += novelty_bonus(n)
+        return total
 
 
 class EpisodeTally:
