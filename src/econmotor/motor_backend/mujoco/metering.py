@@ -59,13 +59,12 @@ from econmotor.errors import ConfigError
 class VisitNovelty:
     """Visit counts over coarse cells: the n-th visit to cell ``floor(x * inv_bin)`` scores ``1 / sqrt(n)``."""
 
-    __slots__ = ("_counts", "_key_dtype", "dims", "inv_bin")
+    __slots__ = ("_counts", "dims", "inv_bin")
 
     def __init__(self, novelty_bin: float, dims: int = 5) -> None:
         self._counts: dict[bytes, int] = {}  # cell (its int64 indices' bytes) -> visits, kept across episodes
         self.inv_bin = 1.0 / float(novelty_bin)
         self.dims = int(dims)
-        self._key_dtype = np.dtype((np.void, 8 * self.dims))  # a row of ``dims`` int64 cell indices
 
     @property
     def counts(self) -> dict[tuple[int, ...], int]:
@@ -79,13 +78,11 @@ class VisitNovelty:
         ``novelty_bonus(n)``. numpy computes the cells in one pass and hands each row over as the
         bytes of its int64 indices (an exact dict key, cheap to hash); the loop is plain dict work.
         """
-        cells = novelty_cell(points[:, : self.dims], self.inv_bin, np).astype(np.int64)
-        key_dtype = self._key_dtype
-        if key_dtype.itemsize != cells.itemsize * cells.shape[1]:  # fewer observation dims than ``dims``
-            key_dtype = self._key_dtype = np.dtype((np.void, cells.itemsize * cells.shape[1]))
+        cells = novelty_cell(points[:, : self.dims], self.inv_bin, np).astype(np.int64)  # C-contiguous rows
+        row_bytes = np.dtype((np.void, cells.itemsize * cells.shape[1]))  # one key per row
         counts = self._counts
         get = counts.get
-        for key in cells.view(key_dtype).ravel().tolist():
+        for key in cells.view(row_bytes).ravel().tolist():
             n = get(key, 0) + 1
             counts[key] = n
             total += novelty_bonus(n)
