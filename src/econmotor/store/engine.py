@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sqlite3
+import time
 from pathlib import Path
 from typing import Any
 
@@ -70,7 +72,17 @@ def make_sqlite_concurrent(engine: Engine, busy_timeout_s: float) -> None:
         dbapi_conn.isolation_level = None  # SQLAlchemy's "begin" event below emits BEGIN
         cursor = dbapi_conn.cursor()
         cursor.execute(f"PRAGMA busy_timeout = {int(busy_timeout_s * 1000)}")
-        cursor.execute("PRAGMA journal_mode = WAL")
+        # switching a new file to WAL takes an exclusive lock and SQLite answers SQLITE_BUSY at
+        # once, without the busy handler, while another process opens the same new file: retry
+        deadline = time.monotonic() + busy_timeout_s
+        while True:
+            try:
+                cursor.execute("PRAGMA journal_mode = WAL")
+                break
+            except sqlite3.OperationalError as exc:
+                if "locked" not in str(exc) or time.monotonic() > deadline:
+                    raise
+                time.sleep(0.01)
         cursor.execute("PRAGMA synchronous = NORMAL")
         cursor.execute("PRAGMA foreign_keys = ON")
         cursor.close()
