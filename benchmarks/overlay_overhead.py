@@ -1,7 +1,7 @@
 """Steps/s of the metered + overlay MuJoCo env over the raw Gymnasium env, same run.
 
-The wrapped env is what the mujoco backend trains on: EconomicMeteringWrapper +
-EconomicOverlayWrapper with the default objective vector's overlay, human-baseline
+The wrapped env is what the mujoco backend trains on: EconomicMeteringWrapper (the meter
+and the overlay in one wrapper) with the default objective vector's overlay, human-baseline
 normalised. Both envs step the same pre-drawn random actions from the same seeded reset
 (every block starts with ``reset(seed=0)``, untimed, and resets unseeded on episode end),
 so both simulate the same trajectories; the episode counts are checked equal.

@@ -7,22 +7,23 @@ three namespaces provide:
 - ``numpy`` — arrays on the host,
 - ``jax.numpy`` — traced arrays inside the ``mjx`` backend's jitted, vmapped step.
 
-The NumPy/MuJoCo path (``motor_backend/mujoco/metering.py``, ``overlay.py``) and the JAX path
-(``motor_backend/mjx/env.py``) both call these functions; neither keeps its own copy.
+The NumPy/MuJoCo path (``motor_backend/mujoco/metering.py``) and the JAX path
+(``motor_backend/mjx/env.py``) both call these functions; neither keeps its own copy. A control
+step's metering and overlay potential are one call, :func:`meter_step` (one Python call per
+step on the CPU: the per-step cost there is mostly the code each call touches).
 
 Per control step of ``dt_s`` seconds (see ``mujoco/metering.py`` for the story):
 
 - units: ``best_x' = max(best_x, x)``; ``units += (best_x' - best_x) / leg_distance_m``
   (a high-water mark: moving back and forth earns nothing),
-- energy (:func:`step_energy_wh`): mechanical power ``sum_j |qfrc_actuator_j * qvel_j|`` W over the
-  actuated dofs; electrical ``P_el = P_mech / drivetrain_efficiency + idle_power_w``;
-  ``energy_wh += P_el * dt_s / 3600``,
+- energy: mechanical power ``sum_j |qfrc_actuator_j * qvel_j|`` W over the actuated dofs;
+  electrical ``P_el = P_mech / drivetrain_efficiency + idle_power_w``; ``energy_wh += P_el * dt_s / 3600``,
 - tilt: planar robots ``|root hinge angle|``; free-floating ``acos(1 - 2 (qx^2 + qy^2))``;
   risk ``clip((tilt - tilt_margin_rad) / (fall_tilt_rad - tilt_margin_rad), 0, 1)``,
 - falls: Gymnasium's v5 healthy checks (:func:`healthy_rule`, :func:`is_healthy`): not healthy = one fall = one error,
 - novelty: visit ``n`` of cell ``floor(obs[:novelty_dims] / novelty_bin)`` scores ``n ** -0.5``,
 - running episode metrics (:func:`running_metrics`) and the overlay potential
-  ``J = sum_k factor_k * m_k`` (:func:`overlay_potential`); a step's overlay reward is
+  ``J = sum_k factor_k * m_k`` (in :func:`meter_step`); a step's overlay reward is
   ``J(t) - J(t-1)``, so each term's episode sum is the episode metric of its key.
 """
 
@@ -31,7 +32,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 #: overlay keys in the order :func:`running_metrics` returns them.
 RUNNING_METRIC_KEYS = ("mpl_per_hour", "error_rate", "energy_kwh", "risk_score", "novelty_score", "pose_tracking")
@@ -85,49 +86,104 @@ def safe_div(num: Any, den: Any, xp: Any) -> Any:
     return xp.where(positive, num / xp.where(positive, den, 1.0), 0.0)
 
 
-# ---------------------------------------------------------------- per-step metering
-def high_water_units(x: Any, best_x: Any, leg_distance_m: float, xp: Any) -> tuple[Any, Any]:
-    """``(legs gained this step, new best x)``: forward progress past the best x so far, in legs."""
-    best = (x if x > best_x else best_x) if xp is PY else xp.maximum(best_x, x)
-    return (best - best_x) / leg_distance_m, best
+# ---------------------------------------------------------------- per-step metering and the overlay
+class MeterConstants(NamedTuple):
+    """The constants of :func:`meter_step` (build them with :func:`meter_constants`)."""
+
+    leg_distance_m: float
+    inv_efficiency: float  # 1 / drivetrain_efficiency
+    idle_power_w: float
+    step_hours: float  # dt_s / 3600: Wh per W over one control step
+    tilt_margin_rad: float
+    tilt_span_rad: float  # fall_tilt_rad - tilt_margin_rad
+    cos_tilt_margin: float  # cos(tilt_margin_rad) + 1e-9: a free root's cos(tilt) below it is past the margin
+    free_root: bool
+    coef: tuple[float, ...]  # the overlay potential's coefficients (:func:`potential_coefficients`)
 
 
-def step_energy_wh(qfrc_actuator: Any, qvel: Any, inv_efficiency: float, idle_power_w: float, dt_s: float,
-                   xp: Any) -> Any:
-    """Electrical Wh of one control step over the actuated dofs (the last axis).
+def meter_constants(leg_distance_m: float, drivetrain_efficiency: float, idle_power_w: float, dt_s: float,
+                    tilt_margin_rad: float, fall_tilt_rad: float, free_root: bool,
+                    factors: Mapping[str, float] | None = None) -> MeterConstants:
+    """:class:`MeterConstants` of a courier; ``factors``: the overlay's ``scale_k / ref_k`` (None: no overlay)."""
+    return MeterConstants(float(leg_distance_m), 1.0 / float(drivetrain_efficiency), float(idle_power_w),
+                          float(dt_s) / SECONDS_PER_HOUR,
+                          float(tilt_margin_rad), float(fall_tilt_rad - tilt_margin_rad),
+                          math.cos(float(tilt_margin_rad)) + 1e-9, bool(free_root),
+                          potential_coefficients(factors or {}, float(dt_s)))
 
-    Mechanical power ``P_mech = sum_j |qfrc_actuator_j * qvel_j|`` W; electrical
-    ``P_el = P_mech * inv_efficiency + idle_power_w`` (``inv_efficiency = 1 / drivetrain_efficiency``);
-    energy ``P_el * dt_s / 3600`` Wh.
+
+#: the running sums :func:`meter_step` carries, in order (the episode's state before a step).
+METER_SUMS = ("steps", "units", "best_x", "errors", "energy_wh", "risk_sum")
+
+
+def meter_step(sums: Sequence[Any], qpos: Any, qfrc_actuator: Any, qvel: Any, fell: Any, novelty_sum: Any,
+               pose_sum: Any, c: MeterConstants, xp: Any) -> tuple[tuple[Any, ...], Any]:
+    """One control step of the courier meter and the overlay potential: ``(sums after, J(t))``.
+
+    ``sums``: the episode's running sums before the step, in :data:`METER_SUMS` order (the
+    ``mujoco`` backend: Python floats; the ``mjx`` backend: traced 0-d arrays of one env under
+    vmap). ``qpos``: the root's position first (``x = qpos[0]``; planar robots: the root hinge
+    angle at ``qpos[2]``; free roots: the quaternion at ``qpos[3:7]``). ``qfrc_actuator``,
+    ``qvel``: over the actuated dofs (:func:`~econmotor.motor_backend.mujoco.metering.actuated_dof_span`).
+    ``fell``: the step ended in a fall. ``novelty_sum`` / ``pose_sum``: the episode's sums
+    including this step (their coefficients are 0 unless weighted). Per step:
+
+    - units: ``best_x' = max(best_x, x)``; ``units += (best_x' - best_x) / leg_distance_m``,
+    - energy: ``P_mech = sum_j |qfrc_actuator_j * qvel_j|`` W; ``P_el = P_mech / efficiency + idle``;
+      ``energy_wh += P_el * dt_s / 3600``,
+    - risk: ``risk_sum += clip((tilt - margin) / (fall_tilt - margin), 0, 1)`` with tilt
+      ``|qpos[2]|`` (planar) or ``acos(1 - 2 (qx^2 + qy^2))`` (free root),
+    - falls: ``errors += 1`` when ``fell``,
+    - ``J = sum_k factor_k * m_k`` over the running metrics after the step (:func:`running_metrics`,
+      regrouped on the sums by :func:`potential_coefficients`).
+
+    With ``xp=PY`` the same formulas run on Python floats with their zero cases skipped (no
+    progress: no units; tilt inside the margin: no risk; no errors: error rate 0).
     """
-    if xp is PY:  # memoryviews or sequences of floats: a plain loop (no numpy per-call cost, warm bytecode)
+    steps, units, best_x, errors, energy_wh, risk_sum = sums
+    leg_m, inv_eff, idle_w, step_hours, margin, span, cos_margin, free_root, coef = c
+    steps = steps + 1
+    x = qpos[0]
+    if xp is PY:  # Python floats (memoryviews of MjData): the zero cases skipped, loops written out
+        if x > best_x:
+            units += (x - best_x) / leg_m
+            best_x = x
         mech_w = 0.0
-        for f, v in zip(qfrc_actuator, qvel, strict=True):
+        for f, v in zip(qfrc_actuator, qvel):  # noqa: B905 (equal lengths: the same dof span)
             mech_w += abs(f * v)
+        if free_root:
+            qx, qy = qpos[4], qpos[5]
+            cos_tilt = 1.0 - 2.0 * (qx * qx + qy * qy)
+            if cos_tilt < cos_margin:  # past the margin (cos falls as the tilt grows)
+                risk = (math.acos(cos_tilt if cos_tilt > -1.0 else -1.0) - margin) / span
+                risk_sum += 0.0 if risk < 0.0 else 1.0 if risk > 1.0 else risk
+        else:
+            tilt = abs(qpos[2])
+            if tilt > margin:
+                risk = (tilt - margin) / span
+                risk_sum += 1.0 if risk > 1.0 else risk
+        if fell:
+            errors += 1.0
     else:
+        best = xp.maximum(best_x, x)
+        units = units + (best - best_x) / leg_m
+        best_x = best
         mech_w = xp.sum(xp.abs(qfrc_actuator * qvel), axis=-1)
-    return (mech_w * inv_efficiency + idle_power_w) * (dt_s / SECONDS_PER_HOUR)
-
-
-def planar_tilt_rad(root_angle: Any, xp: Any) -> Any:
-    """Tilt of a planar robot: the absolute root hinge angle."""
-    return xp.abs(root_angle)
-
-
-def free_tilt_rad(qx: Any, qy: Any, xp: Any) -> Any:
-    """Tilt from upright of a free root with quaternion ``(w, qx, qy, qz)``: ``acos(1 - 2 (qx^2 + qy^2))``."""
-    c = 1.0 - 2.0 * (qx * qx + qy * qy)
-    if xp is PY:  # the clip inline (c <= 1 always)
-        return math.acos(c if c > -1.0 else -1.0)
-    return xp.arccos(xp.clip(c, -1.0, 1.0))
-
-
-def tilt_risk(tilt_rad: Any, tilt_margin_rad: float, tilt_span_rad: float, xp: Any) -> Any:
-    """Risk in [0, 1]: ``clip((tilt - margin) / span, 0, 1)``, ``span = fall_tilt - margin``."""
-    risk = (tilt_rad - tilt_margin_rad) / tilt_span_rad
-    if xp is PY:  # the clip inline
-        return 0.0 if risk < 0.0 else 1.0 if risk > 1.0 else risk
-    return xp.clip(risk, 0.0, 1.0)
+        if free_root:
+            qx, qy = qpos[4], qpos[5]
+            tilt = xp.arccos(xp.clip(1.0 - 2.0 * (qx * qx + qy * qy), -1.0, 1.0))
+        else:
+            tilt = xp.abs(qpos[2])
+        risk_sum = risk_sum + xp.clip((tilt - margin) / span, 0.0, 1.0)
+        errors = errors + xp.where(fell, 1.0, 0.0)
+    energy_wh = energy_wh + (mech_w * inv_eff + idle_w) * step_hours
+    # J: running_metrics' ratios regrouped (steps >= 1 here, so no guard on / steps)
+    c_units, c_risk, c_novelty, c_error, c_energy, c_pose = coef
+    j = ((c_units * units + c_risk * risk_sum + c_novelty * novelty_sum) / steps + c_energy * energy_wh
+         + c_pose * pose_sum)
+    if c_error and (xp is not PY or errors):  # no errors yet: the error rate is 0
+        j = j + c_error * safe_div(errors, units + errors, xp)
+    return (steps, units, best_x, errors, energy_wh, risk_sum), j
 
 
 def novelty_bonus(visits: Any) -> Any:
@@ -218,7 +274,7 @@ def overlay_factors(scales: Mapping[str, float], references: Mapping[str, float]
 
 
 def potential_coefficients(factors: Mapping[str, float], dt_s: float) -> tuple[float, ...]:
-    """``J``'s coefficients on the running sums, in :func:`overlay_potential`'s argument order.
+    """``J``'s coefficients on the running sums: ``(c_units, c_risk, c_novelty, c_error, c_energy, c_pose)``.
 
     ``J = (c_units * units + c_risk * risk_sum + c_novelty * novelty_sum) / steps
     + c_error * errors / (units + errors) + c_energy * energy_wh + c_pose * pose_sum``
@@ -233,33 +289,6 @@ def potential_coefficients(factors: Mapping[str, float], dt_s: float) -> tuple[f
         f.get("energy_kwh", 0.0) / WH_PER_KWH,
         f.get("pose_tracking", 0.0),
     )
-
-
-def overlay_potential(coef: Sequence[float], sums: Any, xp: Any) -> Any:
-    """``J(t) = sum_k factor_k * m_k(t)`` from an episode's running sums.
-
-    ``coef``: :func:`potential_coefficients`; ``sums``: any object with the attributes ``steps``,
-    ``units``, ``errors``, ``energy_wh``, ``risk_sum``, ``novelty_sum`` and ``pose_sum`` (the
-    mujoco backend's ``EpisodeTally``; a namespace of traced arrays in the mjx backend). A sum
-    whose coefficient is 0 is not read.
-    """
-    c_units, c_risk, c_novelty, c_error, c_energy, c_pose = coef
-    units = sums.units
-    per_step = c_units * units + c_risk * sums.risk_sum
-    if c_novelty:
-        per_step = per_step + c_novelty * sums.novelty_sum
-    if xp is PY:  # the CPU's per-step path: safe_div's guards inline (one call per step in all)
-        steps = sums.steps
-        j = (per_step / steps if steps > 0 else 0.0) + c_energy * sums.energy_wh
-    else:
-        j = safe_div(per_step, sums.steps, xp) + c_energy * sums.energy_wh
-    if c_pose:
-        j = j + c_pose * sums.pose_sum
-    if c_error:
-        errors = sums.errors
-        if xp is not PY or errors:  # no errors: the error rate is 0
-            j = j + c_error * safe_div(errors, units + errors, xp)
-    return j
 
 
 def episode_metric(raw_episode: Mapping[str, Any], key: str) -> float:

@@ -1,9 +1,9 @@
 """A per-step summary for MuJoCo tasks, in the dishwashing key set shadow mode reads.
 
 The MuJoCo metering wrapper (``econmotor.motor_backend.mujoco.metering``) keeps
-running episode sums (``tally``) and reports raw metrics only at the episode's
-end, so :class:`MujocoStepSummaryWrapper` (placed outside it) differences the
-tally around each step and writes ``info["step_summary"]``:
+running episode sums (its ``episode`` snapshot) and reports raw metrics only at the
+episode's end, so :class:`MujocoStepSummaryWrapper` (placed outside it) differences
+the sums around each step and writes ``info["step_summary"]``:
 
 - ``units`` (fractional delivery legs this step), ``errors`` (1 on a fall),
   ``attempts = units + errors``, ``Wh`` (this step's electrical energy);
@@ -32,21 +32,21 @@ from econmotor.errors import ConfigError
 
 
 class MujocoStepSummaryWrapper(gym.Wrapper):
-    """Write ``info["step_summary"]`` from an inner ``EconomicMeteringWrapper``'s tally.
+    """Write ``info["step_summary"]`` from an inner ``EconomicMeteringWrapper``'s episode sums.
 
     Args:
-        env: an env whose wrapper chain holds a metering wrapper (an object with ``tally``).
+        env: an env whose wrapper chain holds an ``EconomicMeteringWrapper``.
         economics: the task economics (value per unit, damage cost, human wage).
     """
 
     def __init__(self, env: gym.Env, economics: TaskEconomics) -> None:
         super().__init__(env)
-        inner = env
-        while inner is not None and not hasattr(inner, "tally"):
-            inner = getattr(inner, "env", None)
+        from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper, find_wrapper
+
+        inner = find_wrapper(env, EconomicMeteringWrapper)
         if inner is None:
-            raise ConfigError("<env>", "wrappers", "no EconomicMeteringWrapper (with a tally) inside this env")
-        self.tally = inner.tally
+            raise ConfigError("<env>", "wrappers", "no EconomicMeteringWrapper inside this env")
+        self.meter = inner
         self.dt_h = float(inner.dt_s) / 3600.0
         self.economics = economics
         self._prev_mpl = 0.0
@@ -57,9 +57,10 @@ class MujocoStepSummaryWrapper(gym.Wrapper):
         return obs, info
 
     def step(self, action):
-        t = self.tally
+        t = self.meter.episode
         units0, errors0, wh0, novelty0 = t.units, t.errors, t.energy_wh, t.novelty_sum
         obs, reward, terminated, truncated, info = self.env.step(action)
+        t = self.meter.episode  # the sums after the step (at an episode's end: of the episode that ended)
         econ = self.economics
         units, errors = t.units - units0, t.errors - errors0
         attempts = units + errors

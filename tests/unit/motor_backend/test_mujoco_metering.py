@@ -1,4 +1,4 @@
-"""EconomicMeteringWrapper and EconomicOverlayWrapper on real Gymnasium MuJoCo envs."""
+"""EconomicMeteringWrapper (the meter and the objective overlay) on real Gymnasium MuJoCo envs."""
 
 import gymnasium as gym
 import numpy as np
@@ -6,11 +6,7 @@ import pytest
 
 from econmotor.errors import ConfigError, UnknownNameError
 from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper, VisitNovelty
-from econmotor.motor_backend.mujoco.overlay import (
-    TERM_METRICS,
-    EconomicOverlayWrapper,
-    episode_metric,
-)
+from econmotor.motor_backend.mujoco.overlay import TERM_METRICS, episode_metric
 from econmotor.motor_backend.mujoco.settings import parse_mujoco_settings
 from econmotor.motor_backend.mujoco_backend import MujocoBackend
 from econmotor.objectives import EconomicObjectiveSpec
@@ -84,9 +80,9 @@ def test_truncated_episode_ends_with_max_steps_and_no_error():
 @pytest.mark.parametrize("env_id", ["Hopper-v5", "Ant-v5"])
 def test_each_overlay_term_sums_to_its_episode_metric(env_id):
     scales = {key: 0.5 + i for i, key in enumerate(k for k in TERM_METRICS if k != "pose_tracking")}
-    meter = EconomicMeteringWrapper(gym.make(env_id, max_episode_steps=60), leg_distance_m=0.05)
     refs = {"mpl_per_hour": 468.0, "error_rate": 0.002, "energy_kwh": 4e-5}
-    env = EconomicOverlayWrapper(meter, scales, keep_task_reward=True, references=refs)
+    env = EconomicMeteringWrapper(gym.make(env_id, max_episode_steps=60), leg_distance_m=0.05, scales=scales,
+                                  keep_task_reward=True, references=refs)
     task_env = EconomicMeteringWrapper(gym.make(env_id, max_episode_steps=60), leg_distance_m=0.05)
     progressed = []
     for seed in range(4):
@@ -100,18 +96,30 @@ def test_each_overlay_term_sums_to_its_episode_metric(env_id):
         overlay_return = sum(scale * episode_metric(raw, k) / refs.get(k, 1.0) for k, scale in scales.items())
         assert sum(rewards) == pytest.approx(sum(task_rewards) + overlay_return, rel=1e-9)
         progressed.append(raw["units_completed"] > 0)
-        tally = meter.tally  # the overlay's one-call snapshot agrees with the named running metrics
-        assert tally.running_metrics() == tuple(getattr(tally, key)() for key in TERM_METRICS)
+        sums = env.episode  # the one-call snapshot agrees with the named running metrics
+        assert sums.running_metrics() == tuple(getattr(sums, key)() for key in TERM_METRICS)
     assert any(progressed)  # the mpl and error terms were exercised with non-zero units
 
 
 def test_overlay_can_replace_the_task_reward_and_rejects_unknown_terms():
-    meter = EconomicMeteringWrapper(gym.make("Hopper-v5", max_episode_steps=30))
-    env = EconomicOverlayWrapper(meter, {"energy_kwh": -2.0}, keep_task_reward=False)
+    env = EconomicMeteringWrapper(gym.make("Hopper-v5", max_episode_steps=30), scales={"energy_kwh": -2.0},
+                                  keep_task_reward=False)
     rewards, infos, _ = run_episode(env, 0)
     assert sum(rewards) == pytest.approx(-2.0 * infos[-1]["econ_episode"]["energy_wh"] / 1000.0)
     with pytest.raises(ConfigError, match="stability_margin"):
-        EconomicOverlayWrapper(meter, {"stability_margin": -0.1})
+        EconomicMeteringWrapper(gym.make("Hopper-v5"), scales={"stability_margin": -0.1})
+    with pytest.raises(ConfigError, match=r"references\.energy_kwh"):
+        EconomicMeteringWrapper(gym.make("Hopper-v5"), scales={"energy_kwh": -2.0}, references={"energy_kwh": 0.0})
+
+
+def test_without_scales_the_reward_is_the_envs_own():
+    raw, meter = gym.make("Hopper-v5", max_episode_steps=40), EconomicMeteringWrapper(gym.make("Hopper-v5",
+                                                                                             max_episode_steps=40))
+    raw_rewards, _, _ = run_episode(raw, 2)
+    rewards, infos, _ = run_episode(meter, 2)
+    assert rewards == raw_rewards
+    assert infos[-1]["econ_episode"]["return"] == pytest.approx(sum(raw_rewards), rel=1e-12)
+    assert "overlay_terms" not in infos[-1] and "overlay_return" not in infos[-1]
 
 
 @pytest.mark.parametrize("task_id", ["hopper_courier", "walker_courier", "ant_courier", "humanoid_courier"])
@@ -171,19 +179,19 @@ def test_overlay_step_reward_is_the_change_of_the_weighted_running_metrics():
     """Per step (not only summed): r_t - r_task_t = sum_k factor_k (m_k(t) - m_k(t-1))."""
     scales = {key: 0.5 + i for i, key in enumerate(k for k in TERM_METRICS if k != "pose_tracking")}
     refs = {"mpl_per_hour": 468.0, "error_rate": 0.002, "energy_kwh": 4e-5}
-    meter = EconomicMeteringWrapper(gym.make("Hopper-v5"), leg_distance_m=0.05)
-    env = EconomicOverlayWrapper(meter, scales, references=refs)
-    tally, steps = meter.tally, 0
+    env = EconomicMeteringWrapper(gym.make("Hopper-v5"), leg_distance_m=0.05, scales=scales, references=refs)
+    steps = 0
     for seed in range(2):
         env.reset(seed=seed)
         rng, prev, prev_return, done = np.random.default_rng(seed), dict.fromkeys(scales, 0.0), 0.0, False
         while not done:
             _, reward, terminated, truncated, _ = env.step(rng.uniform(-1, 1, 3))
-            now = {k: getattr(tally, k)() for k in scales}
+            sums = env.episode
+            now = {k: getattr(sums, k)() for k in scales}
             expected = sum(s / refs.get(k, 1.0) * (now[k] - prev[k]) for k, s in scales.items())
-            task_reward = tally.task_return - prev_return
+            task_reward = sums.task_return - prev_return
             assert reward - task_reward == pytest.approx(expected, rel=1e-9, abs=1e-9)
-            prev, prev_return, done, steps = now, tally.task_return, terminated or truncated, steps + 1
+            prev, prev_return, done, steps = now, sums.task_return, terminated or truncated, steps + 1
     assert steps > 10
 
 

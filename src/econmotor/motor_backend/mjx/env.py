@@ -33,7 +33,6 @@ Float32 here (JAX's default) vs float64 in MuJoCo C: per-step figures agree to ~
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from types import SimpleNamespace
 from typing import Any, NamedTuple
 
 import jax
@@ -160,7 +159,9 @@ class MjxCourierEnv:
         self.scales = scales
         self.references = {k: v for k, v in refs.items() if k in scales}
         self.factors = cf.overlay_factors(self.scales, self.references)
-        self._coef = cf.potential_coefficients(self.factors, self.control_dt_s)
+        self._constants = cf.meter_constants(s.leg_distance_m, s.drivetrain_efficiency, s.idle_power_w,
+                                             self.control_dt_s, s.tilt_margin_rad, s.fall_tilt_rad, self._free_root,
+                                             self.factors)
         self.metric_keys: tuple[str, ...] = BASE_METRIC_KEYS + tuple(f"overlay_{k}_raw" for k in self.scales) \
             if economics else ("length_steps", "return", "fell")
         self._init_qpos = jnp.asarray(self.mj_model.qpos0, dtype=jnp.float32)
@@ -283,28 +284,15 @@ class MjxCourierEnv:
             new = {**ep, "steps": ep["steps"] + 1.0, "task_return": ep["task_return"] + task_r}
             finished = {"length_steps": new["steps"], "return": new["task_return"], "fell": fell.astype(jnp.float32)}
             return data, obs, task_r, fell, new, counts, finished
-        # metering
-        gain, best_x = cf.high_water_units(qpos[0], ep["best_x"], s.leg_distance_m, jnp)
+        # metering and the overlay potential: the mujoco backend's meter_step, on traced arrays
         lo, hi = self._dof_lo, self._dof_hi
-        tilt = cf.free_tilt_rad(qpos[4], qpos[5], jnp) if self._free_root else cf.planar_tilt_rad(qpos[2], jnp)
         counts, bonus = self._novelty_visit(counts, obs[: s.novelty_dims])
-        new = {
-            "steps": ep["steps"] + 1.0,
-            "units": ep["units"] + gain,
-            "errors": ep["errors"] + fell.astype(jnp.float32),
-            "energy_wh": ep["energy_wh"] + cf.step_energy_wh(data.qfrc_actuator[lo:hi], qvel[lo:hi],
-                                                             1.0 / s.drivetrain_efficiency, s.idle_power_w,
-                                                             self.control_dt_s, jnp),
-            "risk_sum": ep["risk_sum"] + cf.tilt_risk(tilt, s.tilt_margin_rad, s.fall_tilt_rad - s.tilt_margin_rad,
-                                                      jnp),
-            "novelty_sum": ep["novelty_sum"] + bonus,
-            "task_return": ep["task_return"] + task_r,
-            "best_x": best_x,
-            "x0": ep["x0"],
-        }
-        j = cf.overlay_potential(self._coef, SimpleNamespace(**new, pose_sum=0.0), jnp)
+        novelty_sum = ep["novelty_sum"] + bonus
+        sums, j = cf.meter_step(tuple(ep[k] for k in cf.METER_SUMS), qpos, data.qfrc_actuator[lo:hi], qvel[lo:hi],
+                                fell, novelty_sum, 0.0, self._constants, jnp)
+        new = dict(zip(cf.METER_SUMS, sums, strict=True))
+        new.update(novelty_sum=novelty_sum, task_return=ep["task_return"] + task_r, overlay_j=j, x0=ep["x0"])
         overlay_r = j - ep["overlay_j"]
-        new["overlay_j"] = j
         reward = (task_r if self.keep_task_reward else 0.0) + overlay_r
         finished = self._episode_metrics(new, fell)
         return data, obs, reward, fell, new, counts, finished

@@ -110,6 +110,9 @@ class PoseTrackingWrapper(gym.Wrapper):
         seed: seed of the clip / frame sampler.
     """
 
+    #: the metering wrapper outside reads ``info["pose_tracking"]`` each step when this is in its chain
+    reports_pose_tracking = True
+
     def __init__(self, env: gym.Env, clips: Sequence[MotionClip], reference_init: bool = True,
                  seed: int | None = None) -> None:
         super().__init__(env)

@@ -5,8 +5,8 @@ Wrapper order, inside out::
     gymnasium.make(env_id)            # TimeLimit inside
     -> PoseTrackingWrapper            # when motion clips are given (RSI + info["pose_tracking"])
     -> DomainRandomizationWrapper     # when domain randomization is given
-    -> EconomicMeteringWrapper        # units, energy, falls, risk, novelty
-    -> EconomicOverlayWrapper         # task reward + sum scale_k * term_k
+    -> EconomicMeteringWrapper        # units, energy, falls, risk, novelty; with the overlay:
+                                      #   task reward + sum scale_k * term_k (one wrapper, one call per step)
     -> stable_baselines3 Monitor      # episode returns for logging (vector envs only)
 """
 
@@ -20,7 +20,6 @@ import gymnasium as gym
 
 from econmotor.motor_backend.mujoco.clips import MotionClip, PoseTrackingWrapper
 from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper
-from econmotor.motor_backend.mujoco.overlay import EconomicOverlayWrapper
 from econmotor.motor_backend.mujoco.randomization import (
     Curriculum,
     DomainRandomization,
@@ -52,18 +51,17 @@ class EnvRecipe:
 
 
 def make_env(recipe: EnvRecipe, seed: int | None = None, overlay: bool = True) -> gym.Env:
-    """One wrapped env (order in the module docstring); ``overlay=False`` stops at the meter."""
+    """One wrapped env (order in the module docstring); ``overlay=False``: the meter alone (the task's reward)."""
     s = recipe.settings
     env = make_base_env(s.env_id, s.env_kwargs, recipe.randomization)
     if recipe.clips:
         env = PoseTrackingWrapper(env, recipe.clips, recipe.reference_init, seed=seed)
     if recipe.randomization.active:
         env = DomainRandomizationWrapper(env, recipe.randomization, recipe.start_difficulty(), seed=seed)
-    env = EconomicMeteringWrapper(env, s.leg_distance_m, s.drivetrain_efficiency, s.idle_power_w,
-                                  s.tilt_margin_rad, s.fall_tilt_rad, s.novelty_dims, s.novelty_bin)
-    if overlay:
-        env = EconomicOverlayWrapper(env, recipe.scales, recipe.keep_task_reward, recipe.references)
-    return env
+    return EconomicMeteringWrapper(env, s.leg_distance_m, s.drivetrain_efficiency, s.idle_power_w,
+                                   s.tilt_margin_rad, s.fall_tilt_rad, s.novelty_dims, s.novelty_bin,
+                                   scales=recipe.scales if overlay else None,
+                                   keep_task_reward=recipe.keep_task_reward, references=recipe.references)
 
 
 def env_builder(recipe: EnvRecipe, seed: int) -> Callable[[], gym.Env]:

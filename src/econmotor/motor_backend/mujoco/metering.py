@@ -1,12 +1,12 @@
-"""EconomicMeteringWrapper: read the economics of a MuJoCo rollout from the physics.
+"""EconomicMeteringWrapper: read the economics of a MuJoCo rollout from the physics, add the overlay.
 
 Per control step (duration ``dt = frame_skip * timestep`` s), from ``env.unwrapped.data``:
 
 - units: a *delivery leg* is ``leg_distance_m`` of forward (+x) travel of the root.
   Progress is a high-water mark, so moving back and forth earns nothing:
   ``units_t = (max_{s<=t} x_s - x_0) / leg_distance_m`` (fractional legs).
-- electrical energy, Wh: mechanical power ``P_mech = sum_j |qfrc_actuator_j * qvel_j|`` W over
-  the degrees of freedom (``qfrc_actuator`` is the actuator force *after* the gear; unactuated
+- electrical energy, Wh: mechanical power ``P_mech = sum_j |qfrc_actuator_j * qvel_j|`` W over the
+  degrees of freedom (``qfrc_actuator`` is the actuator force *after* the gear; unactuated
   dofs read 0, so the sum runs over :func:`actuated_dof_span` only), electrical
   ``P_el = P_mech / drivetrain_efficiency + idle_power_w``,
   ``energy_wh += P_el * dt / 3600``. Power is sampled at the end of each control step.
@@ -15,12 +15,19 @@ Per control step (duration ``dt = frame_skip * timestep`` s), from ``env.unwrapp
   tilt = the torso's angle from upright (planar robots: the root hinge; free-floating robots:
   from the root quaternion, ``cos(tilt) = 1 - 2 (qx^2 + qy^2)``).
 - novelty: ``1 / sqrt(n(s))`` where ``n`` counts visits (kept across episodes of this env) to
-  the cell ``floor(obs[:novelty_dims] / novelty_bin)``. The step only queues ``obs[:novelty_dims]``'s
-  bytes; the visits are counted when ``tally.novelty_sum`` is read (by the overlay when it
-  weights novelty, at the episode's end, or every 1024 steps), which gives the same sum.
+  the cell ``floor(obs[:novelty_dims] / novelty_bin)``. Unless novelty is weighted in the overlay,
+  the step only queues ``obs[:novelty_dims]``'s bytes and the visits are counted at the episode's
+  end (or every 1024 steps, or when :attr:`EconomicMeteringWrapper.episode` is read), which gives
+  the same sum.
+- the objective overlay (when ``scales`` are given), see ``overlay.py``: the reward is
+  ``r_task * keep_task_reward + J(t) - J(t-1)`` with ``J = sum_k scale_k / ref_k * m_k`` over the
+  running episode metrics ``m_k``, so each term's episode sum is the episode metric of its key.
 
-Every formula is :mod:`econmotor.economics.courier_formulas`' (called here with Python floats,
-``xp=PY``), the one definition the ``mjx`` backend's jitted step calls with ``jax.numpy``.
+Each step is one call of :func:`econmotor.economics.courier_formulas.meter_step` (here with
+Python floats, ``xp=PY``), the one definition the ``mjx`` backend's jitted step calls with
+``jax.numpy``. The meter and the overlay are one wrapper, with the episode's sums in one tuple:
+on the CPU the per-step cost is mostly the code and objects each step touches after MuJoCo
+has run (``benchmarks/overlay_overhead.py``).
 
 Episode raw metrics (``info["econ_episode"]`` on the last step) use the keys
 :class:`~econmotor.economics.EconomicMeter` reads: ``units_completed``, ``units_attempted``
@@ -29,13 +36,15 @@ failed), ``errors``, ``episode_length_s``, ``energy_wh``, ``risk_score`` and ``n
 (means over steps), plus ``return`` (the env's own reward), ``length_steps``,
 ``forward_distance_m``, ``control_dt_s`` and ``termination_reason`` (``"fall"`` or
 ``"max_steps"``), and ``pose_tracking`` (sum of per-step pose similarity) when a
-pose-tracking wrapper reports ``info["pose_tracking"]``.
+pose-tracking wrapper inside reports ``info["pose_tracking"]``. With the overlay, the last step's
+info also holds ``overlay_terms`` (``{key: {"raw": m_k(T), "weighted": factor_k * m_k(T)}}``)
+and ``overlay_return`` (``J(T)``).
 """
 
 from __future__ import annotations
 
-import math
-from typing import Any
+from collections.abc import Mapping
+from typing import Any, NamedTuple
 
 import gymnasium as gym
 import mujoco
@@ -44,16 +53,14 @@ import numpy as np
 from econmotor.economics.courier_formulas import (
     PY,
     RUNNING_METRIC_KEYS,
-    free_tilt_rad,
-    high_water_units,
+    meter_constants,
+    meter_step,
     novelty_bonus,
     novelty_cell,
-    planar_tilt_rad,
     running_metrics,
-    step_energy_wh,
-    tilt_risk,
 )
 from econmotor.errors import ConfigError
+from econmotor.motor_backend.mujoco.overlay import overlay_term_factors
 
 
 class VisitNovelty:
@@ -89,97 +96,54 @@ class VisitNovelty:
         return total
 
 
-class EpisodeTally:
-    """Running sums of one episode; the overlay reads the running episode metrics from here.
 
-    The meter queues each step's novelty point in ``pending_visits`` (the raw bytes of the
-    observation or of its first ``dims`` entries, of dtype ``visit_dtype``); reading
-    ``novelty_sum`` counts the queued points first (the same sum as counting at each step),
-    which keeps the hashing off the step path when nobody reads novelty every step.
+
+class EpisodeSums(NamedTuple):
+    """The running sums of the episode so far (:attr:`EconomicMeteringWrapper.episode`, a snapshot).
+
+    The metric methods give the running episode metrics of the overlay keys (the values the
+    episode would report if it ended now).
     """
 
-    __slots__ = (
-        "_novelty",
-        "_novelty_sum",
-        "dt_s",
-        "energy_wh",
-        "errors",
-        "pending_visits",
-        "pose_sum",
-        "risk_sum",
-        "steps",
-        "task_return",
-        "units",
-        "visit_dtype",
-    )
+    steps: int
+    units: float
+    best_x: float
+    errors: float
+    energy_wh: float
+    risk_sum: float
+    novelty_sum: float
+    pose_sum: float
+    task_return: float
+    dt_s: float
 
-    def __init__(self, dt_s: float, novelty: VisitNovelty | None = None) -> None:
-        self.dt_s = dt_s
-        self._novelty = novelty
-        self.pending_visits: list[bytes] = []  # obs[:dims].tobytes() of steps whose cells are not counted yet
-        self.visit_dtype = np.dtype(np.float64)  # the dtype of those bytes (the meter sets the env's at reset)
-        self.reset()
-
-    def reset(self) -> None:
-        if self.pending_visits:
-            self.flush_visits()  # the cells' counts outlive the episode
-        self.steps = 0
-        self.units = self.errors = self.energy_wh = 0.0
-        self.risk_sum = self._novelty_sum = self.pose_sum = self.task_return = 0.0
-
-    def flush_visits(self) -> None:
-        """Count the queued novelty points into the visit counts and ``novelty_sum``."""
-        if self._novelty is None:
-            raise ValueError("EpisodeTally has queued visits but no VisitNovelty to count them")
-        pending = self.pending_visits
-        if not pending:
-            return
-        points = np.frombuffer(b"".join(pending), self.visit_dtype).reshape(len(pending), -1)
-        self._novelty_sum = self._novelty.visit_all(points, self._novelty_sum)
-        pending.clear()
-
-    @property
-    def novelty_sum(self) -> float:
-        """Sum over this episode's steps of the novelty bonus ``1 / sqrt(n)``."""
-        if self.pending_visits:
-            self.flush_visits()
-        return self._novelty_sum
-
-    # running episode metrics (the values the episode would report if it ended now)
-    def _metrics(self, novelty_sum: float = 0.0) -> tuple[float, float, float, float, float, float]:
-        return running_metrics(self.steps, self.units, self.errors, self.energy_wh, self.risk_sum, novelty_sum,
+    def running_metrics(self) -> tuple[float, float, float, float, float, float]:
+        """All six running metrics at once, in :data:`RUNNING_METRIC_KEYS` order."""
+        return running_metrics(self.steps, self.units, self.errors, self.energy_wh, self.risk_sum, self.novelty_sum,
                                self.pose_sum, self.dt_s, PY)
 
     def mpl_per_hour(self) -> float:
         """Good units per hour so far: ``units / (steps * dt / 3600)``."""
-        return self._metrics()[0]
+        return self.running_metrics()[0]
 
     def error_rate(self) -> float:
         """Errors per attempted unit so far: ``errors / (units + errors)``."""
-        return self._metrics()[1]
+        return self.running_metrics()[1]
 
     def energy_kwh(self) -> float:
-        return self._metrics()[2]
+        return self.running_metrics()[2]
 
     def risk_score(self) -> float:
-        return self._metrics()[3]
+        return self.running_metrics()[3]
 
     def novelty_score(self) -> float:
-        return self._metrics(self.novelty_sum)[4]  # reading novelty_sum counts the queued visits
+        return self.running_metrics()[4]
 
     def pose_tracking(self) -> float:
         return self.pose_sum
 
-    def running_metrics(self) -> tuple[float, float, float, float, float, float]:
-        """All six running metrics at once, in :data:`RUNNING_METRIC_KEYS` order."""
-        return self._metrics(self.novelty_sum)
 
-
-__all__ = ["RUNNING_METRIC_KEYS", "EconomicMeteringWrapper", "EpisodeTally", "VisitNovelty", "actuated_dof_span",
+__all__ = ["RUNNING_METRIC_KEYS", "EconomicMeteringWrapper", "EpisodeSums", "VisitNovelty", "actuated_dof_span",
            "find_wrapper"]
-
-#: at most this many actuated dofs (hopper: 3, humanoid: 17): power summed over Python floats; more: numpy.
-_SMALL_DOFS = 32
 
 #: observations up to this size are queued for novelty whole (hopper: 88 bytes), larger ones as obs[:dims]
 _QUEUE_WHOLE_OBS_BYTES = 256
@@ -208,7 +172,7 @@ def actuated_dof_span(model: Any) -> tuple[int, int]:
 
 
 class EconomicMeteringWrapper(gym.Wrapper):
-    """Meter units, energy, falls, risk and novelty of a Gymnasium MuJoCo env (see module doc).
+    """Meter units, energy, falls, risk and novelty of a Gymnasium MuJoCo env; add the overlay (module doc).
 
     Args:
         env: a Gymnasium MuJoCo env (``env.unwrapped`` has ``model``, ``data`` and ``dt``);
@@ -220,11 +184,17 @@ class EconomicMeteringWrapper(gym.Wrapper):
         fall_tilt_rad: tilt at which risk reaches 1, rad (> tilt_margin_rad).
         novelty_dims: leading observation dims hashed for visit counts (>= 1).
         novelty_bin: bin width of the hash, in observation units (> 0).
+        scales: the objective overlay, overlay key -> signed scale (a ``CompiledRewardOverlay`` or
+            a plain mapping; keys in ``overlay.TERM_METRICS``). None: no overlay, the reward is
+            the env's own and the info has no overlay keys.
+        keep_task_reward: with an overlay, keep the env's own reward (True) or use the overlay alone.
+        references: overlay key -> positive divisor of its term (missing keys: 1).
     """
 
     def __init__(self, env: gym.Env, leg_distance_m: float = 10.0, drivetrain_efficiency: float = 0.6,
                  idle_power_w: float = 20.0, tilt_margin_rad: float = 0.2, fall_tilt_rad: float = 1.0,
-                 novelty_dims: int = 5, novelty_bin: float = 0.25) -> None:
+                 novelty_dims: int = 5, novelty_bin: float = 0.25, scales: Mapping[str, float] | None = None,
+                 keep_task_reward: bool = True, references: Mapping[str, float] | None = None) -> None:
         super().__init__(env)
         where = "EconomicMeteringWrapper"
         if not leg_distance_m > 0:
@@ -240,110 +210,137 @@ class EconomicMeteringWrapper(gym.Wrapper):
         base = env.unwrapped
         if not hasattr(base, "data") or not hasattr(base, "model"):
             raise ConfigError(where, "env", f"{base!r} is not a MuJoCo env (no model/data)")
-        self._data = base.data
-        # views into MjData's fixed buffers, read every step (MjData never reallocates them);
-        # memoryviews index to Python floats without numpy's per-call cost
+        # memoryviews into MjData's fixed buffers (MjData never reallocates them): they index and
+        # iterate as Python floats without numpy's per-call cost
         self._qpos = memoryview(base.data.qpos)
         lo, hi = actuated_dof_span(base.model)
-        self._qfrc, self._qvel = base.data.qfrc_actuator[lo:hi], base.data.qvel[lo:hi]
-        if hi - lo <= _SMALL_DOFS:  # a few dofs: Python floats beat numpy's per-call cost
-            self._energy_args = (memoryview(self._qfrc), memoryview(self._qvel))
-            self._energy_xp = PY
-        else:
-            self._energy_args, self._energy_xp = (self._qfrc, self._qvel), np
+        self._qfrc, self._qvel = memoryview(base.data.qfrc_actuator[lo:hi]), memoryview(base.data.qvel[lo:hi])
         self.dt_s = float(base.dt)
         self.leg_distance_m = float(leg_distance_m)
-        self._inv_eff = 1.0 / float(drivetrain_efficiency)
-        self._idle_w = float(idle_power_w)
-        self._tilt_margin = float(tilt_margin_rad)
-        self._tilt_span = float(fall_tilt_rad - tilt_margin_rad)
         self._novelty_dims = int(novelty_dims)
-        self._free_root = int(base.model.jnt_type[0]) == int(mujoco.mjtJoint.mjJNT_FREE)
-        # risk is 0 while tilt <= margin, so tilt_risk runs only past it. Free root: tilt > margin
-        # <=> cos(tilt) < cos(margin), so acos runs only near or past the margin (the 1e-9 slack
-        # keeps every step acos would have scored > 0)
-        self._cos_margin = math.cos(self._tilt_margin) + 1e-9
+        # the overlay: J's coefficients go into the step's constants (all 0 without an overlay)
+        self.overlay = scales is not None
+        self.scales = {k: float(v) for k, v in (scales or {}).items()}
+        self.factors = overlay_term_factors(self.scales, references) if self.overlay else {}
+        self.keep_task_reward = bool(keep_task_reward) or not self.overlay
+        self._terms = [(k, RUNNING_METRIC_KEYS.index(k)) for k in self.factors]
+        free_root = int(base.model.jnt_type[0]) == int(mujoco.mjtJoint.mjJNT_FREE)
+        self.constants = meter_constants(leg_distance_m, drivetrain_efficiency, idle_power_w, self.dt_s,
+                                         tilt_margin_rad, fall_tilt_rad, free_root, self.factors)
+        self._constants = tuple(self.constants)  # a plain tuple unpacks faster than the NamedTuple
         self._novelty = VisitNovelty(novelty_bin, novelty_dims)
-        self.tally = EpisodeTally(self.dt_s, self._novelty)
-        self._pending_visits = self.tally.pending_visits  # the same list object for the env's life
-        self._x0 = self._best_x = 0.0
+        # per-step reads beyond the physics: novelty weighted (count each step's cell at once) or
+        # a pose-tracking wrapper inside (its info["pose_tracking"])
+        self._count_each_step = bool(self.factors.get("novelty_score"))
+        self._track_pose = _reports_pose_tracking(env)
+        self._step_extras = self._count_each_step or self._track_pose
+        self._pending: list[bytes] = []  # obs[:dims] bytes of steps whose novelty cells are not counted yet
+        self._visit_dtype = np.dtype(np.float64)  # the dtype of those bytes (the env's, set at reset)
         self._queue_whole_obs = False
+        self._start_episode(0.0)
+
+    def _start_episode(self, x0: float) -> None:
+        self._x0 = x0
+        self._sums = (0, 0.0, x0, 0.0, 0.0, 0.0)  # courier_formulas.METER_SUMS
+        self._novelty_sum = self._pose_sum = self._task_return = self._prev_j = 0.0
+
+    @property
+    def episode(self) -> EpisodeSums:
+        """The current episode's running sums (counts the queued novelty visits first)."""
+        self.flush_visits()
+        return EpisodeSums(*self._sums, self._novelty_sum, self._pose_sum, self._task_return, self.dt_s)
+
+    @property
+    def x0(self) -> float:
+        """The root's x at the episode's start, m."""
+        return self._x0
 
     @property
     def visit_counts(self) -> dict[tuple[int, ...], int]:
         """Visits per novelty cell ``floor(obs[:novelty_dims] / novelty_bin)``, across episodes."""
-        self.tally.flush_visits()
+        self.flush_visits()
         return self._novelty.counts
 
-    def tilt_rad(self) -> float:
-        """The torso's angle from upright, rad."""
-        qpos = self._data.qpos
-        if self._free_root:
-            return free_tilt_rad(float(qpos[4]), float(qpos[5]), PY)
-        return planar_tilt_rad(float(qpos[2]), PY)
+    def flush_visits(self) -> None:
+        """Count the queued novelty points into the visit counts and the episode's novelty sum."""
+        pending = self._pending
+        if pending:
+            points = np.frombuffer(b"".join(pending), self._visit_dtype).reshape(len(pending), -1)
+            self._novelty_sum = self._novelty.visit_all(points, self._novelty_sum)
+            pending.clear()
 
     def reset(self, **kwargs: Any):
         obs, info = self.env.reset(**kwargs)
-        self.tally.reset()  # counts the last episode's queued visits
-        self.tally.visit_dtype = obs.dtype
+        self.flush_visits()  # an episode cut short: its visits still count for the cells
+        self._visit_dtype = obs.dtype
         # a small observation is queued whole (one copy, no slice); a large one only obs[:dims]
         self._queue_whole_obs = obs.nbytes <= _QUEUE_WHOLE_OBS_BYTES
-        self._x0 = self._best_x = self._qpos[0]
+        self._start_episode(self._qpos[0])
         return obs, info
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
-        tally, qpos = self.tally, self._qpos
-        tally.steps += 1
-        tally.task_return += float(reward)
-        x = qpos[0]
-        if x > self._best_x:  # else no progress: the high-water mark stays
-            gain, self._best_x = high_water_units(x, self._best_x, self.leg_distance_m, PY)
-            tally.units += gain
-        f, v = self._energy_args  # a call with *args would leave CPython's inlined calls
-        tally.energy_wh += step_energy_wh(f, v, self._inv_eff, self._idle_w, self.dt_s, self._energy_xp)
-        if self._free_root:
-            qx, qy = qpos[4], qpos[5]
-            if 1.0 - 2.0 * (qx * qx + qy * qy) < self._cos_margin:
-                tally.risk_sum += tilt_risk(free_tilt_rad(qx, qy, PY), self._tilt_margin, self._tilt_span, PY)
-        else:
-            angle = qpos[2]
-            if angle > self._tilt_margin or -angle > self._tilt_margin:  # else the risk is 0
-                tally.risk_sum += tilt_risk(planar_tilt_rad(angle, PY), self._tilt_margin, self._tilt_span, PY)
-        pending = self._pending_visits  # this step's cell is counted when novelty_sum is read:
+        reward = float(reward)
+        pending = self._pending  # this step's novelty cell is counted later (module doc)
         pending.append(obs.tobytes() if self._queue_whole_obs else obs[: self._novelty_dims].tobytes())
-        pose = info.get("pose_tracking") if info else None
-        if pose is not None:
-            tally.pose_sum += pose
+        if self._step_extras:
+            self._read_step_extras(info)
+        self._sums, j = meter_step(self._sums, self._qpos, self._qfrc, self._qvel, terminated, self._novelty_sum,
+                                   self._pose_sum, self._constants, PY)
+        self._task_return += reward
+        overlay_r = j - self._prev_j  # J(t) - J(t-1); J = 0 without an overlay
+        self._prev_j = j
         if terminated or truncated:
-            if terminated:  # the env's own unhealthy termination: one fall
-                tally.errors += 1.0
-            info["econ_episode"] = self.episode_raw_metrics(terminated, pose is not None)
+            self._end_episode(info, terminated, j)
         elif len(pending) >= _MAX_PENDING_VISITS:
-            tally.flush_visits()
-        return obs, reward, terminated, truncated, info
+            self.flush_visits()
+        return obs, (reward + overlay_r if self.keep_task_reward else overlay_r), terminated, truncated, info
 
-    def episode_raw_metrics(self, fell: bool, with_pose: bool = False) -> dict[str, Any]:
-        """The episode's raw metrics so far (keys in the module docstring)."""
-        t = self.tally
-        _, _, _, risk_score, novelty_score, _ = t.running_metrics()
-        out: dict[str, Any] = {
-            "units_completed": t.units,
-            "units_attempted": t.units + t.errors,
-            "errors": t.errors,
-            "episode_length_s": t.steps * self.dt_s,
-            "length_steps": float(t.steps),
+    def _read_step_extras(self, info: dict[str, Any]) -> None:
+        if self._count_each_step:  # the overlay weights novelty: J reads this step's bonus
+            self.flush_visits()
+        if self._track_pose:
+            pose = info.get("pose_tracking")
+            if pose is not None:
+                self._pose_sum += pose
+
+    def _end_episode(self, info: dict[str, Any], fell: bool, j: float) -> None:
+        """Add the episode's raw metrics (and the overlay's terms) to the last step's ``info``."""
+        self.flush_visits()
+        steps, units, best_x, errors, energy_wh, risk_sum = self._sums
+        metrics = running_metrics(steps, units, errors, energy_wh, risk_sum, self._novelty_sum, self._pose_sum,
+                                  self.dt_s, PY)
+        raw: dict[str, Any] = {
+            "units_completed": units,
+            "units_attempted": units + errors,
+            "errors": errors,
+            "episode_length_s": steps * self.dt_s,
+            "length_steps": float(steps),
             "control_dt_s": self.dt_s,
-            "energy_wh": t.energy_wh,
-            "risk_score": risk_score,
-            "novelty_score": novelty_score,
-            "return": t.task_return,
-            "forward_distance_m": self._best_x - self._x0,
+            "energy_wh": energy_wh,
+            "risk_score": metrics[3],
+            "novelty_score": metrics[4],
+            "return": self._task_return,
+            "forward_distance_m": best_x - self._x0,
             "termination_reason": "fall" if fell else "max_steps",
         }
-        if with_pose:
-            out["pose_tracking"] = t.pose_sum
-        return out
+        if self._track_pose:
+            raw["pose_tracking"] = self._pose_sum
+        info["econ_episode"] = raw
+        if self.overlay:  # each term's episode sum telescopes to the episode's metric m_k(T)
+            factors = self.factors
+            info["overlay_terms"] = {k: {"raw": metrics[i], "weighted": factors[k] * metrics[i]}
+                                     for k, i in self._terms}
+            info["overlay_return"] = j  # J(T) = sum_k factor_k * m_k(T), the weighted terms' sum
+
+
+def _reports_pose_tracking(env: gym.Env) -> bool:
+    """Whether a wrapper in ``env``'s chain writes ``info["pose_tracking"]`` (its class: ``reports_pose_tracking``)."""
+    while env is not None:
+        if getattr(type(env), "reports_pose_tracking", False):
+            return True
+        env = getattr(env, "env", None)
+    return False
 
 
 def find_wrapper(env: gym.Env, cls: type) -> Any:

@@ -21,29 +21,26 @@ from econmotor.motor_backend.mujoco import metering, overlay
 from econmotor.motor_backend.mujoco.settings import parse_mujoco_settings
 from econmotor.tasks import load_catalog
 
-FORMULAS = ("high_water_units", "step_energy_wh", "planar_tilt_rad", "free_tilt_rad",
-            "tilt_risk", "novelty_bonus", "novelty_cell", "running_metrics")
+FORMULAS = ("meter_step", "meter_constants", "novelty_bonus", "novelty_cell", "running_metrics")
 
 
 def test_the_mujoco_meter_and_overlay_use_the_shared_functions():
     for name in FORMULAS:
         assert getattr(metering, name) is getattr(cf, name), name
-    for name in ("overlay_potential", "potential_coefficients", "overlay_factors"):
-        assert getattr(overlay, name) is getattr(cf, name), name
+    assert overlay.overlay_factors is cf.overlay_factors
     assert overlay.episode_metric is cf.episode_metric
     assert metering.RUNNING_METRIC_KEYS is cf.RUNNING_METRIC_KEYS
 
 
 def test_the_mjx_step_traces_through_the_shared_functions(monkeypatch, hopper):
     """Spy on the shared module while the jitted step is traced (eval_shape: no compile)."""
-    calls: dict[str, list[str]] = {}
-    for name in (*FORMULAS, "overlay_potential", "is_healthy"):
+    calls: dict[str, list[bool]] = {}
+    for name in ("meter_step", "novelty_bonus", "novelty_cell", "running_metrics", "is_healthy"):
         original = getattr(cf, name)
 
         def spy(*args, _name=name, _original=original, **kwargs):
-            traced = any(isinstance(a, jax.core.Tracer) for a in (*args, *vars(args[1]).values())
-                         ) if _name == "overlay_potential" else any(isinstance(a, jax.core.Tracer) for a in args)
-            calls.setdefault(_name, []).append(traced)
+            leaves = jax.tree_util.tree_leaves(args)
+            calls.setdefault(_name, []).append(any(isinstance(a, jax.core.Tracer) for a in leaves))
             return _original(*args, **kwargs)
 
         monkeypatch.setattr(cf, name, spy)
@@ -51,29 +48,57 @@ def test_the_mjx_step_traces_through_the_shared_functions(monkeypatch, hopper):
     state = jax.eval_shape(lambda k: env.reset(k, 2), jax.random.PRNGKey(0))
     # a fresh function: a traced env.step may be cached from another test's jit
     jax.eval_shape(lambda s, a: env.step(s, a), state, jax.ShapeDtypeStruct((2, env.action_size), jnp.float32))
-    expected = set(FORMULAS) - {"free_tilt_rad"} | {"overlay_potential", "is_healthy"}  # the hopper is planar
-    assert expected <= set(calls)
-    assert all(all(calls[name]) for name in expected), calls  # called on traced JAX arrays
+    assert set(calls) == {"meter_step", "novelty_bonus", "novelty_cell", "running_metrics", "is_healthy"}
+    assert all(all(traced) for traced in calls.values()), calls  # called on traced JAX arrays
 
 
+def _meter_case(xp_name: str, free_root: bool):
+    """One step of meter_step from hand-picked sums and state, in namespace ``xp_name``."""
+    xp = {"py": cf.PY, "np": np, "jnp": jnp}[xp_name]
+    conv = {"py": float, "np": np.float64, "jnp": lambda v: jnp.asarray(v, jnp.float32)}[xp_name]
+    arr = (lambda v: [float(x) for x in v]) if xp_name == "py" else (
+        (lambda v: np.asarray(v, np.float64)) if xp_name == "np" else (lambda v: jnp.asarray(v, jnp.float32)))
+    # x = 1.25 past best_x = 1.0; planar angle -0.15 (free root: qx = sin(0.15), so tilt 0.3)
+    qpos = arr([1.25, 1.1, -0.15, 1.0, np.sin(0.15), 0.0, 0.0]) if free_root else arr([1.25, 1.1, -0.15])
+    f, v = arr([2.0, -3.0, 0.5]), arr([1.0, 2.0, -4.0])  # |2*1| + |-3*2| + |0.5*-4| = 10 W mechanical
+    factors = {"mpl_per_hour": 2.0, "risk_score": -3.0, "novelty_score": 0.5, "error_rate": -4.0,
+               "energy_kwh": -5.0, "pose_tracking": 0.25}
+    c = cf.meter_constants(10.0, 0.5, 20.0, 0.008, 0.1, 0.5 if free_root else 0.2, free_root, factors)
+    sums = tuple(conv(x) for x in (3.0, 0.5, 1.0, 1.0, 2.0, 0.25))  # steps, units, best_x, errors, Wh, risk
+    fell = True if xp_name == "py" else xp.asarray(True)
+    (steps, units, best_x, errors, wh, risk_sum), j = cf.meter_step(sums, qpos, f, v, fell, conv(1.5), conv(2.0), c,
+                                                                    xp)
+    return [float(x) for x in (steps, units, best_x, errors, wh, risk_sum, j)]
+
+
+@pytest.mark.parametrize("free_root", [False, True])
 @pytest.mark.parametrize("xp", ["py", "np", "jnp"])
-def test_formulas_give_the_same_numbers_in_every_namespace(xp):
+def test_meter_step_gives_the_same_numbers_in_every_namespace(xp, free_root):
+    steps, units, best_x, errors, wh, risk_sum, j = _meter_case(xp, free_root)
+    assert (steps, best_x, errors) == pytest.approx((4.0, 1.25, 2.0))
+    assert units == pytest.approx(0.5 + 0.025)
+    assert wh == pytest.approx(2.0 + (10 / 0.5 + 20) * 0.008 / 3600, rel=1e-6)
+    # (tilt - margin) / span: planar (0.15 - 0.1) / 0.1, free root (0.3 - 0.1) / 0.4
+    assert risk_sum == pytest.approx(0.25 + 0.5, rel=1e-5)
+    m = cf.running_metrics(4.0, units, errors, wh, risk_sum, 1.5, 2.0, 0.008, cf.PY)
+    expected_j = 2.0 * m[0] - 3.0 * m[3] + 0.5 * m[4] - 4.0 * m[1] - 5.0 * m[2] + 0.25 * m[5]
+    assert j == pytest.approx(expected_j, rel=1e-5)
+    # no progress, no tilt past the margin, no fall: only energy and the step count move
+    c = cf.meter_constants(10.0, 0.5, 20.0, 0.008, 0.1, 0.2, False, {"mpl_per_hour": 1.0})
     space = {"py": cf.PY, "np": np, "jnp": jnp}[xp]
-    conv = {"py": float, "np": np.float64, "jnp": lambda v: jnp.asarray(v, jnp.float32)}[xp]
-    gain, best = cf.high_water_units(conv(1.25), conv(1.0), 10.0, space)
-    assert float(gain) == pytest.approx(0.025) and float(best) == pytest.approx(1.25)
-    gain, best = cf.high_water_units(conv(0.5), conv(1.0), 10.0, space)
-    assert float(gain) == 0.0 and float(best) == 1.0
-    f, v = [2.0, -3.0, 0.5], [1.0, 2.0, -4.0]
-    args = (f, v) if xp == "py" else (space.asarray(f), space.asarray(v))
-    wh = cf.step_energy_wh(*args, 1 / 0.5, 20.0, 0.008, space)  # |2*1| + |-3*2| + |0.5*-4| = 10 W mechanical
-    assert float(wh) == pytest.approx((10 / 0.5 + 20) * 0.008 / 3600, rel=1e-6)
-    assert float(cf.tilt_risk(cf.planar_tilt_rad(conv(-0.15), space), 0.1, 0.1, space)) == pytest.approx(0.5, rel=1e-5)
-    assert float(cf.free_tilt_rad(conv(np.sin(0.3)), conv(0.0), space)) == pytest.approx(0.6, rel=1e-5)
-    m = cf.running_metrics(conv(10.0), conv(0.5), conv(1.0), conv(2.0), conv(3.0), conv(4.0), 0.0, 0.01, space)
-    assert [float(x) for x in m] == pytest.approx([0.5 * 3600 / 0.1, 1 / 1.5, 0.002, 0.3, 0.4, 0.0], rel=1e-6)
-    zero = cf.running_metrics(conv(0.0), conv(0.0), conv(0.0), conv(0.0), conv(0.0), conv(0.0), 0.0, 0.01, space)
-    assert [float(x) for x in zero] == [0.0] * 6  # no division by zero at the episode's start
+    qpos = [0.5, 1.1, 0.05] if xp == "py" else space.asarray([0.5, 1.1, 0.05])
+    zeros = [0.0, 0.0] if xp == "py" else space.asarray([0.0, 0.0])
+    sums, j = cf.meter_step((0, 0.0, 1.0, 0.0, 0.0, 0.0), qpos, zeros, zeros, False, 0.0, 0.0, c, space)
+    assert [float(x) for x in sums] == pytest.approx([1.0, 0.0, 1.0, 0.0, 20 * 0.008 / 3600, 0.0])
+    assert float(j) == 0.0
+
+
+def test_running_metrics_are_zero_before_the_first_step():
+    m = cf.running_metrics(10.0, 0.5, 1.0, 2.0, 3.0, 4.0, 0.0, 0.01, cf.PY)
+    assert list(m) == pytest.approx([0.5 * 3600 / 0.1, 1 / 1.5, 0.002, 0.3, 0.4, 0.0], rel=1e-9)
+    for xp in (cf.PY, np, jnp):
+        zero = cf.running_metrics(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.01, xp)
+        assert [float(x) for x in zero] == [0.0] * 6  # no division by zero at the episode's start
 
 
 @pytest.mark.parametrize("env_id", list(ROBOTS))

@@ -51,8 +51,8 @@ def state_from_c(state, meter):
     data = state.data.replace(qpos=batch(c.qpos), qvel=batch(c.qvel), qacc_warmstart=batch(c.qacc_warmstart),
                               time=batch(c.time), xpos=batch(c.xpos), xipos=batch(c.xipos))
     episode = {k: jnp.zeros_like(v) for k, v in state.episode.items()}
-    episode["best_x"] = batch(meter._best_x)
-    episode["x0"] = batch(meter._x0)
+    episode["best_x"] = batch(meter.episode.best_x)
+    episode["x0"] = batch(meter.x0)
     return state._replace(data=data, episode=episode)
 
 
@@ -62,14 +62,15 @@ def run_parity(jitted, steps: int, seed: int, obs_atol: float, skip_obs_from: in
     obs_c, _ = meter.reset(seed=seed)
     state = jitted.reset(jax.random.PRNGKey(seed), NUM_ENVS)
     rng = np.random.default_rng(seed)
-    tally = meter.tally
     worst = {"units": 0.0, "energy_rel": 0.0, "obs": 0.0}
     falls = 0
     for t in range(steps):
         state = state_from_c(state, meter)
         action = rng.uniform(env.action_low, env.action_high).astype(np.float32)
-        units0, wh0, risk0 = tally.units, tally.energy_wh, tally.risk_sum
+        before = meter.episode
+        units0, wh0, risk0 = before.units, before.energy_wh, before.risk_sum
         obs_c, reward_c, terminated, truncated, _ = meter.step(action.astype(np.float64))
+        tally = meter.episode
         state = jitted.step(state, jnp.broadcast_to(jnp.asarray(action), (NUM_ENVS, env.action_size)))
         f = {k: np.asarray(v)[0] for k, v in state.finished.items()}
         assert f["length_steps"] == 1.0
