@@ -1,9 +1,9 @@
 """The courier economics, written once against an array namespace.
 
-Every formula takes ``xp``, the namespace its arguments live in, and uses only what all
-three namespaces provide:
+Every formula takes ``xp``, the namespace its arguments live in:
 
-- :data:`PY` — Python floats (the ``mujoco`` backend's per-step path: no array overhead),
+- :data:`PY` — Python floats (the ``mujoco`` backend's per-step path: no array overhead; a
+  formula that runs there has a scalar branch, ``if xp is PY``),
 - ``numpy`` — arrays on the host,
 - ``jax.numpy`` — traced arrays inside the ``mjx`` backend's jitted, vmapped step.
 
@@ -42,39 +42,15 @@ WH_PER_KWH = 1000.0
 
 
 class _PythonFloats:
-    """The array namespace of plain Python floats (the CPU per-step path)."""
+    """Marks the Python-float path: a formula given ``xp=PY`` takes its scalar branch (``if xp is PY``)."""
 
-    maximum = staticmethod(max)
-    minimum = staticmethod(min)
-    abs = staticmethod(abs)
-    sqrt = staticmethod(math.sqrt)
-    floor = staticmethod(math.floor)
-    isfinite = staticmethod(math.isfinite)
+    __slots__ = ()
 
-    arccos = staticmethod(math.acos)
-
-    @staticmethod
-    def clip(x: float, lo: float, hi: float) -> float:
-        return lo if x < lo else hi if x > hi else x
-
-    @staticmethod
-    def where(cond: Any, a: Any, b: Any) -> Any:
-        return a if cond else b
-
-    @staticmethod
-    def logical_and(a: Any, b: Any) -> bool:
-        return bool(a and b)
-
-    @staticmethod
-    def all(values: Any) -> bool:
-        return all(values)
-
-    @staticmethod
-    def sum(values: Any) -> float:
-        return sum(values)
+    def __repr__(self) -> str:
+        return "PY"
 
 
-#: plain Python floats as an array namespace (``math`` plus ``max``/``min``/``abs``).
+#: the namespace argument of the Python-float path (the ``mujoco`` backend's per-step work).
 PY = _PythonFloats()
 
 
@@ -192,9 +168,7 @@ def novelty_bonus(visits: Any) -> Any:
 
 
 def novelty_cell(point: Any, inv_bin: float, xp: Any) -> Any:
-    """The cell index of a point: ``floor(point / novelty_bin)`` per dim (``inv_bin = 1 / bin``)."""
-    if xp is PY:
-        return tuple([math.floor(v * inv_bin) for v in point])
+    """The cell index of points (arrays): ``floor(point / novelty_bin)`` per dim (``inv_bin = 1 / bin``)."""
     return xp.floor(point * inv_bin)
 
 

@@ -50,17 +50,19 @@ class MujocoStepSummaryWrapper(gym.Wrapper):
         self.dt_h = float(inner.dt_s) / 3600.0
         self.economics = economics
         self._prev_mpl = 0.0
+        self._before = inner.episode  # the meter's sums before the next step
 
     def reset(self, **kwargs: Any):
         obs, info = self.env.reset(**kwargs)
         self._prev_mpl = 0.0
+        self._before = self.meter.episode
         return obs, info
 
     def step(self, action):
-        t = self.meter.episode
-        units0, errors0, wh0, novelty0 = t.units, t.errors, t.energy_wh, t.novelty_sum
+        before = self._before
+        units0, errors0, wh0, novelty0 = before.units, before.errors, before.energy_wh, before.novelty_sum
         obs, reward, terminated, truncated, info = self.env.step(action)
-        t = self.meter.episode  # the sums after the step (at an episode's end: of the episode that ended)
+        t = self._before = self.meter.episode  # the sums after the step (at an episode's end: the ended episode's)
         econ = self.economics
         units, errors = t.units - units0, t.errors - errors0
         attempts = units + errors

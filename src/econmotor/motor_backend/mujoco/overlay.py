@@ -64,8 +64,8 @@ def human_baseline_references(mp_human_units_per_hour: float, error_rate_human: 
 episode_metric = courier_formulas.episode_metric
 
 
-def overlay_term_factors(scales: Mapping[str, float], references: Mapping[str, float] | None = None,
-                         where: str = "EconomicMeteringWrapper") -> dict[str, float]:
+def overlay_term_factors(scales: Mapping[str, float],
+                         references: Mapping[str, float] | None = None) -> dict[str, float]:
     """Check an overlay's ``scales`` (keys: :data:`TERM_METRICS`) and ``references`` (> 0); ``scale_k / ref_k``."""
     unknown = [k for k in scales if k not in TERM_METRICS]
     if unknown:
@@ -74,5 +74,5 @@ def overlay_term_factors(scales: Mapping[str, float], references: Mapping[str, f
     refs = dict(references or {})
     bad = [k for k, v in refs.items() if not v > 0]
     if bad:
-        raise ConfigError(where, f"references.{bad[0]}", "must be > 0")
-    return overlay_factors({k: float(v) for k, v in scales.items()}, refs)
+        raise ConfigError("EconomicMeteringWrapper", f"references.{bad[0]}", "must be > 0")
+    return overlay_factors(scales, refs)
