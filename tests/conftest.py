@@ -1,6 +1,6 @@
 """Every test gets its own registry: a command that records runs (train, shadow, report) never
 writes into the directory pytest was started from, nor into another test's registry. SB3's
-default logger folder goes to the test's tmp_path too (not /tmp/SB3-<time>).
+default logger folder goes to the session's pytest tmp dir too (not /tmp/SB3-<time>).
 
 Hypothesis: in CI (``CI`` set) the property tests draw a fixed, derandomised sequence of
 examples, so a CI verdict is reproducible; elsewhere they explore new examples each run.
@@ -23,5 +23,13 @@ if os.environ.get("CI", "").strip().lower() not in ("", "0", "false", "no"):
 def _own_registry(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     # tests that need the default ./.econmotor registry use `workdir`, which removes this again
     monkeypatch.setenv("ECONMOTOR_DB_URL", f"sqlite:///{tmp_path / 'own-registry.sqlite'}")
-    # SB3 makes a logger folder for every learn() without one: tempdir/SB3-<time> unless $SB3_LOGDIR
-    monkeypatch.setenv("SB3_LOGDIR", str(tmp_path / "sb3-logger"))
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _sb3_logger_folder(tmp_path_factory: pytest.TempPathFactory):
+    """SB3 makes a logger folder for every learn() without one: tempdir/SB3-<time> unless $SB3_LOGDIR.
+    Session-wide, so module- and session-scoped training fixtures are covered too."""
+    patch = pytest.MonkeyPatch()
+    patch.setenv("SB3_LOGDIR", str(tmp_path_factory.mktemp("sb3-logger")))
+    yield
+    patch.undo()
