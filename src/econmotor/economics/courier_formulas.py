@@ -29,8 +29,9 @@ Per control step of ``dt_s`` seconds (see ``mujoco/metering.py`` for the story):
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -75,17 +76,48 @@ class MeterConstants(NamedTuple):
     cos_tilt_margin: float  # cos(tilt_margin_rad) + 1e-9: a free root's cos(tilt) below it is past the margin
     free_root: bool
     coef: tuple[float, ...]  # the overlay potential's coefficients (:func:`potential_coefficients`)
+    abs_dot: Callable[[Any, Any], float]  # the Python-float path's sum_j |a_j * b_j| (:func:`abs_dot_py`)
 
 
 def meter_constants(leg_distance_m: float, drivetrain_efficiency: float, idle_power_w: float, dt_s: float,
                     tilt_margin_rad: float, fall_tilt_rad: float, free_root: bool,
-                    factors: Mapping[str, float] | None = None) -> MeterConstants:
-    """:class:`MeterConstants` of a courier; ``factors``: the overlay's ``scale_k / ref_k`` (None: no overlay)."""
+                    factors: Mapping[str, float] | None = None, dofs: int | None = None) -> MeterConstants:
+    """:class:`MeterConstants` of a courier; ``factors``: the overlay's ``scale_k / ref_k`` (None: no overlay).
+
+    ``dofs``: the number of actuated dofs the Python-float path sums power over (None: any number).
+    """
     return MeterConstants(float(leg_distance_m), 1.0 / float(drivetrain_efficiency), float(idle_power_w),
                           float(dt_s) / SECONDS_PER_HOUR,
                           float(tilt_margin_rad), float(fall_tilt_rad - tilt_margin_rad),
                           math.cos(float(tilt_margin_rad)) + 1e-9, bool(free_root),
-                          potential_coefficients(factors or {}, float(dt_s)))
+                          potential_coefficients(factors or {}, float(dt_s)), abs_dot_py(dofs))
+
+
+def _abs_dot_loop(a: Any, b: Any) -> float:
+    total = 0.0
+    for x, y in zip(a, b):  # noqa: B905 (equal lengths: the same dof span)
+        total += abs(x * y)
+    return total
+
+
+@functools.cache
+def abs_dot_py(n: int | None) -> Callable[[Any, Any], float]:
+    """``f(a, b) = sum_j |a_j * b_j|`` over Python sequences of ``n`` floats (None: of any length).
+
+    For a known ``n`` the sum is written out, ``abs(a[0] * b[0]) + ... + abs(a[n-1] * b[n-1])``,
+    and compiled once per ``n``: run between MuJoCo steps (cold caches), a Python loop over 3-17
+    entries costs ~1 us more per control step than the same sum without the loop
+    (``benchmarks/overlay_overhead.py``). The array namespaces compute the same sum as
+    ``xp.sum(xp.abs(a * b), axis=-1)`` (:func:`meter_step`).
+    """
+    if n is None:
+        return _abs_dot_loop
+    if n < 0:
+        raise ValueError(f"abs_dot_py: n must be >= 0, got {n}")
+    terms = " + ".join(f"abs(a[{j}] * b[{j}])" for j in range(int(n))) or "0.0"
+    namespace: dict[str, Any] = {}
+    exec(compile(f"def abs_dot(a, b):\n    return {terms}\n", f"<abs_dot_py({n})>", "exec"), namespace)
+    return namespace["abs_dot"]
 
 
 #: the running sums :func:`meter_step` carries, in order (the episode's state before a step).
@@ -117,16 +149,14 @@ def meter_step(sums: Sequence[Any], qpos: Any, qfrc_actuator: Any, qvel: Any, fe
     progress: no units; tilt inside the margin: no risk; no errors: error rate 0).
     """
     steps, units, best_x, errors, energy_wh, risk_sum = sums
-    leg_m, inv_eff, idle_w, step_hours, margin, span, cos_margin, free_root, coef = c
+    leg_m, inv_eff, idle_w, step_hours, margin, span, cos_margin, free_root, coef, abs_dot = c
     steps = steps + 1
     x = qpos[0]
     if xp is PY:  # Python floats (memoryviews of MjData): the zero cases skipped, loops written out
         if x > best_x:
             units += (x - best_x) / leg_m
             best_x = x
-        mech_w = 0.0
-        for f, v in zip(qfrc_actuator, qvel):  # noqa: B905 (equal lengths: the same dof span)
-            mech_w += abs(f * v)
+        mech_w = abs_dot(qfrc_actuator, qvel)
         if free_root:
             qx, qy = qpos[4], qpos[5]
             cos_tilt = 1.0 - 2.0 * (qx * qx + qy * qy)

@@ -231,7 +231,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
         free_root = int(base.model.jnt_type[0]) == int(mujoco.mjtJoint.mjJNT_FREE)
         # meter_step's constants as a plain tuple: it unpacks faster than the NamedTuple
         self._constants = tuple(meter_constants(leg_distance_m, drivetrain_efficiency, idle_power_w, self.dt_s,
-                                                tilt_margin_rad, fall_tilt_rad, free_root, self.factors))
+                                                tilt_margin_rad, fall_tilt_rad, free_root, self.factors, hi - lo))
         self._novelty = VisitNovelty(novelty_bin, novelty_dims)
         # per-step reads beyond the physics: novelty weighted (count each step's cell at once) or
         # a pose-tracking wrapper inside (its info["pose_tracking"])
@@ -310,24 +310,27 @@ class EconomicMeteringWrapper(gym.Wrapper):
 
     def _end_episode(self, info: dict[str, Any], fell: bool, j: float) -> None:
         """Add the episode's raw metrics (and the overlay's terms) to the last step's ``info``."""
-        t = self.episode  # counts the queued visits
-        metrics = t.running_metrics()
+        self.flush_visits()
+        steps, units, best_x, errors, energy_wh, risk_sum = self._sums
+        dt_s = self.dt_s
+        metrics = running_metrics(steps, units, errors, energy_wh, risk_sum, self._novelty_sum, self._pose_sum, dt_s,
+                                  PY)
         raw: dict[str, Any] = {
-            "units_completed": t.units,
-            "units_attempted": t.units + t.errors,
-            "errors": t.errors,
-            "episode_length_s": t.steps * self.dt_s,
-            "length_steps": float(t.steps),
-            "control_dt_s": self.dt_s,
-            "energy_wh": t.energy_wh,
+            "units_completed": units,
+            "units_attempted": units + errors,
+            "errors": errors,
+            "episode_length_s": steps * dt_s,
+            "length_steps": float(steps),
+            "control_dt_s": dt_s,
+            "energy_wh": energy_wh,
             "risk_score": metrics[3],
             "novelty_score": metrics[4],
-            "return": t.task_return,
-            "forward_distance_m": t.best_x - self._x0,
+            "return": self._task_return,
+            "forward_distance_m": best_x - self._x0,
             "termination_reason": "fall" if fell else "max_steps",
         }
         if self._track_pose:
-            raw["pose_tracking"] = t.pose_sum
+            raw["pose_tracking"] = self._pose_sum
         info["econ_episode"] = raw
         if self.overlay:  # each term's episode sum telescopes to the episode's metric m_k(T)
             factors = self.factors

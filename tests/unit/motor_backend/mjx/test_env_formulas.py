@@ -93,6 +93,21 @@ def test_meter_step_gives_the_same_numbers_in_every_namespace(xp, free_root):
     assert float(j) == 0.0
 
 
+@pytest.mark.parametrize("n", [0, 1, 3, 17])
+def test_the_written_out_power_sum_equals_the_array_formula(n):
+    """abs_dot_py(n) (the Python-float path's sum_j |f_j v_j|, written out per n) and its any-length
+    loop give the array namespaces' xp.sum(xp.abs(f * v)) on MjData-like memoryviews."""
+    rng = np.random.default_rng(n)
+    f, v = rng.normal(size=n), rng.normal(size=n)
+    expected = float(np.sum(np.abs(f * v)))
+    for abs_dot in (cf.abs_dot_py(n), cf.abs_dot_py(None)):
+        assert abs_dot(memoryview(f), memoryview(v)) == pytest.approx(expected, rel=1e-12, abs=1e-300)
+    assert cf.abs_dot_py(n) is cf.abs_dot_py(n)  # compiled once per dof count
+    assert cf.meter_constants(10.0, 0.5, 20.0, 0.008, 0.1, 0.2, False, dofs=n).abs_dot is cf.abs_dot_py(n)
+    with pytest.raises(ValueError, match="n must be >= 0"):
+        cf.abs_dot_py(-1)
+
+
 def test_running_metrics_are_zero_before_the_first_step():
     m = cf.running_metrics(10.0, 0.5, 1.0, 2.0, 3.0, 4.0, 0.0, 0.01, cf.PY)
     assert list(m) == pytest.approx([0.5 * 3600 / 0.1, 1 / 1.5, 0.002, 0.3, 0.4, 0.0], rel=1e-9)
