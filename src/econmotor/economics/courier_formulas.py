@@ -68,9 +68,8 @@ class MeterConstants(NamedTuple):
     """The constants of :func:`meter_step` (build them with :func:`meter_constants`)."""
 
     leg_distance_m: float
-    inv_efficiency: float  # 1 / drivetrain_efficiency
-    idle_power_w: float
-    step_hours: float  # dt_s / 3600: Wh per W over one control step
+    wh_per_mech_w: float  # dt_s / 3600 / drivetrain_efficiency: Wh drawn per W of mechanical power over one step
+    idle_wh: float  # idle_power_w * dt_s / 3600: Wh drawn idling over one control step
     tilt_margin_rad: float
     tilt_span_rad: float  # fall_tilt_rad - tilt_margin_rad
     cos_tilt_margin: float  # cos(tilt_margin_rad) + 1e-9: a free root's cos(tilt) below it is past the margin
@@ -86,8 +85,9 @@ def meter_constants(leg_distance_m: float, drivetrain_efficiency: float, idle_po
 
     ``dofs``: the number of actuated dofs the Python-float path sums power over (None: any number).
     """
-    return MeterConstants(float(leg_distance_m), 1.0 / float(drivetrain_efficiency), float(idle_power_w),
-                          float(dt_s) / SECONDS_PER_HOUR,
+    step_hours = float(dt_s) / SECONDS_PER_HOUR  # Wh per W over one control step
+    return MeterConstants(float(leg_distance_m), step_hours / float(drivetrain_efficiency),
+                          float(idle_power_w) * step_hours,
                           float(tilt_margin_rad), float(fall_tilt_rad - tilt_margin_rad),
                           math.cos(float(tilt_margin_rad)) + 1e-9, bool(free_root),
                           potential_coefficients(factors or {}, float(dt_s)), abs_dot_py(dofs))
@@ -149,7 +149,7 @@ def meter_step(sums: Sequence[Any], qpos: Any, qfrc_actuator: Any, qvel: Any, fe
     progress: no units; tilt inside the margin: no risk; no errors: error rate 0).
     """
     steps, units, best_x, errors, energy_wh, risk_sum = sums
-    leg_m, inv_eff, idle_w, step_hours, margin, span, cos_margin, free_root, coef, abs_dot = c
+    leg_m, wh_per_mech_w, idle_wh, margin, span, cos_margin, free_root, coef, abs_dot = c
     steps = steps + 1
     x = qpos[0]
     if xp is PY:  # Python floats (memoryviews of MjData): the zero cases skipped, loops written out
@@ -182,7 +182,7 @@ def meter_step(sums: Sequence[Any], qpos: Any, qfrc_actuator: Any, qvel: Any, fe
             tilt = xp.abs(qpos[2])
         risk_sum = risk_sum + xp.clip((tilt - margin) / span, 0.0, 1.0)
         errors = errors + xp.where(fell, 1.0, 0.0)
-    energy_wh = energy_wh + (mech_w * inv_eff + idle_w) * step_hours
+    energy_wh = energy_wh + mech_w * wh_per_mech_w + idle_wh  # (P_mech / efficiency + idle) * dt_s / 3600
     # J: running_metrics' ratios regrouped (steps >= 1 here, so no guard on / steps)
     c_units, c_risk, c_novelty, c_error, c_energy, c_pose = coef
     j = ((c_units * units + c_risk * risk_sum + c_novelty * novelty_sum) / steps + c_energy * energy_wh

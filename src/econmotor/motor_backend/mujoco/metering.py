@@ -92,7 +92,8 @@ class VisitNovelty:
         ``novelty_bonus(n)``. numpy computes the cells in one pass and hands each row over as the
         bytes of its int64 indices (an exact dict key, cheap to hash); the loop is plain dict work.
         """
-        cells = novelty_cell(points[:, : self.dims], self.inv_bin, np).astype(np.int64)  # C-contiguous rows
+        # the cells of whole rows (a contiguous array: numpy's fast loop), then the first dims as C-contiguous ints
+        cells = novelty_cell(points, self.inv_bin, np)[:, : self.dims].astype(np.int64)
         counts = self._counts
         get = counts.get
         for key in cells.view(_row_key_dtype(cells.itemsize * cells.shape[1])).ravel().tolist():
