@@ -92,7 +92,7 @@ class VisitNovelty:
         ``novelty_bonus(n)``. numpy computes the cells in one pass and hands each row over as the
         bytes of its int64 indices (an exact dict key, cheap to hash); the loop is plain dict work.
         """
-        # the cells of whole rows (a contiguous array: numpy's fast loop), then the first dims as C-contiguous ints
+        # floored over whole rows (contiguous: numpy's plain loop), then the first dims as C-contiguous ints
         cells = novelty_cell(points, self.inv_bin, np)[:, : self.dims].astype(np.int64)
         counts = self._counts
         get = counts.get
@@ -311,27 +311,24 @@ class EconomicMeteringWrapper(gym.Wrapper):
 
     def _end_episode(self, info: dict[str, Any], fell: bool, j: float) -> None:
         """Add the episode's raw metrics (and the overlay's terms) to the last step's ``info``."""
-        self.flush_visits()
-        steps, units, best_x, errors, energy_wh, risk_sum = self._sums
-        dt_s = self.dt_s
-        metrics = running_metrics(steps, units, errors, energy_wh, risk_sum, self._novelty_sum, self._pose_sum, dt_s,
-                                  PY)
+        t = self.episode  # counts the queued visits
+        metrics = t.running_metrics()
         raw: dict[str, Any] = {
-            "units_completed": units,
-            "units_attempted": units + errors,
-            "errors": errors,
-            "episode_length_s": steps * dt_s,
-            "length_steps": float(steps),
-            "control_dt_s": dt_s,
-            "energy_wh": energy_wh,
+            "units_completed": t.units,
+            "units_attempted": t.units + t.errors,
+            "errors": t.errors,
+            "episode_length_s": t.steps * self.dt_s,
+            "length_steps": float(t.steps),
+            "control_dt_s": self.dt_s,
+            "energy_wh": t.energy_wh,
             "risk_score": metrics[3],
             "novelty_score": metrics[4],
-            "return": self._task_return,
-            "forward_distance_m": best_x - self._x0,
+            "return": t.task_return,
+            "forward_distance_m": t.best_x - self._x0,
             "termination_reason": "fall" if fell else "max_steps",
         }
         if self._track_pose:
-            raw["pose_tracking"] = self._pose_sum
+            raw["pose_tracking"] = t.pose_sum
         info["econ_episode"] = raw
         if self.overlay:  # each term's episode sum telescopes to the episode's metric m_k(T)
             factors = self.factors
