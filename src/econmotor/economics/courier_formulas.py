@@ -100,6 +100,12 @@ def _abs_dot_loop(a: Any, b: Any) -> float:
     return total
 
 
+def _written_out(name: str, params: str, body: str, namespace: dict[str, Any]) -> Callable[..., Any]:
+    """``def <name>(<params>): <body>`` compiled (the Python-float path's loops written out)."""
+    exec(compile(f"def {name}({params}):\n    {body}\n", f"<{name}>", "exec"), namespace)
+    return namespace[name]
+
+
 @functools.cache
 def abs_dot_py(n: int | None) -> Callable[[Any, Any], float]:
     """``f(a, b) = sum_j |a_j * b_j|`` over Python sequences of ``n`` floats (None: of any length).
@@ -115,9 +121,7 @@ def abs_dot_py(n: int | None) -> Callable[[Any, Any], float]:
     if n < 0:
         raise ValueError(f"abs_dot_py: n must be >= 0, got {n}")
     terms = " + ".join(f"abs(a[{j}] * b[{j}])" for j in range(int(n))) or "0.0"
-    namespace: dict[str, Any] = {}
-    exec(compile(f"def abs_dot(a, b):\n    return {terms}\n", f"<abs_dot_py({n})>", "exec"), namespace)
-    return namespace["abs_dot"]
+    return _written_out("abs_dot", "a, b", f"return {terms}", {})
 
 
 #: the running sums :func:`meter_step` carries, in order (the episode's state before a step).
@@ -198,8 +202,35 @@ def novelty_bonus(visits: Any) -> Any:
 
 
 def novelty_cell(point: Any, inv_bin: float, xp: Any) -> Any:
-    """The cell index of points (arrays): ``floor(point / novelty_bin)`` per dim (``inv_bin = 1 / bin``)."""
+    """The cell of a point: ``floor(point * inv_bin)`` per coordinate (``inv_bin = 1 / novelty_bin``).
+
+    Arrays: the floored floats. ``xp=PY`` (a sequence of floats): a tuple of ints, where a NaN or
+    infinite coordinate's index is None (:func:`novelty_cell_py` is the same, written out).
+    """
+    if xp is PY:
+        return tuple(_floor_or_none(v * inv_bin) for v in point)
     return xp.floor(point * inv_bin)
+
+
+def _floor_or_none(x: float) -> int | None:
+    return math.floor(x) if math.isfinite(x) else None
+
+
+@functools.cache
+def novelty_cell_py(dims: int) -> Callable[[Sequence[float], float], tuple[int | None, ...]]:
+    """``f(point, inv_bin) = novelty_cell(point[:dims], inv_bin, PY)``, written out and compiled once per ``dims``.
+
+    ``(floor(p[0] * inv_bin), ..., floor(p[dims-1] * inv_bin))``: the ``mujoco`` backend counts a
+    queued episode's cells with it, one call per step's point. A NaN or infinite coordinate makes
+    ``math.floor`` raise; that point goes to :func:`novelty_cell` (the ``try`` costs nothing otherwise).
+    """
+    if dims < 1:
+        raise ValueError(f"novelty_cell_py: dims must be >= 1, got {dims}")
+    terms = ", ".join(f"floor(p[{j}] * inv_bin)" for j in range(int(dims)))
+    body = (f"try:\n        return ({terms},)\n    except (ValueError, OverflowError):  # NaN or inf\n"
+            f"        return novelty_cell(p[:{int(dims)}], inv_bin, PY)")
+    return _written_out("novelty_cell_py", "p, inv_bin", body,
+                        {"floor": math.floor, "novelty_cell": novelty_cell, "PY": PY})
 
 
 # ---------------------------------------------------------------- falls (Gymnasium v5 healthy checks)

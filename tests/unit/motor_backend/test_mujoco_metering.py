@@ -175,6 +175,25 @@ def test_meter_matches_a_plain_per_step_recomputation(env_id, span, margin):
     assert env.visit_counts == counts
 
 
+@pytest.mark.filterwarnings("ignore::UserWarning", "ignore::RuntimeWarning")  # gymnasium casting the Box
+@pytest.mark.parametrize("dtype", [np.float32, np.int64])
+def test_novelty_counts_observations_of_any_dtype(dtype):
+    """float32 observations are read back as floats by struct, other dtypes through numpy: either
+    way the visit counts are those of flooring each step's obs[:5] / bin."""
+    env = EconomicMeteringWrapper(gym.wrappers.DtypeObservation(gym.make("Hopper-v5", max_episode_steps=60), dtype))
+    counts: dict = {}
+    for seed in range(2):
+        env.reset(seed=seed)
+        rng, done = np.random.default_rng(seed), False
+        while not done:
+            obs, _, terminated, truncated, _ = env.step(rng.uniform(-0.4, 0.4, 3))
+            assert obs.dtype == dtype
+            cell = tuple(int(np.floor(float(v) / 0.25)) for v in obs[:5])
+            counts[cell] = counts.get(cell, 0) + 1
+            done = terminated or truncated
+    assert env.visit_counts == counts and sum(counts.values()) > 10
+
+
 def test_overlay_step_reward_is_the_change_of_the_weighted_running_metrics():
     """Per step (not only summed): r_t - r_task_t = sum_k factor_k (m_k(t) - m_k(t-1))."""
     scales = {key: 0.5 + i for i, key in enumerate(k for k in TERM_METRICS if k != "pose_tracking")}
@@ -211,3 +230,11 @@ def test_visit_all_counts_a_batch_as_step_by_step_visits_would():
     assert novelty.counts == counts
     assert max(counts.values()) >= 12
     assert got == pytest.approx(expected, rel=1e-12)
+
+
+def test_a_non_finite_coordinate_falls_in_the_cell_index_none():
+    """NaN and infinite coordinates (also from overflowing x / bin) count, in cells with index None."""
+    novelty = VisitNovelty(0.25, dims=2)
+    total = novelty.visit_all([(np.nan, 0.3), (np.nan, 0.3, 9.0), (-np.inf, 0.3), (1e308, 0.0), (0.1, 0.3)], 0.0)
+    assert novelty.counts == {(None, 1): 3, (None, 0): 1, (0, 1): 1}
+    assert total == pytest.approx(1 + 2 ** -0.5 + 3 ** -0.5 + 1 + 1, rel=1e-12)

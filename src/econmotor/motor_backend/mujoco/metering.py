@@ -44,7 +44,8 @@ and ``overlay_return`` (``J(T)``).
 from __future__ import annotations
 
 import functools
-from collections.abc import Mapping
+import struct
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any, NamedTuple
 
 import gymnasium as gym
@@ -57,50 +58,57 @@ from econmotor.economics.courier_formulas import (
     meter_constants,
     meter_step,
     novelty_bonus,
-    novelty_cell,
+    novelty_cell_py,
     running_metrics,
 )
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.mujoco.overlay import overlay_term_factors
 
 
-@functools.cache
-def _row_key_dtype(row_bytes: int) -> np.dtype:
-    """The dtype viewing one row of ``row_bytes`` bytes as one opaque item (creating it costs ~8 us cold)."""
-    return np.dtype((np.void, row_bytes))
-
-
 class VisitNovelty:
     """Visit counts over coarse cells: the n-th visit to cell ``floor(x * inv_bin)`` scores ``1 / sqrt(n)``."""
 
-    __slots__ = ("_counts", "dims", "inv_bin")
+    __slots__ = ("_cell", "_counts", "dims", "inv_bin")
 
     def __init__(self, novelty_bin: float, dims: int = 5) -> None:
-        self._counts: dict[bytes, int] = {}  # cell (its int64 indices' bytes) -> visits, kept across episodes
+        self._counts: dict[tuple[int | None, ...], int] = {}  # cell -> visits, kept across episodes
         self.inv_bin = 1.0 / float(novelty_bin)
         self.dims = int(dims)
+        self._cell = novelty_cell_py(self.dims)
 
     @property
-    def counts(self) -> dict[tuple[int, ...], int]:
-        """Visits per cell, keyed by the cell's integer indices."""
-        return {tuple(np.frombuffer(key, np.int64).tolist()): n for key, n in self._counts.items()}
+    def counts(self) -> dict[tuple[int | None, ...], int]:
+        """Visits per cell, keyed by the cell's integer indices (None: a NaN or infinite coordinate)."""
+        return dict(self._counts)
 
-    def visit_all(self, points: np.ndarray, total: float) -> float:
-        """Count the cells of ``points`` (rows: observations' first ``dims`` entries); ``total`` plus their scores.
+    def visit_all(self, points: Iterable[Sequence[float]], total: float) -> float:
+        """Count the cells of ``points`` (rows of at least ``dims`` floats); ``total`` plus their scores.
 
         The points are visited in row order, as they were stepped: visit ``n`` of a cell scores
-        ``novelty_bonus(n)``. numpy computes the cells in one pass and hands each row over as the
-        bytes of its int64 indices (an exact dict key, cheap to hash); the loop is plain dict work.
+        ``novelty_bonus(n)``. Rows of Python floats (the wrapper's unpacked queue) are the fast
+        case: a cell is one call of the written-out ``novelty_cell_py``, a tuple of ints.
         """
-        # floored over whole rows (contiguous: numpy's plain loop), then the first dims as C-contiguous ints
-        cells = novelty_cell(points, self.inv_bin, np)[:, : self.dims].astype(np.int64)
-        counts = self._counts
+        counts, cell, inv_bin = self._counts, self._cell, self.inv_bin
         get = counts.get
-        for key in cells.view(_row_key_dtype(cells.itemsize * cells.shape[1])).ravel().tolist():
+        for point in points:
+            key = cell(point, inv_bin)
             n = get(key, 0) + 1
             counts[key] = n
             total += novelty_bonus(n)
         return total
+
+
+@functools.cache
+def _row_reader(dtype: np.dtype, row_items: int, dims: int) -> Callable[[bytes], Iterable[Sequence[float]]]:
+    """Reads queued rows (``row_items`` values of ``dtype`` each) back as their first ``dims`` values.
+
+    Native floats: one ``struct`` unpack per row, straight to Python floats (no numpy call per
+    episode); any other dtype through numpy.
+    """
+    dims = min(dims, row_items)
+    if dtype.kind == "f" and dtype.isnative and dtype.char in "efd":
+        return struct.Struct(f"={dims}{dtype.char}{(row_items - dims) * dtype.itemsize}x").iter_unpack
+    return lambda data: np.frombuffer(data, dtype).reshape(-1, row_items)[:, :dims].tolist()
 
 
 class EpisodeSums(NamedTuple):
@@ -196,6 +204,13 @@ class EconomicMeteringWrapper(gym.Wrapper):
         references: overlay key -> positive divisor of its term (missing keys: 1).
     """
 
+    # the wrapper's own state in slots: the step reads a dozen of them, each at a fixed offset of
+    # the object (one or two cache lines), not through the instance dict
+    __slots__ = ("_constants", "_count_each_step", "_novelty", "_novelty_dims", "_novelty_sum", "_pending",
+                 "_pose_sum", "_prev_j", "_qfrc", "_qpos", "_queue_whole_obs", "_qvel", "_read_rows", "_step_extras",
+                 "_sums", "_task_return", "_terms", "_track_pose", "_x0", "dt_s", "env", "factors",
+                 "keep_task_reward", "leg_distance_m", "overlay", "scales")
+
     def __init__(self, env: gym.Env, leg_distance_m: float = 10.0, drivetrain_efficiency: float = 0.6,
                  idle_power_w: float = 20.0, tilt_margin_rad: float = 0.2, fall_tilt_rad: float = 1.0,
                  novelty_dims: int = 5, novelty_bin: float = 0.25, scales: Mapping[str, float] | None = None,
@@ -239,9 +254,9 @@ class EconomicMeteringWrapper(gym.Wrapper):
         self._count_each_step = bool(self.factors.get("novelty_score"))
         self._track_pose = _reports_pose_tracking(env)
         self._step_extras = self._count_each_step or self._track_pose
-        self._pending: list[bytes] = []  # obs[:dims] bytes of steps whose novelty cells are not counted yet
-        self._visit_dtype = np.dtype(np.float64)  # the dtype of those bytes (the env's, set at reset)
-        self._queue_whole_obs = False
+        self._pending: list[bytes] = []  # obs bytes of steps whose novelty cells are not counted yet
+        self._queue_whole_obs = False  # queue whole observations or obs[:dims] (set at reset)
+        self._read_rows = _row_reader(np.dtype(np.float64), self._novelty_dims, self._novelty_dims)
         self._start_episode(0.0)
 
     def _start_episode(self, x0: float) -> None:
@@ -270,16 +285,16 @@ class EconomicMeteringWrapper(gym.Wrapper):
         """Count the queued novelty points into the visit counts and the episode's novelty sum."""
         pending = self._pending
         if pending:
-            points = np.frombuffer(b"".join(pending), self._visit_dtype).reshape(len(pending), -1)
-            self._novelty_sum = self._novelty.visit_all(points, self._novelty_sum)
+            self._novelty_sum = self._novelty.visit_all(self._read_rows(b"".join(pending)), self._novelty_sum)
             pending.clear()
 
     def reset(self, **kwargs: Any):
         obs, info = self.env.reset(**kwargs)
         self.flush_visits()  # an episode cut short: its visits still count for the cells
-        self._visit_dtype = obs.dtype
         # a small observation is queued whole (one copy, no slice); a large one only obs[:dims]
         self._queue_whole_obs = obs.nbytes <= _QUEUE_WHOLE_OBS_BYTES
+        row_items = obs.size if self._queue_whole_obs else min(obs.size, self._novelty_dims)
+        self._read_rows = _row_reader(obs.dtype, row_items, self._novelty_dims)
         self._start_episode(self._qpos[0])
         return obs, info
 

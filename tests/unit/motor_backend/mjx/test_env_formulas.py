@@ -21,7 +21,7 @@ from econmotor.motor_backend.mujoco import metering, overlay
 from econmotor.motor_backend.mujoco.settings import parse_mujoco_settings
 from econmotor.tasks import load_catalog
 
-FORMULAS = ("meter_step", "meter_constants", "novelty_bonus", "novelty_cell", "running_metrics")
+FORMULAS = ("meter_step", "meter_constants", "novelty_bonus", "novelty_cell_py", "running_metrics")
 
 
 def test_the_mujoco_meter_and_overlay_use_the_shared_functions():
@@ -197,3 +197,20 @@ def test_every_courier_has_the_gymnasium_layout(task_id):
     after = jax.eval_shape(env.step, state, jax.ShapeDtypeStruct((3, env.action_size), jnp.float32))
     assert after.obs.shape == (3, env.observation_size) and after.reward.shape == (3,)
     assert jax.tree_util.tree_structure(after) == jax.tree_util.tree_structure(state)  # scan-able
+
+
+@pytest.mark.parametrize("dims", [1, 5, 11])
+def test_the_written_out_novelty_cell_equals_the_array_formula(dims):
+    """novelty_cell_py(dims) (the Python-float path's cell, written out) gives the ints of the
+    array formula xp.floor(point * inv_bin), the same as novelty_cell with xp=PY."""
+    rng = np.random.default_rng(dims)
+    points = rng.normal(scale=3.0, size=(50, dims + 2))
+    points[:5] = np.round(points[:5] * 4) / 4  # on the cell edges
+    cell = cf.novelty_cell_py(dims)
+    expected = cf.novelty_cell(points[:, :dims], 4.0, np).astype(np.int64).tolist()
+    assert [list(cell(tuple(p.tolist()), 4.0)) for p in points] == expected
+    assert [list(cf.novelty_cell(p[:dims].tolist(), 4.0, cf.PY)) for p in points] == expected
+    assert cf.novelty_cell_py(dims) is cell  # compiled once per dims
+    assert cell((np.nan,) * dims, 4.0) == (None,) * dims
+    with pytest.raises(ValueError, match="dims must be >= 1"):
+        cf.novelty_cell_py(0)
