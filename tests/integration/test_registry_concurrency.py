@@ -50,7 +50,7 @@ def race(url: str) -> dict[str, int]:
 
     Registry(url).close()  # the schema exists before the race (its creation is tested elsewhere)
     task_ids = [f"race_{r}_{uuid.uuid4().hex[:8]}" for r in range(ROUNDS)]
-    ctx = mp.get_context("fork")
+    ctx = mp.get_context("spawn")  # fork would copy a parent that may hold JAX or torch threads
     barrier, results = ctx.Barrier(PROCESSES), ctx.Queue()
     procs = [ctx.Process(target=_writer, args=(url, task_ids, barrier, results, i)) for i in range(PROCESSES)]
     for p in procs:
