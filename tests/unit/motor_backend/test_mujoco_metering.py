@@ -194,6 +194,20 @@ def test_novelty_counts_observations_of_any_dtype(dtype):
     assert env.visit_counts == counts and sum(counts.values()) > 10
 
 
+def test_novelty_dims_beyond_the_observation_take_the_whole_observation():
+    """novelty_dims = 20 on Hopper's 11-entry observation: the cells are those of all 11 entries."""
+    env = EconomicMeteringWrapper(gym.make("Hopper-v5", max_episode_steps=30), novelty_dims=20)
+    env.reset(seed=0)
+    rng, counts, done = np.random.default_rng(0), {}, False
+    while not done:
+        obs, _, terminated, truncated, info = env.step(rng.uniform(-0.4, 0.4, 3))
+        cell = tuple(int(np.floor(v / 0.25)) for v in obs)
+        counts[cell] = counts.get(cell, 0) + 1
+        done = terminated or truncated
+    assert env.visit_counts == counts and all(len(cell) == 11 for cell in counts)
+    assert info["econ_episode"]["novelty_score"] > 0
+
+
 def test_overlay_step_reward_is_the_change_of_the_weighted_running_metrics():
     """Per step (not only summed): r_t - r_task_t = sum_k factor_k (m_k(t) - m_k(t-1))."""
     scales = {key: 0.5 + i for i, key in enumerate(k for k in TERM_METRICS if k != "pose_tracking")}

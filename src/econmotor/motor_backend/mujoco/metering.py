@@ -243,7 +243,9 @@ class EconomicMeteringWrapper(gym.Wrapper):
         self._qfrc, self._qvel = memoryview(base.data.qfrc_actuator[lo:hi]), memoryview(base.data.qvel[lo:hi])
         self.dt_s = float(base.dt)
         self.leg_distance_m = float(leg_distance_m)
-        self._novelty_dims = int(novelty_dims)
+        # the novelty point is obs[:novelty_dims]: at most the whole observation
+        obs_size = int(np.prod(env.observation_space.shape)) if env.observation_space.shape else int(novelty_dims)
+        self._novelty_dims = min(int(novelty_dims), obs_size)
         # the overlay: J's coefficients go into the step's constants (all 0 without an overlay)
         self.overlay = scales is not None
         self.scales = {k: float(v) for k, v in (scales or {}).items()}
@@ -254,7 +256,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
         # meter_step's constants as a plain tuple: it unpacks faster than the NamedTuple
         self._constants = tuple(meter_constants(leg_distance_m, drivetrain_efficiency, idle_power_w, self.dt_s,
                                                 tilt_margin_rad, fall_tilt_rad, free_root, self.factors, hi - lo))
-        self._novelty = VisitNovelty(novelty_bin, novelty_dims)
+        self._novelty = VisitNovelty(novelty_bin, self._novelty_dims)
         # per-step reads beyond the physics: novelty weighted (count each step's cell at once) or
         # a pose-tracking wrapper inside (its info["pose_tracking"])
         self._count_each_step = bool(self.factors.get("novelty_score"))
