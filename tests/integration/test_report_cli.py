@@ -204,8 +204,11 @@ def test_failure_after_training_keeps_the_run_and_says_how_to_report(workdir: Pa
     assert (workdir / "out" / "dishwashing_run1.html").is_file()
 
 
-def _ignore_sigint() -> None:  # the disposition a non-interactive shell hands to background jobs
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+#: runs argv[1:] with SIGINT ignored (the disposition a non-interactive shell hands to background
+#: jobs; an ignored signal stays ignored across exec). A shim, not ``preexec_fn``: that would run
+#: Python in a child forked from this JAX-threaded process (JAX warns: it can deadlock).
+IGNORE_SIGINT_THEN_EXEC = ("import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_IGN); "
+                           "os.execv(sys.executable, [sys.executable, *sys.argv[1:]])")
 
 
 @pytest.mark.slow
@@ -214,9 +217,9 @@ def test_an_interrupted_training_run_is_recorded_as_interrupted(workdir: Path, s
     """Started with SIGINT ignored (as `(trap '' INT; make test)` does), the CLI still stops on the signal,
     records the run as interrupted and says what it kept; the child is always killed and reaped."""
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    proc = subprocess.Popen([sys.executable, str(SCRIPT), "--task-id", "dishwashing", "--motor-backend",
-                             "dishwashing", "--max-steps", "500000"], cwd=workdir, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_ignore_sigint)
+    proc = subprocess.Popen([sys.executable, "-c", IGNORE_SIGINT_THEN_EXEC, str(SCRIPT), "--task-id", "dishwashing",
+                             "--motor-backend", "dishwashing", "--max-steps", "500000"], cwd=workdir, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         db = workdir / ".econmotor" / "registry.sqlite"
         deadline = time.monotonic() + 120
