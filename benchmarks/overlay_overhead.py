@@ -5,10 +5,11 @@ and the overlay in one wrapper) with the default objective vector's overlay, hum
 normalised. The raw arm is the Gymnasium env *inside* that wrapper (``gymnasium.make``'s
 chain, stepped directly): both arms step one MuJoCo model and data and the same Python objects,
 so the ratio does not carry the ~1% by which two separately built envs differ from process to
-process (where each lands in memory; two raw Hopper envs timed this way: 0.989-1.002 over six
-processes). Both arms step the same pre-drawn random actions from the same seeded reset
-(every block starts with ``reset(seed=0)``, untimed, and resets unseeded on episode end),
-so both simulate the same trajectories; the episode counts are checked equal.
+process (where each lands in memory; two raw Hopper envs timed this way: 0.989-1.004 over
+twelve processes, one env against itself: 1.000-1.001 over six). Both arms step the same
+pre-drawn random actions from the same seeded reset (every block starts with
+``reset(seed=0)``, untimed, and resets unseeded on episode end), so both simulate the same
+trajectories; the episode counts are checked equal.
 
 The random actions are cut into 200-step blocks. Each round takes the next block and times it
 four times in A B B A order (raw, wrapped, wrapped, raw): a round lasts ~0.2 s, so load that
