@@ -136,7 +136,7 @@ def sb3_ppo_throughput(steps: int, seed: int = 0) -> tuple[float, int]:
     """(env steps/s, num_envs) of the mujoco backend's SB3 PPO (catalog num_envs, CPU)."""
     import torch
 
-    from econmotor.motor_backend.mujoco_backend import MujocoBackend
+    from econmotor.motor_backend.mujoco.backend import MujocoBackend
     from econmotor.objectives import EconomicObjectiveSpec
 
     torch.set_num_threads(1)

@@ -42,7 +42,7 @@ import numpy as np
 
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.motor_backend.mujoco.env_factory import make_env
-from econmotor.motor_backend.mujoco_backend import MujocoBackend
+from econmotor.motor_backend.mujoco.backend import MujocoBackend
 from econmotor.objectives.loader import objective_from_vector
 from econmotor.valuation import default_objective_vector
 

@@ -11,7 +11,7 @@ how episodes ended. Then the ratios the spec expects, measured side by side:
 - energy_saver Wh/h / min(other presets' Wh/h)         expected < 1
 
 Reward scaling: the backend's default ``human_baseline`` normalisation (see
-``econmotor.motor_backend.dishwashing_backend``): each metric is divided by what a robot at
+``econmotor.motor_backend.dishwashing.backend``): each metric is divided by what a robot at
 the human pace scores (60 units/h, 5 % errors, 3.2 Wh/h) and energy is priced per hour
 worked, so a preset's weights compare like with like. Raw terms would make the MPL term
 ~1,000x the error term and every preset the same.
@@ -47,7 +47,7 @@ from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.envs import DishwashingEnv
 from econmotor.envs.dishwashing import error_probability, expected_attempts_per_step
 from econmotor.motor_backend import make_motor_backend, summarize_episodes
-from econmotor.motor_backend.dishwashing_backend import DishwashingBackend, term_references
+from econmotor.motor_backend.dishwashing.backend import DishwashingBackend, term_references
 from econmotor.objectives import objective_from_vector
 from econmotor.tasks import get_task
 

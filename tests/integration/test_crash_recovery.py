@@ -78,7 +78,7 @@ def test_a_live_run_is_not_marked_abandoned(tmp_path):
 
 TRAIN = """
 import sys
-from econmotor.motor_backend.mujoco_backend import MujocoBackend
+from econmotor.motor_backend.mujoco.backend import MujocoBackend
 from econmotor.objectives import EconomicObjectiveSpec
 MujocoBackend().train_policy("hopper_courier", EconomicObjectiveSpec(), [], 2, 10_000_000, 0,
     output_dir=sys.argv[1], eval_episodes=0, checkpoint_every_steps=256,

@@ -107,7 +107,7 @@ def test_shipped_objectives_compile_to_the_documented_overlays(name, weights):
 def test_human_baseline_training_objective_prices_energy_per_hour_worked():
     from econmotor.config.econ_params import EconParams
     from econmotor.config.task_economics import TaskEconomics
-    from econmotor.motor_backend.dishwashing_backend import term_references, training_objective
+    from econmotor.motor_backend.dishwashing.backend import term_references, training_objective
 
     energy_saver = objective_from_vector(ObjectiveVector.from_preset("energy_saver"), "energy_saver")
     trained_on = training_objective(energy_saver, "human_baseline")

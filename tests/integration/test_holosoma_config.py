@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from econmotor.errors import BackendError, ConfigError
-from econmotor.motor_backend import holosoma_backend
+from econmotor.motor_backend.holosoma import backend as holosoma_backend
 from econmotor.motor_backend.datapacks import (
     DatapackProvider,
     load_datapack_configs,
@@ -41,7 +41,7 @@ GPU = Capabilities(cuda=True, isaacgym=True, mujoco_warp=True)
 
 
 def test_backend_module_imports_without_holosoma_or_torch() -> None:
-    code = ("import sys, econmotor.motor_backend.holosoma_backend as b; "
+    code = ("import sys, econmotor.motor_backend.holosoma.backend as b; "
             "print(sorted(m for m in ('torch', 'holosoma') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"

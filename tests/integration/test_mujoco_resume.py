@@ -18,7 +18,7 @@ pytestmark = pytest.mark.slow
 
 TRAIN = """
 import sys
-from econmotor.motor_backend.mujoco_backend import MujocoBackend
+from econmotor.motor_backend.mujoco.backend import MujocoBackend
 from econmotor.objectives import EconomicObjectiveSpec
 MujocoBackend().train_policy("hopper_courier", EconomicObjectiveSpec(), [], 2, 10_000_000, 0,
     output_dir=sys.argv[1], eval_episodes=0, checkpoint_every_steps=512,
@@ -60,7 +60,7 @@ def test_resume_after_kill_continues_from_the_last_checkpoint(tmp_path):
 
 def test_resume_refuses_a_different_algorithm_or_hyperparameter(tmp_path):
     from econmotor.errors import ConfigError
-    from econmotor.motor_backend.mujoco_backend import MujocoBackend
+    from econmotor.motor_backend.mujoco.backend import MujocoBackend
     from econmotor.objectives import EconomicObjectiveSpec
 
     run_dir = tmp_path / "run"

@@ -27,7 +27,7 @@ def record_clip_command(
     check_output_file("--datapack-out", datapack_out)
     check_name("--datapack-id", datapack_id)
     set_cpu_threads()
-    from econmotor.motor_backend.mujoco_backend import MujocoBackend
+    from econmotor.motor_backend.mujoco.backend import MujocoBackend
 
     path = MujocoBackend().record_clip(policy, out, num_steps=steps, seed=seed)
     console.print(f"clip written: {path}")

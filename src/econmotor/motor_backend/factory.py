@@ -13,9 +13,9 @@ from econmotor.errors import BackendError, UnknownNameError
 from econmotor.motor_backend.base import MotorBackend
 
 _REGISTRY: dict[str, str] = {
-    "mujoco": "econmotor.motor_backend.mujoco_backend:MujocoBackend",
-    "dishwashing": "econmotor.motor_backend.dishwashing_backend:DishwashingBackend",
-    "holosoma": "econmotor.motor_backend.holosoma_backend:HolosomaBackend",
+    "mujoco": "econmotor.motor_backend.mujoco.backend:MujocoBackend",
+    "dishwashing": "econmotor.motor_backend.dishwashing.backend:DishwashingBackend",
+    "holosoma": "econmotor.motor_backend.holosoma.backend:HolosomaBackend",
     "mjx": "econmotor.motor_backend.mjx.backend:MjxBackend",
 }
 

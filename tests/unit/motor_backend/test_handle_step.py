@@ -9,8 +9,8 @@ from stable_baselines3 import SAC
 
 from econmotor.envs import DishwashingEnv
 from econmotor.motor_backend.base import PolicyHandle
-from econmotor.motor_backend.dishwashing_backend import SACPolicyHandle
-from econmotor.motor_backend.holosoma_backend import HolosomaPolicyHandle
+from econmotor.motor_backend.dishwashing.backend import SACPolicyHandle
+from econmotor.motor_backend.holosoma.backend import HolosomaPolicyHandle
 from econmotor.motor_backend.mujoco.export import OnnxPolicyHandle, export_onnx
 
 

@@ -8,7 +8,7 @@ from econmotor.errors import ConfigError, UnknownNameError
 from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper, VisitNovelty
 from econmotor.motor_backend.mujoco.overlay import TERM_METRICS, episode_metric
 from econmotor.motor_backend.mujoco.settings import parse_mujoco_settings
-from econmotor.motor_backend.mujoco_backend import MujocoBackend
+from econmotor.motor_backend.mujoco.backend import MujocoBackend
 from econmotor.objectives import EconomicObjectiveSpec
 from econmotor.tasks import load_catalog
 

@@ -12,7 +12,7 @@ from econmotor.motor_backend.mujoco.randomization import (
     make_base_env,
     parse_randomization,
 )
-from econmotor.motor_backend.mujoco_backend import MujocoBackend
+from econmotor.motor_backend.mujoco.backend import MujocoBackend
 from econmotor.objectives import EconomicObjectiveSpec
 
 

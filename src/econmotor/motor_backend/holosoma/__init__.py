@@ -6,7 +6,7 @@ and :mod:`.jobs` (the subprocess client); none of them imports Holosoma or torch
 The isolated ``.venv-holosoma`` (numpy 1.x, Holosoma, torch) runs :mod:`.runner`
 (``python -m econmotor.motor_backend.holosoma.runner JOB.json``) and :mod:`.recording`
 (an eval callback), and imports the reward terms in
-:mod:`econmotor.motor_backend.holosoma_reward_terms`. Everything shared between the
+:mod:`.reward_terms`. Everything shared between the
 two sides is plain JSON or array-agnostic arithmetic (:mod:`.econ_formulas`), so it
 runs unchanged on numpy 1.x, numpy 2 and torch.
 """

@@ -27,7 +27,7 @@ from typing import Any
 
 from econmotor.motor_backend.holosoma.protocol import emit
 
-OVERLAY_TERM = "econmotor.motor_backend.holosoma_reward_terms:EconOverlayTerm"
+OVERLAY_TERM = "econmotor.motor_backend.holosoma.reward_terms:EconOverlayTerm"
 RECORDING_TARGET = "econmotor.motor_backend.holosoma.recording.EconRecordingCallback"
 PROJECT = "econmotor"
 MATERIAL_TERM = "randomize_robot_rigid_body_material_startup"
@@ -190,7 +190,7 @@ def train(job: dict[str, Any]) -> dict[str, Any]:
     exp_dir = runs[-1]
     checkpoint = _latest(list(exp_dir.glob("model_*.pt")))
     onnx = checkpoint.with_suffix(".onnx") if checkpoint is not None else None
-    terms_module = sys.modules.get("econmotor.motor_backend.holosoma_reward_terms")
+    terms_module = sys.modules.get("econmotor.motor_backend.holosoma.reward_terms")
     timer = dict(terms_module.TIMER) if terms_module is not None else {"seconds": 0.0, "calls": 0}
     return {"econ_term_seconds": timer["seconds"], "econ_term_calls": timer["calls"],
             "experiment_dir": str(exp_dir), "checkpoint": str(checkpoint) if checkpoint else None,

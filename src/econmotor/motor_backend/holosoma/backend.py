@@ -12,7 +12,7 @@ overrides it): ``humanoid_locomotion_g1`` -> ``g1_29dof`` / ``g1_29dof_fast_sac`
 
 - **train_policy**: the objective compiles to overlay scales; each overlay key with a
   simulator term becomes a Holosoma reward term weighted ``overlay_gain * scale``
-  (:mod:`.holosoma_reward_terms`); datapacks become randomization / curriculum / terrain /
+  (:mod:`.reward_terms`); datapacks become randomization / curriculum / terrain /
   motion-file overrides (:mod:`.holosoma.datapack_mapping`); ``max_steps`` counts
   environment steps and is adapted to the simulator (:mod:`.holosoma.plan`, every change
   announced as a ``holosoma: ...`` progress label and kept in ``config["messages"]``).
@@ -70,7 +70,7 @@ VENV_ENV = "ECONMOTOR_HOLOSOMA_VENV"
 SIMULATOR_ENV = "ECONMOTOR_HOLOSOMA_SIMULATOR"
 ALGO_ENV = "ECONMOTOR_HOLOSOMA_ALGO"
 MANIFEST = "policy.json"
-_REPO_ROOT = Path(__file__).resolve().parents[3]
+_REPO_ROOT = Path(__file__).resolve().parents[4]
 
 
 def find_holosoma_python(venv: str | Path | None = None) -> Path:

@@ -1,0 +1,1 @@
+"""The MuJoCo (CPU) courier backend: Gymnasium robots, SB3 learners, the economic overlay."""
