@@ -6,7 +6,11 @@ is allowed: unknown keys (with a did-you-mean), wrong types, NaN/inf, negative
 prices, empty or non-mapping files. YAML is read by one bounded loader
 (:func:`load_yaml_text`): at most :data:`MAX_YAML_BYTES` bytes, nesting at most
 :data:`MAX_YAML_DEPTH` deep (checked on the event stream, before anything recursive
-runs), duplicate keys rejected. Every name that becomes part of a file path (objective
+runs), duplicate keys rejected, and aliases bounded: written out, the aliases (``*name``,
+``<<: *name``) may add at most :data:`MAX_YAML_ALIAS_NODES` nodes and no nesting beyond
+:data:`MAX_YAML_DEPTH`, and may not refer to a node that contains them. So a "billion
+laughs" document (2 KB on disk, 10^9 strings once expanded) is refused in milliseconds,
+before any code walks what it would expand to. Every name that becomes part of a file path (objective
 names, task ids, datapack ids, run names) goes through :func:`path_name`.
 """
 
@@ -25,6 +29,9 @@ from econmotor.errors import ConfigError, did_you_mean
 MAX_YAML_BYTES = 1 << 20
 #: Deepest nesting of mappings and lists a YAML config may have.
 MAX_YAML_DEPTH = 32
+#: Most nodes that aliases may add to a YAML config when written out (configs reuse a few
+#: anchors: the shipped catalog adds a few hundred).
+MAX_YAML_ALIAS_NODES = 10_000
 #: Longest name that may become a file or directory name.
 MAX_NAME_LENGTH = 120
 
@@ -65,6 +72,7 @@ def load_yaml_text(text: str | bytes, source: str | Path) -> Any:
     _check_flow_depth(text, source)
     try:
         depth = 0
+        nodes = 0
         for event in yaml.parse(text, Loader=yaml.SafeLoader):  # iterative: no recursion on deep input
             if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
                 depth += 1
@@ -73,11 +81,71 @@ def load_yaml_text(text: str | bytes, source: str | Path) -> Any:
                     raise ConfigError(source, None, f"nested more than {MAX_YAML_DEPTH} levels deep (line {line})")
             elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
                 depth -= 1
-        return yaml.load(text, Loader=_UniqueKeyLoader)
+            if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent, yaml.ScalarEvent)):
+                nodes += 1
+        loader = _UniqueKeyLoader(text)
+        try:
+            root = loader.get_single_node()  # the node graph: an alias is a second edge to its anchor's node
+            if root is None:
+                return None
+            _check_aliases(root, nodes, source)
+            return loader.construct_document(root)
+        finally:
+            loader.dispose()
     except yaml.YAMLError as exc:
         raise ConfigError(source, None, "not valid YAML: " + " ".join(str(exc).split())) from None
     except RecursionError:  # belt and braces: the depth scan above should make this unreachable
         raise ConfigError(source, None, f"nested too deeply (limit {MAX_YAML_DEPTH})") from None
+
+
+def _node_children(node: yaml.Node) -> list[yaml.Node]:
+    if isinstance(node, yaml.MappingNode):
+        return [n for pair in node.value for n in pair]
+    if isinstance(node, yaml.SequenceNode):
+        return list(node.value)
+    return []
+
+
+def _check_aliases(root: yaml.Node, distinct_nodes: int, source: str | Path) -> None:
+    """Refuse aliases that expand past :data:`MAX_YAML_ALIAS_NODES` extra nodes, nest past
+    :data:`MAX_YAML_DEPTH` or form a cycle, on the composed graph before anything is constructed.
+
+    One iterative post-order walk with each node's written-out size and depth memoised (linear
+    in the file, whatever the expansion). Sizes saturate at the limit, so numbers stay small.
+    """
+    cap = distinct_nodes + MAX_YAML_ALIAS_NODES
+    size: dict[int, int] = {}
+    depth: dict[int, int] = {}
+    open_nodes: set[int] = set()  # entered, children not finished: the current node's ancestors
+    stack: list[tuple[yaml.Node, bool]] = [(root, False)]
+    while stack:
+        node, children_done = stack.pop()
+        nid = id(node)
+        children = _node_children(node)
+        if children_done:
+            open_nodes.discard(nid)
+            size[nid] = min(cap + 1, 1 + sum(size[id(c)] for c in children))
+            depth[nid] = 1 + max((depth[id(c)] for c in children), default=0) if children else 0
+            line = node.start_mark.line + 1 if node.start_mark else "?"
+            if size[nid] > cap:
+                raise ConfigError(source, None, f"aliases (*name) expand to more than {MAX_YAML_ALIAS_NODES:,} "
+                                  f"extra values when written out (line {line}); a config reuses a few "
+                                  "anchors, not an alias bomb: write the values out")
+            if depth[nid] > MAX_YAML_DEPTH:
+                raise ConfigError(source, None, f"aliases (*name) nest the values more than {MAX_YAML_DEPTH} "
+                                  f"levels deep (line {line})")
+            continue
+        if nid in size:
+            continue
+        open_nodes.add(nid)
+        stack.append((node, True))
+        for child in children:
+            if id(child) in open_nodes:
+                line = child.start_mark.line + 1 if child.start_mark else "?"
+                raise ConfigError(source, None, f"an alias refers to the anchor that contains it (anchor at "
+                                  f"line {line}): the value would be infinite")
+            if id(child) not in size:
+                stack.append((child, False))
 
 
 def _check_flow_depth(text: str, source: str | Path) -> None:
