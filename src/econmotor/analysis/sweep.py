@@ -23,7 +23,10 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-from collections.abc import Sequence
+import signal
+import threading
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -226,6 +229,22 @@ def _run_here(registry: Any, cells: Sequence[SweepCell], output_dir: str, outcom
         tick()
 
 
+@contextmanager
+def _callers_sigterm_kept() -> Iterator[None]:
+    """Put the caller's SIGTERM handler back after ``ray.init``, which replaces it with ``sys.exit(1)``
+    (and a C++ handler that prints a stack): the caller decides what SIGTERM does (the CLI records
+    the cells in flight as interrupted and says so, as for Ctrl-C)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = signal.getsignal(signal.SIGTERM)
+    try:
+        yield
+    finally:
+        if before is not None:  # None: a handler not installed from Python, which cannot be put back
+            signal.signal(signal.SIGTERM, before)
+
+
 def _run_on_ray(registry: Any, cells: Sequence[SweepCell], output_dir: str, outcomes: dict[str, CellOutcome],
                 tick: Any, settings: RaySettings) -> None:
     try:
@@ -240,7 +259,8 @@ def _run_on_ray(registry: Any, cells: Sequence[SweepCell], output_dir: str, outc
             kwargs["address"] = settings.address
         elif settings.num_cpus:
             kwargs["num_cpus"] = settings.num_cpus
-        ray.init(**kwargs)
+        with _callers_sigterm_kept():
+            ray.init(**kwargs)
     threads = max(1, int(settings.cpus_per_cell))
     remote = ray.remote(num_cpus=settings.cpus_per_cell, num_gpus=settings.gpus_per_cell,
                         max_retries=0)(train_cell)
