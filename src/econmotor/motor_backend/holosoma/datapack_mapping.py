@@ -16,7 +16,14 @@ datapack key               Holosoma parameter
 ``max_push_vel_m_per_s``   ``push_randomizer_state.max_push_vel`` (x and y)
 ``kp_range`` / ``kd_range`` ``actuator_randomizer_state.kp_range`` / ``kd_range``
 ``ctrl_delay_steps``       ``setup_action_delay_buffers.ctrl_delay_step_range``
+``initial_joint_noise_rad`` sim-to-sim evaluation only: each joint starts at its default
+                           angle plus a uniform draw in ``[-v, v]`` (not a training term)
 =========================  ==============================================================
+
+The sim-to-sim evaluation (:mod:`.sim2sim`) applies ``friction_range`` (floor friction per
+episode), ``added_base_mass_kg`` (a payload on the torso), ``pushes`` / ``push_interval_s`` /
+``max_push_vel_m_per_s`` (base velocity kicks) and ``initial_joint_noise_rad``, and says which
+others it does not apply.
 
 ``curriculum`` keys map onto Holosoma's ``PenaltyCurriculum`` (which scales the
 penalty-tagged reward terms): ``initial_difficulty`` -> ``initial_scale``,
@@ -55,7 +62,9 @@ _DR_RANGES = {
     "ctrl_delay_steps": ("setup_action_delay_buffers", "ctrl_delay_step_range", 0.0),
 }
 _ENABLE_FLAGS = {"randomize_friction_startup": "enabled", "setup_action_delay_buffers": "enabled"}
-DR_KEYS = ("terrain", "pushes", "max_push_vel_m_per_s", *_DR_RANGES)
+#: keys only the sim-to-sim evaluation uses (HolosomaOverrides.evaluation)
+EVALUATION_KEYS = ("initial_joint_noise_rad",)
+DR_KEYS = ("terrain", "pushes", "max_push_vel_m_per_s", *_DR_RANGES, *EVALUATION_KEYS)
 _CURRICULUM = {"initial_difficulty": "initial_scale", "min_difficulty": "min_scale", "max_difficulty": "max_scale",
                "level_up_episode_length": "level_up_threshold",
                "level_down_episode_length": "level_down_threshold"}
@@ -72,10 +81,11 @@ class HolosomaOverrides:
     motion_file: str | None = None
     motion_duration_s: float | None = None
     messages: tuple[str, ...] = ()
+    evaluation: dict[str, Any] = field(default_factory=dict)  # sim-to-sim only (EVALUATION_KEYS)
 
     def to_dict(self) -> dict[str, Any]:
         return {"randomization": self.randomization, "curriculum": self.curriculum,
-                "terrain": self.terrain, "motion_file": self.motion_file}
+                "terrain": self.terrain, "motion_file": self.motion_file, "evaluation": self.evaluation}
 
 
 def _source_of(bundle: DatapackBundle, packs: Sequence[DatapackConfig], section: str, key: str) -> str:
@@ -93,6 +103,7 @@ def map_datapacks(
     randomization: dict[str, dict[str, Any]] = {}
     messages: list[str] = []
     terrain = None
+    evaluation: dict[str, Any] = {}
     for key, value in bundle.domain_randomization.items():
         src, dotted = _source_of(bundle, packs, "domain_randomization", key), f"domain_randomization.{key}"
         if key not in DR_KEYS:
@@ -103,6 +114,9 @@ def map_datapacks(
             if not isinstance(value, bool):
                 raise ConfigError(src, dotted, f"expected true or false, got {value!r}")
             randomization.setdefault("push_randomizer_state", {})["enabled"] = value
+        elif key in EVALUATION_KEYS:
+            evaluation[key] = as_float(value, src, dotted, min_value=0.0)
+            messages.append(f"{dotted} applies to the sim-to-sim evaluation only (Holosoma has no such term)")
         elif key == "max_push_vel_m_per_s":
             v = as_float(value, src, dotted, min_value=0.0)
             randomization.setdefault("push_randomizer_state", {})["max_push_vel"] = [v, v]
@@ -133,7 +147,7 @@ def map_datapacks(
         else:
             messages.append(f"{len(bundle.motion_clips)} motion clip(s) ignored: locomotion presets track "
                             "velocity commands, not clips (use humanoid_wbt_g1)")
-    return HolosomaOverrides(randomization, curriculum, terrain, motion_file, duration, tuple(messages))
+    return HolosomaOverrides(randomization, curriculum, terrain, motion_file, duration, tuple(messages), evaluation)
 
 
 def validate_motion_npz(path: str | Path, source: str) -> dict[str, Any]:

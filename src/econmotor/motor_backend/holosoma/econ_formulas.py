@@ -96,3 +96,13 @@ def overlay_term_rates(
         "risk_score": risk * (1.0 / episode_s),
         "novelty_score": novelty * (1.0 / episode_s),
     }
+
+
+def mechanical_from_electrical_w(electrical_power_w: float, efficiency: float, idle_power_w: float) -> float:
+    """The mechanical joint power behind an electrical draw: ``P_mech = (P_el - idle) * eta`` (W).
+
+    The inverse of the couriers' ``P_el = P_mech / eta + idle``
+    (:func:`econmotor.economics.courier_formulas.meter_step`): the sim-to-sim evaluation reports
+    both powers from the one metered energy.
+    """
+    return (electrical_power_w - idle_power_w) * efficiency

@@ -53,8 +53,10 @@ HOLOSOMA_TASK_PRESETS: dict[str, dict[str, Any]] = {
     "humanoid_wbt_g1": {**_OVERLAY_PHYSICS, "progress_mode": "time", "unit_duration_s": 6.5, "uses_motion_clip": True,
                         "experiment": {"ppo": "g1_29dof_wbt", "fast_sac": "g1_29dof_wbt_fast_sac"}},
 }
+#: the sim-to-sim evaluation's settings (no defaults: each is sourced in the task catalog, see holosoma.yaml)
+SIM2SIM_KEYS = ("idle_power_w", "tilt_margin_rad", "dwell_s", "course_speed_m_per_s", "sim2sim_episode_s")
 _SETTING_KEYS = ("experiment", "progress_mode", "unit_length_m", "unit_duration_s", "drivetrain_efficiency",
-                 "max_tilt_rad", "novelty_rate", "overlay_gain", "uses_motion_clip", "algo")
+                 "max_tilt_rad", "novelty_rate", "overlay_gain", "uses_motion_clip", "algo", *SIM2SIM_KEYS)
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,9 @@ A job is a JSON object (written by :mod:`.jobs` in the main interpreter):
   own ``train_agent.train``; report each iteration and the checkpoint / ONNX paths.
 - ``{"action": "evaluate", ...}``: run Holosoma's ``eval_agent`` on a checkpoint with
   the (extended) recording callback; report the recording and exported ONNX paths.
+- ``{"action": "sim2sim", ...}``: evaluate an ONNX locomotion policy (imported or trained
+  here) on the delivery course in plain MuJoCo (:mod:`.sim2sim`); report each episode's raw
+  metrics, the resolved contract and the stress applied.
 
 Results and progress go out as protocol lines (:mod:`.protocol`); Holosoma's own
 log lines pass through untouched so the parent can surface its error text.
@@ -243,17 +246,43 @@ def evaluate(job: dict[str, Any]) -> dict[str, Any]:
     return {"recording": recording_path, "onnx": str(onnx) if onnx.is_file() else None}
 
 
+def sim2sim(job: dict[str, Any]) -> dict[str, Any]:
+    from holosoma.config_values.experiment import EXPERIMENT_REGISTRY
+
+    from econmotor.motor_backend.holosoma import sim2sim as s
+    from econmotor.motor_backend.holosoma.policy_import import resolve_contract
+
+    contract = resolve_contract(job["policy"])
+    preset_terms = {name: dict(term.params) for name, term in
+                    EXPERIMENT_REGISTRY[contract.experiment].randomization.setup_terms.items()}
+    stress = s.Stress.from_overrides(job["overrides"]["randomization"], job["overrides"].get("evaluation", {}),
+                                     preset_terms)
+    if stress.ignored:
+        emit("message", text="not applied in the sim-to-sim evaluation: " + "; ".join(stress.ignored))
+    course = s.CourseSettings(**job["course"])
+    meter = s.MeterSettings(**job["meter"])
+    total = int(job["num_episodes"])
+    emit("message", text=f"sim-to-sim: {contract.policy} ({contract.inference_preset} observations, "
+                         f"{contract.control_rate_hz:g} Hz policy, {1 / contract.physics_dt_s:g} Hz PD) in MuJoCo, "
+                         f"{total} episode(s) of {job['episode_s']:g} s at {course.speed_m_per_s:g} m/s commanded")
+    episodes, wall_s = s.evaluate(contract, course, meter, stress, total, float(job["episode_s"]), int(job["seed"]),
+                                  lambda done, n: emit("progress", label="sim-to-sim episodes", done=done, total=n))
+    return {"episodes": episodes, "wall_s": wall_s, "contract": contract.to_dict(),
+            "stress": dataclasses.asdict(stress)}
+
+
 def main(argv: list[str]) -> int:
     if len(argv) != 1:
         sys.stderr.write("usage: python -m econmotor.motor_backend.holosoma.runner JOB.json\n")
         return 2
     job = json.loads(Path(argv[0]).read_text(encoding="utf-8"))
     os.environ.setdefault("WANDB_MODE", "disabled")
-    actions = {"probe": lambda _job: probe(), "train": train, "evaluate": evaluate}
+    actions = {"probe": lambda _job: probe(), "train": train, "evaluate": evaluate, "sim2sim": sim2sim}
     try:
-        import torch
+        if job["action"] != "sim2sim":  # the sim-to-sim evaluator needs no torch (a 2 s import)
+            import torch
 
-        torch.set_num_threads(int(os.environ.get("OMP_NUM_THREADS", "1")))
+            torch.set_num_threads(int(os.environ.get("OMP_NUM_THREADS", "1")))
         result = actions[job["action"]](job)
     except Exception as exc:
         emit("error", text=f"{type(exc).__name__}: {exc}", traceback=traceback.format_exc())
