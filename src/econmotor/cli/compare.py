@@ -1,0 +1,173 @@
+"""``econmotor compare``: price several imported policies side by side and name the winner.
+
+Every policy is evaluated by the same backend with the same request: the same seeds
+(episode ``i`` seeded ``seed + REPORT_EVAL_SEED_OFFSET + i``), course, commanded speed and
+datapack conditions. Each evaluation run is recorded and gets its usual report; then a
+table and a plot (``compare.md``, ``compare.json``, ``compare.png`` in ``--output-dir``)
+rank them by price per unit (lowest first), with units per hour, Wh per unit and the
+fall-rate bound, and say whether the winner's price interval clears the runner-up's.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import typer
+from rich.table import Table
+
+from econmotor.cli._app import app, console, make_backend, progress_bars, set_cpu_threads
+from econmotor.cli.report import resolve_datapacks, resolve_objective, split_datapack_values
+from econmotor.cli.validation import check_db_url, check_flags, check_output_dir
+from econmotor.economics.pricing import PricingPolicy
+from econmotor.errors import ConfigError
+from econmotor.motor_backend.base import REPORT_EVAL_SEED_OFFSET
+from econmotor.motor_backend.factory import backend_class, known_backends
+from econmotor.report.pipeline import TrainRequest, evaluate_and_record, report_from_registry
+from econmotor.report.render import fmt
+from econmotor.store.registry import Registry
+from econmotor.tasks import load_catalog
+
+COLUMNS = ("policy", "price USD/unit", "90% interval", "units/h", "Wh/unit", "fall-rate bound", "speed m/s",
+           "verdict")
+
+
+def comparison_row(policy_id: str, doc: dict[str, Any]) -> dict[str, Any]:
+    """One policy's ranking figures from its report document."""
+    agg = doc["pricing"]["aggregate"]
+    intervals = doc["uncertainty"]["intervals"]
+    price_iv = intervals.get("price_usd_per_unit") or {}
+    config = ((doc["runs"]["eval"] or {}).get("config") or {}).get("backend_config") or {}
+    return {"policy": policy_id, "price_usd_per_unit": agg.get("price_usd_per_unit"),
+            "price_low": price_iv.get("low"), "price_high": price_iv.get("high"),
+            "units_per_hour": agg.get("mpl_units_per_hour"), "wh_per_unit": doc["metrics"]["econ"].get(
+                "energy_wh_per_unit"), "fall_rate_bound": (intervals.get("error_rate") or {}).get("high"),
+            "commanded_speed_m_per_s": config.get("commanded_speed_m_per_s"),
+            "achieved_speed_m_per_s": config.get("achieved_speed_m_per_s"),
+            "verdict": doc["verdict"]["label"], "deployable": doc["verdict"]["deployable"],
+            "report_id": doc["registry"]["report_id"]}
+
+
+def rank(rows: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], str]:
+    """Rows by price per unit (lowest first; a policy without a finite price last) and the verdict in words."""
+    def key(r: dict[str, Any]) -> tuple[float, float]:
+        price = r["price_usd_per_unit"]
+        return (price if price is not None else float("inf"), -(r["units_per_hour"] or 0.0))
+
+    ranked = sorted(rows, key=key)
+    best, second = ranked[0], ranked[1]
+    if best["price_high"] is not None and second["price_low"] is not None and best["price_high"] < second["price_low"]:
+        clear = (f"the difference is larger than the intervals ({best['policy']}'s 90% interval ends at "
+                 f"{fmt(best['price_high'])} USD/unit, below {second['policy']}'s, which starts at "
+                 f"{fmt(second['price_low'])})")
+    else:
+        clear = (f"the difference is NOT larger than the intervals ({best['policy']}: "
+                 f"{fmt(best['price_low'])} - {fmt(best['price_high'])}; {second['policy']}: "
+                 f"{fmt(second['price_low'])} - {fmt(second['price_high'])} USD/unit)")
+    return ranked, f"winner: {best['policy']} at {fmt(best['price_usd_per_unit'])} USD/unit; {clear}"
+
+
+def _cells(r: dict[str, Any]) -> tuple[str, ...]:
+    speed = f"{fmt(r['achieved_speed_m_per_s'])} / {fmt(r['commanded_speed_m_per_s'])}"
+    return (r["policy"], fmt(r["price_usd_per_unit"]), f"{fmt(r['price_low'])} - {fmt(r['price_high'])}",
+            fmt(r["units_per_hour"]), fmt(r["wh_per_unit"]), fmt(r["fall_rate_bound"]), speed, r["verdict"])
+
+
+def write_comparison(ranked: list[dict[str, Any]], summary: str, out_dir: Path, context: dict[str, Any]) -> list[Path]:
+    """``compare.json``, ``compare.md`` and ``compare.png`` (price per unit with its interval, units/h,
+    Wh/unit and the fall-rate bound per policy, in rank order)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / "compare.json").write_text(json.dumps({"context": context, "ranking": ranked, "summary": summary},
+                                                     indent=2, default=str), encoding="utf-8")
+    lines = [f"# Comparison: {context['task_id']}", "", f"{summary}.", "",
+             f"Same seeds ({context['seeds']}), course, commanded speed and conditions "
+             f"(datapacks: {', '.join(context['datapacks']) or 'none'}); speed: achieved / commanded while walking.",
+             "", "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
+    lines += ["| " + " | ".join(_cells(r)) + " |" for r in ranked]
+    (out_dir / "compare.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    fig = Figure(figsize=(12, 3.2))
+    FigureCanvasAgg(fig)
+    names = [r["policy"].replace("holosoma:", "") for r in ranked]
+    panels = (("price_usd_per_unit", "price per unit (USD)"), ("units_per_hour", "units per hour"),
+              ("wh_per_unit", "Wh per unit"), ("fall_rate_bound", "fall-rate bound (95%)"))
+    for i, (key, label) in enumerate(panels):
+        ax = fig.add_subplot(1, 4, i + 1)
+        values = [r[key] if r[key] is not None else 0.0 for r in ranked]
+        if key == "price_usd_per_unit":
+            err = [[max(v - (r["price_low"] if r["price_low"] is not None else v), 0.0) for v, r in zip(values, ranked)],
+                   [max((r["price_high"] if r["price_high"] is not None else v) - v, 0.0) for v, r in zip(values, ranked)]]
+            ax.bar(names, values, yerr=err, capsize=4, color="tab:blue")
+        else:
+            ax.bar(names, values, color="tab:gray")
+        ax.set_title(label, fontsize=9)
+        ax.tick_params(axis="x", labelrotation=45, labelsize=7)
+    fig.tight_layout()
+    fig.savefig(out_dir / "compare.png", dpi=100)
+    return [out_dir / "compare.json", out_dir / "compare.md", out_dir / "compare.png"]
+
+
+@app.command("compare")
+def compare_command(
+    task_id: str = typer.Option(..., "--task-id", help="Task id from the catalog (`econmotor tasks`)."),
+    policies: list[str] = typer.Option(..., "--policy", help="A policy to price (repeat, at least two): an ONNX "
+                                       "file or a shipped name such as holosoma:g1_29dof/ppo."),
+    motor_backend: str = typer.Option("holosoma", "--motor-backend", help="A backend that imports policies."),
+    eval_episodes: int = typer.Option(10, "--eval-episodes", min=1, help="Episodes per policy."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the evaluations (the same for every policy)."),
+    datapacks: list[str] = typer.Option([], "--datapacks", help="Datapack YAML paths or registered ids (stress)."),
+    command_speed: float = typer.Option(None, "--command-speed", min=0.05, help="Commanded walking speed, m/s "
+                                        "(default: the task catalog's course speed)."),
+    output_dir: Path = typer.Option(None, "--output-dir", help="Where reports and the comparison go "
+                                    "(default reports/<task>/compare)."),
+    db_url: str = typer.Option(None, "--db-url", help="Registry URL (default as for `econmotor report`)."),
+    tasks_file: list[Path] = typer.Option([], "--tasks-file", help="Extra task catalog YAML files."),
+    spread_share: float = typer.Option(0.5, "--spread-share", help="Seller's share of the spread, 0..1."),
+) -> None:
+    """Price several imported policies on the same seeds, course and conditions; rank them and name the winner."""
+    set_cpu_threads()
+    check_flags(eval_episodes=eval_episodes, seed=seed, spread_share=spread_share)
+    if len(policies) < 2:
+        raise ConfigError("--policy", None, f"compare needs at least two policies, got {len(policies)}")
+    if len(set(policies)) != len(policies):
+        raise ConfigError("--policy", None, f"a policy is named twice: {policies}")
+    if motor_backend not in known_backends() or not backend_class(motor_backend).capabilities.imported_policies:
+        raise ConfigError("--motor-backend", motor_backend, "does not import policies",
+                          [n for n in known_backends() if backend_class(n).capabilities.imported_policies])
+    url = check_db_url(db_url, create=True)
+    task = load_catalog(tasks_file).get(task_id)
+    task.backend_entry(motor_backend)
+    objective = resolve_objective(None, None)
+    packs = resolve_datapacks(split_datapack_values(datapacks), url)
+    out_dir = check_output_dir("--output-dir", output_dir or Path("reports") / task_id / "compare")
+    options = {"command_speed_m_per_s": command_speed} if command_speed is not None else {}
+    backend = make_backend(motor_backend, tasks_file, **options)
+    pricing = PricingPolicy(spread_share)
+    rows = []
+    for policy_id in policies:
+        request = TrainRequest(task=task, backend_name=motor_backend, objective=objective, datapacks=tuple(packs),
+                               seed=seed, eval_episodes=eval_episodes, notes=f"econmotor compare: {policy_id}",
+                               output_dir=backend.run_dir(None, task_id, seed))
+        with progress_bars() as progress:
+            reg, eval_id = evaluate_and_record(request, backend, policy_id, lambda: Registry(url), progress)
+        with reg:
+            outcome = report_from_registry(reg, task, reg.run(eval_id), None, out_dir, None, pricing)
+        rows.append(comparison_row(policy_id, outcome.document))
+    ranked, summary = rank(rows)
+    first = seed + REPORT_EVAL_SEED_OFFSET
+    seeds = f"{first}-{first + eval_episodes - 1}"
+    files = write_comparison(ranked, summary, out_dir, {"task_id": task_id, "seeds": seeds,
+                                                         "datapacks": [p.id for p in packs],
+                                                         "command_speed_m_per_s": command_speed})
+    table = Table(title=f"{task_id}: {len(ranked)} policies, {eval_episodes} episodes each, seeds {seeds}")
+    for column in COLUMNS:
+        table.add_column(column, justify="left" if column in ("policy", "verdict") else "right")
+    for r in ranked:
+        table.add_row(*_cells(r))
+    console.print(table)
+    console.print(summary, highlight=False, soft_wrap=True)
+    for path in files:
+        console.print(f"{path.suffix[1:]:>8}: {path}", highlight=False, soft_wrap=True)

@@ -1,0 +1,178 @@
+"""Sim-to-sim evaluation of imported locomotion policies (motor_backend/holosoma/sim2sim.py), in .venv-holosoma.
+
+The four policies holosoma_inference ships walk their course through the backend's real
+``sim2sim`` job; the observation econmotor builds equals the one holosoma_inference's own
+``LocomotionPolicy`` code builds from the same MuJoCo states; a policy that does not fit
+the robot (joint names, observation width) is a clear error naming both sides; and the
+evaluation's metering equals the shared courier formulas replayed on its recorded steps.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from econmotor.errors import ConfigError
+from econmotor.motor_backend.holosoma.backend import HolosomaBackend, find_holosoma_python
+from econmotor.motor_backend.holosoma.jobs import job_environment
+from econmotor.motor_backend.holosoma.policy_import import PolicyContract, check_dof_names, check_obs_size
+from econmotor.objectives.economic_objective import EconomicObjectiveSpec
+
+pytestmark = [pytest.mark.holosoma]
+REPO = Path(__file__).resolve().parents[2]
+SHIPPED = ("holosoma:g1_29dof/ppo", "holosoma:g1_29dof/fastsac", "holosoma:t1_29dof/ppo", "holosoma:t1_29dof/fastsac")
+EPISODE_S = 8.0
+
+# Runs in .venv-holosoma: holosoma_inference's own observation code beside ours on the same states,
+# and the shared courier formulas (numpy) replayed on the evaluation's recorded physics steps.
+CHECKS = r"""
+import json, sys
+import numpy as np
+from holosoma_inference.config.config_values.inference import INFERENCE_REGISTRY
+from holosoma_inference.policies.locomotion import LocomotionPolicy
+from econmotor.economics import courier_formulas as cf
+from econmotor.motor_backend.couriers.physics import root_tilt_rad
+from econmotor.motor_backend.holosoma import sim2sim as s
+from econmotor.motor_backend.holosoma.policy_import import resolve_contract
+
+out = {}
+for name in sys.argv[1:]:
+    c = resolve_contract(name)
+    cfg = INFERENCE_REGISTRY[c.inference_preset]
+    ref = LocomotionPolicy.__new__(LocomotionPolicy)  # its observation code, without robot SDK or input devices
+    ref.config = cfg
+    ref._init_robot_config(cfg.robot)
+    ref._init_obs_config()
+    ref.rl_rate = cfg.task.rl_rate
+    ref._init_command_components()
+    ref._init_phase_components()
+    ref.is_standing = False
+    ref.stand_command[0, 0] = 1
+    diffs = []
+
+    def check(robot, builder, row, vx, yaw_rate):
+        ref.last_policy_action = builder.last_action[None, :].astype(np.float64)
+        ref.lin_vel_command[0] = (vx, 0.0)
+        ref.ang_vel_command[0, 0] = yaw_rate
+        ref.update_phase_time()
+        theirs = ref.prepare_obs_for_rl(s.holosoma_state_vector(robot))["actor_obs"]
+        diffs.append(float(np.max(np.abs(theirs - row))))
+
+    meter = s.MeterSettings(leg_distance_m=2.0, drivetrain_efficiency=0.8, idle_power_w=50.0, tilt_margin_rad=0.05,
+                            fall_tilt_rad=0.8)
+    record = []
+    robot = s.build_robot(c)
+    # a 2 m leg with a 1 s dwell: the episode walks, stands (the gait phase's stand branch) and walks again
+    ep = s.run_episode(robot, c, s.onnx_policy(c), s.CourseSettings(2.0, 1.0, 0.8), meter,
+                       s.Stress(payload_kg_range=(3.0, 3.0), initial_joint_noise_rad=0.05), 7.0, 5,
+                       record=record, on_observation=check)
+    qpos = np.array([r["qpos"] for r in record])
+    mech = cf.mechanical_power_w(np.array([r["qfrc"] for r in record]), np.array([r["qvel"] for r in record]), np)
+    risk = cf.tilt_risk(root_tilt_rad(qpos.T, True, np), meter.tilt_margin_rad, meter.fall_tilt_rad, np)
+    energy = cf.electrical_energy_wh(mech, meter.drivetrain_efficiency, meter.idle_power_w, c.physics_dt_s)
+    units = (np.max(qpos[:, 0]) - c.init_pos[0]) / meter.leg_distance_m
+    out[name] = {"steps": len(diffs), "max_abs_diff": max(diffs), "obs_dim": c.obs_dim,
+                 "episode": ep, "replayed": {"units_completed": float(max(units, 0.0)),
+                 "energy_wh": float(np.sum(energy)), "risk_score": float(np.mean(risk)),
+                 "episode_length_s": len(record) * c.physics_dt_s}}
+print("@@checks " + json.dumps(out))
+"""
+
+
+@pytest.fixture(scope="module")
+def python() -> Path:
+    return find_holosoma_python(REPO / ".venv-holosoma")
+
+
+@pytest.fixture(scope="module")
+def checks(python: Path) -> dict:
+    proc = subprocess.run([str(python), "-c", CHECKS, "holosoma:g1_29dof/ppo", "holosoma:t1_29dof/fastsac"],
+                          capture_output=True, text=True, env=job_environment(), timeout=300)
+    line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("@@checks ")), None)
+    assert line is not None, proc.stdout[-2000:] + proc.stderr[-4000:]
+    return json.loads(line[len("@@checks "):])
+
+
+@pytest.fixture(scope="module")
+def backend(python: Path) -> HolosomaBackend:
+    return HolosomaBackend(venv=python.parent.parent, eval_episode_length_s=EPISODE_S)
+
+
+@pytest.mark.parametrize("policy", SHIPPED)
+def test_shipped_policy_walks_its_course_without_falling(backend: HolosomaBackend, policy: str,
+                                                         tmp_path: Path) -> None:
+    task = "humanoid_locomotion_g1" if "g1_29dof" in policy else "humanoid_locomotion_t1"
+    result = backend.evaluate_policy(policy, task, EconomicObjectiveSpec(), 2, 7, output_dir=tmp_path)
+    assert [ep["termination_reason"] for ep in result.episodes] == ["time_out", "time_out"]
+    assert result.raw_metrics["errors"] == 0.0
+    for ep in result.episodes:
+        assert ep["distance_m"] > 2.0  # walking at the commanded 1 m/s, it covers metres in 8 s
+        assert ep["max_lateral_m"] < 0.5  # the heading controller keeps it on the course
+    assert result.config["imported"] and result.config["evaluator"] == "sim2sim"
+    assert 0.0 < result.config["achieved_speed_m_per_s"] <= result.config["commanded_speed_m_per_s"] + 0.2
+    assert result.econ_metrics["mpl_units_per_hour"] > 0.0
+    assert (tmp_path / "evaluation.json").is_file()
+
+
+def test_observation_equals_holosoma_inferences_own(checks: dict) -> None:
+    for name, got in checks.items():
+        assert got["steps"] == 350, name  # 7 s at 50 Hz: every observation compared
+        assert got["max_abs_diff"] == 0.0, name
+        assert got["episode"]["legs_reached"] >= 1.0, name  # it walked, stood at the leg end and walked on
+
+
+def test_metering_equals_the_shared_courier_formulas_on_recorded_steps(checks: dict) -> None:
+    for name, got in checks.items():
+        ep, replayed = got["episode"], got["replayed"]
+        for key, value in replayed.items():
+            assert ep[key] == pytest.approx(value, rel=1e-9, abs=1e-12), (name, key)
+        assert ep["units_completed"] > 0.5 and ep["risk_score"] > 0.0, name  # non-trivial figures compared
+
+
+def _contract(**changes) -> PolicyContract:
+    terms = ("actions", "dof_pos")
+    base = PolicyContract(
+        policy="p.onnx", onnx_path="/x/p.onnx", input_name="actor_obs", obs_dim=4, action_dim=2,
+        dof_names=("a", "b"), kp=(1.0, 1.0), kd=(0.1, 0.1), default_dof_angles=(0.0, 0.0), effort_limits=(5.0, 5.0),
+        action_scale=0.25, action_clip=100.0, command_ranges={}, obs_terms=terms, obs_dims={"actions": 2, "dof_pos": 2},
+        obs_scales={"actions": 1.0, "dof_pos": 1.0}, history_length=1, use_phase=True, gait_period_s=1.0,
+        control_rate_hz=50.0, physics_dt_s=0.005, decimation=4, init_pos=(0.0, 0.0, 0.8), xml_path="/x/r.xml",
+        torso_body="torso", inference_preset="preset-loco", experiment="exp")
+    return replace(base, **changes)
+
+
+def test_wrong_observation_size_names_both_sides() -> None:
+    check_obs_size(_contract(), "p.onnx")
+    with pytest.raises(ConfigError) as info:
+        check_obs_size(_contract(obs_dim=100), "p.onnx")
+    text = str(info.value)
+    assert "takes 100 observations" in text and "'preset-loco' builds 4" in text and "actions 2 + dof_pos 2" in text
+
+
+def test_dof_name_mismatch_names_both_sides() -> None:
+    check_dof_names(["a", "b"], ["a", "b", "c"], ["a", "b"], "robot.xml", "p.onnx")
+    with pytest.raises(ConfigError) as info:
+        check_dof_names(["a", "knee"], ["a", "b"], ["a", "b"], "robot.xml", "p.onnx")
+    text = str(info.value)
+    assert "['knee']" in text and "robot.xml" in text and "['a', 'b']" in text
+
+
+def test_onnx_whose_joints_fit_no_robot_is_a_clear_error(backend: HolosomaBackend, python: Path,
+                                                          tmp_path: Path) -> None:
+    """Joint names renamed in a shipped policy's metadata: the error names the policy's joints and the presets'."""
+    onnx_file = tmp_path / "renamed.onnx"
+    script = ("import json, sys, onnx; from econmotor.motor_backend.holosoma.policy_import import shipped_policy_path\n"
+              "m = onnx.load(str(shipped_policy_path('holosoma:g1_29dof/ppo')))\n"
+              "for p in m.metadata_props:\n"
+              "    if p.key == 'dof_names': p.value = json.dumps(['knee_x'] + json.loads(p.value)[1:])\n"
+              "onnx.save(m, sys.argv[1])\n")
+    subprocess.run([str(python), "-c", script, str(onnx_file)], check=True, env=job_environment(), timeout=120)
+    with pytest.raises(Exception) as info:
+        backend.evaluate_policy(str(onnx_file), "humanoid_locomotion_g1", EconomicObjectiveSpec(), 1, 0,
+                                output_dir=tmp_path / "eval")
+    text = str(info.value)
+    assert "knee_x" in text and "g1-29dof-loco" in text
