@@ -4,9 +4,10 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from econmotor.economics.courier_formulas import episode_metric
 from econmotor.errors import ConfigError, UnknownNameError
+from econmotor.motor_backend.couriers.overlay import TERM_METRICS
 from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper, VisitNovelty
-from econmotor.motor_backend.mujoco.overlay import TERM_METRICS, episode_metric
 from econmotor.motor_backend.mujoco.settings import parse_mujoco_settings
 from econmotor.motor_backend.mujoco.backend import MujocoBackend
 from econmotor.objectives import EconomicObjectiveSpec
@@ -158,8 +159,8 @@ def reference_episode(env, seed, counts, tilt_margin, fall_tilt, novelty_bin=0.2
 
 @pytest.mark.parametrize(("env_id", "span", "margin"), [("Hopper-v5", (3, 6), 0.05), ("Humanoid-v5", (6, 23), 0.1)])
 def test_meter_matches_a_plain_per_step_recomputation(env_id, span, margin):
-    """Energy over the actuated dof span, risk (acos skipped inside the margin) and novelty (visits
-    queued, counted on read) agree with the plain per-step formulas, over episodes sharing counts."""
+    """Energy over the actuated dof span, risk and novelty agree with the plain per-step formulas,
+    over episodes sharing visit counts."""
     from econmotor.motor_backend.mujoco.metering import actuated_dof_span
 
     env = EconomicMeteringWrapper(gym.make(env_id, max_episode_steps=80), tilt_margin_rad=margin, fall_tilt_rad=0.5)
@@ -178,8 +179,7 @@ def test_meter_matches_a_plain_per_step_recomputation(env_id, span, margin):
 @pytest.mark.filterwarnings("ignore::UserWarning", "ignore::RuntimeWarning")  # gymnasium casting the Box
 @pytest.mark.parametrize("dtype", [np.float32, np.int64])
 def test_novelty_counts_observations_of_any_dtype(dtype):
-    """float32 observations are read back as floats by struct, other dtypes through numpy: either
-    way the visit counts are those of flooring each step's obs[:5] / bin."""
+    """float32 and int64 observations: the visit counts are those of flooring each step's obs[:5] / bin."""
     env = EconomicMeteringWrapper(gym.wrappers.DtypeObservation(gym.make("Hopper-v5", max_episode_steps=60), dtype))
     counts: dict = {}
     for seed in range(2):
@@ -228,27 +228,26 @@ def test_overlay_step_reward_is_the_change_of_the_weighted_running_metrics():
     assert steps > 10
 
 
-def test_visit_all_counts_a_batch_as_step_by_step_visits_would():
-    """Cells repeated inside one batch and across batches: the same counts and the same bonus sum
-    as visiting the points one at a time in order (visit n of a cell scores n ** -0.5)."""
+def test_visits_score_the_inverse_square_root_of_their_count():
+    """Cells repeated and revisited: visit n of a cell scores n ** -0.5, in the order of the points."""
     rng = np.random.default_rng(3)
     points = rng.uniform(-0.6, 0.6, (300, 7))  # 5 hashed dims at bin 0.25: many repeats
-    points[10:20] = points[3]  # one cell ten more times in the same batch
+    points[10:20] = points[3]  # one cell ten more times
     novelty, counts, expected, got = VisitNovelty(0.25, dims=5), {}, 0.0, 0.0
-    for batch in (points[:1], points[1:150], points[150:], points[:40]):
-        for p in batch:
-            cell = tuple(int(np.floor(v / 0.25)) for v in p[:5])
-            counts[cell] = counts.get(cell, 0) + 1
-            expected += counts[cell] ** -0.5
-        got = novelty.visit_all(batch, got)
+    for p in (*points, *points[:40]):  # and the first 40 again
+        cell = tuple(int(np.floor(v / 0.25)) for v in p[:5])
+        counts[cell] = counts.get(cell, 0) + 1
+        expected += counts[cell] ** -0.5
+        got += novelty.visit(p)
     assert novelty.counts == counts
     assert max(counts.values()) >= 12
     assert got == pytest.approx(expected, rel=1e-12)
 
 
 def test_a_non_finite_coordinate_falls_in_the_cell_index_none():
-    """NaN and infinite coordinates (also from overflowing x / bin) count, in cells with index None."""
+    """NaN and infinite coordinates count, in cells with index None."""
     novelty = VisitNovelty(0.25, dims=2)
-    total = novelty.visit_all([(np.nan, 0.3), (np.nan, 0.3, 9.0), (-np.inf, 0.3), (1e308, 0.0), (0.1, 0.3)], 0.0)
+    points = [(np.nan, 0.3), (np.nan, 0.3, 9.0), (-np.inf, 0.3), (np.inf, 0.0), (0.1, 0.3)]
+    total = sum(novelty.visit(np.asarray(p)) for p in points)
     assert novelty.counts == {(None, 1): 3, (None, 0): 1, (0, 1): 1}
     assert total == pytest.approx(1 + 2 ** -0.5 + 3 ** -0.5 + 1 + 1, rel=1e-12)

@@ -1,11 +1,11 @@
-"""The economic overlay of the mujoco backend: the task's reward plus the compiled objective.
+"""The economic overlay of the couriers (mujoco and mjx): the task's reward plus the compiled objective.
 
 Reward at step t::
 
     r_t = r_task_t * keep_task_reward + sum_k scale_k * term_k(t)
 
-Each term is the change of the *running* episode metric of its key (the metering wrapper's
-episode sums, :func:`~econmotor.economics.courier_formulas.running_metrics`)::
+Each term is the change of the *running* episode metric of its key (the episode's metering
+sums, :func:`~econmotor.economics.courier_formulas.running_metrics`)::
 
     term_k(t) = m_k(t) - m_k(t-1),   m_k(0) = 0
 
@@ -24,23 +24,23 @@ of 1 is then "one human baseline's worth" of that metric, so an objective's weig
 like with like (throughput in legs/h is ~100x the task reward's scale, the error rate ~1/100).
 
 Per step the overlay reward is computed as one difference, ``J(t) - J(t-1)`` with
-``J(t) = sum_k (scale_k / ref_k) * m_k(t)`` (the same sum regrouped), inside the metering
-wrapper's step (:class:`~econmotor.motor_backend.mujoco.metering.EconomicMeteringWrapper` with
-``scales``; one call of ``courier_formulas.meter_step``). At an episode's end
-``info["overlay_terms"] = {key: {"raw": m_k(T), "weighted": scale_k * m_k(T) / ref_k}}`` (``m_k(T)``
-is the term's episode sum, telescoped) and ``info["overlay_return"]`` (the overlay's part of the
-return, ``J(T)``) are added. This module holds the overlay's keys, its checks and references.
+``J(t) = sum_k (scale_k / ref_k) * m_k(t)`` (the same sum regrouped,
+:func:`~econmotor.economics.courier_formulas.overlay_potential`): in the mujoco backend's
+metering wrapper (``mujoco/metering.py``) and in the mjx backend's jitted step (``mjx/env.py``).
+At an episode's end the mujoco backend adds ``info["overlay_terms"] = {key: {"raw": m_k(T),
+"weighted": scale_k * m_k(T) / ref_k}}`` (``m_k(T)`` is the term's episode sum, telescoped) and
+``info["overlay_return"]`` (the overlay's part of the return, ``J(T)``). This module holds the
+overlay's keys, its checks and references.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 
-from econmotor.economics import courier_formulas
 from econmotor.economics.courier_formulas import RUNNING_METRIC_KEYS, overlay_factors
 from econmotor.errors import ConfigError
 
-#: overlay keys this backend can weight (each a running episode metric of the same name).
+#: overlay keys the couriers can weight (each a running episode metric of the same name).
 TERM_METRICS: tuple[str, ...] = RUNNING_METRIC_KEYS
 
 
@@ -60,17 +60,13 @@ def human_baseline_references(mp_human_units_per_hour: float, error_rate_human: 
     }
 
 
-#: the episode metric of an overlay key from an episode's raw metrics (the invariant's right side).
-episode_metric = courier_formulas.episode_metric
-
-
-def overlay_term_factors(scales: Mapping[str, float],
-                         references: Mapping[str, float] | None = None) -> dict[str, float]:
-    """Check an overlay's ``scales`` (keys: :data:`TERM_METRICS`) and ``references`` (> 0); ``scale_k / ref_k``."""
-    unknown = [k for k in scales if k not in TERM_METRICS]
+def overlay_term_factors(scales: Mapping[str, float], references: Mapping[str, float] | None = None,
+                         terms: tuple[str, ...] = TERM_METRICS, backend: str = "mujoco") -> dict[str, float]:
+    """Check an overlay's ``scales`` (keys: ``terms``) and ``references`` (> 0); ``scale_k / ref_k``."""
+    unknown = [k for k in scales if k not in terms]
     if unknown:
         raise ConfigError("objective", f"extra_weights.{unknown[0]}",
-                          "the mujoco backend has no reward term of this name", list(TERM_METRICS))
+                          f"the {backend} backend has no reward term of this name", list(terms))
     refs = dict(references or {})
     bad = [k for k, v in refs.items() if not v > 0]
     if bad:

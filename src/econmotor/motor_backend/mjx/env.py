@@ -4,18 +4,20 @@
 pytree whose arrays lead with ``num_envs``; jit them once (shapes are fixed by ``num_envs``) and
 scan them. Physics is MuJoCo's JAX port (``mujoco.mjx``) on Gymnasium's own MJCF files; the
 observation, action bounds, task reward, frame skip, reset noise and fall (unhealthy
-termination) are those of the Gymnasium v5 env the ``mujoco`` backend trains on (parameters read
-from the installed env class, see ``assets.py``), so a policy's obs/action layout carries over.
+termination) are those of the Gymnasium v5 env the ``mujoco`` backend trains on, read from the
+robot's record (``couriers/robots.py``: the env reads its fields and never branches on a robot's
+name), so a policy's obs/action layout carries over.
 
 Per control step, per env (every formula from :mod:`econmotor.economics.courier_formulas`, the
-module the ``mujoco`` backend's metering and overlay call too):
+module the ``mujoco`` backend's metering and overlay call too, with the physics readouts of
+``couriers/physics.py``):
 
 - units: high-water mark of the root's x over ``leg_distance_m``; energy:
   ``sum |qfrc_actuator * qvel|`` over the actuated dofs / drivetrain efficiency + idle power, Wh;
   falls: Gymnasium's healthy check; risk: from the tilt; novelty: ``1 / sqrt(n)`` visits,
 - the reward ``keep_task_reward * r_task + J(t) - J(t-1)``, ``J = sum_k scale_k / ref_k * m_k``
   over the running episode metrics ``m_k`` (the compiled :class:`EconomicObjectiveSpec`), so each
-  term's episode sum is the episode metric of its key, exactly as in ``mujoco/overlay.py``.
+  term's episode sum is the episode metric of its key, exactly as in ``couriers/overlay.py``.
 
 Auto-reset (as Brax's AutoResetWrapper, but with a fresh noisy state per episode): where an
 episode ends, ``finished`` holds its raw metrics, ``done``/``truncated`` say how it ended, and
@@ -43,11 +45,12 @@ from mujoco import mjx
 
 from econmotor.economics import courier_formulas as cf
 from econmotor.errors import ConfigError
+from econmotor.motor_backend.couriers import robots
+from econmotor.motor_backend.couriers.overlay import TERM_METRICS, human_baseline_references, overlay_term_factors
+from econmotor.motor_backend.couriers.physics import actuated_dof_span, has_free_root, root_tilt_rad
+from econmotor.motor_backend.couriers.randomization import DomainRandomization, parse_randomization
 from econmotor.motor_backend.mjx.assets import RobotSpec, load_model, robot_spec
 from econmotor.motor_backend.mjx.settings import MjxTaskSettings, parse_mjx_settings
-from econmotor.motor_backend.mujoco.metering import actuated_dof_span
-from econmotor.motor_backend.mujoco.overlay import TERM_METRICS, human_baseline_references
-from econmotor.motor_backend.mujoco.randomization import DomainRandomization, parse_randomization
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
 from econmotor.tasks import load_catalog
 
@@ -60,6 +63,22 @@ BASE_METRIC_KEYS = ("units_completed", "units_attempted", "errors", "episode_len
 #: the datapack domain-randomization keys this backend honours (the others raise a ConfigError).
 SUPPORTED_DR_KEYS = ("friction_range", "mass_scale_range", "action_noise_std", "obs_noise_std")
 _HASH_PRIMES = (73856093, 19349663, 83492791, 2654435761, 40503, 2246822519, 3266489917, 668265263)
+#: the meter's running sums kept in ``EnvState.episode`` (the mjx env has no pose tracking: pose_sum stays 0).
+_METER_KEYS = tuple(k for k in cf.MeterSums._fields if k != "pose_sum")
+#: overlay keys the mjx env can weight.
+MJX_TERMS = tuple(k for k in TERM_METRICS if k != "pose_tracking")
+
+#: how each observation part of a robot record (``couriers.robots.OBS_PARTS``) reads MJX data.
+_OBS_READERS = {
+    "qpos": lambda d, spec: d.qpos[spec.robot.obs_qpos_start:],
+    "qvel": lambda d, spec: d.qvel,
+    "qvel_clipped": lambda d, spec: jnp.clip(d.qvel, -10.0, 10.0),
+    "cinert": lambda d, spec: d._impl.cinert[1:].ravel(),
+    "cvel": lambda d, spec: d.cvel[1:].ravel(),
+    "qfrc_actuator": lambda d, spec: d.qfrc_actuator[6:],  # past the free root's 6 dofs
+    "cfrc_ext": lambda d, spec: d._impl.cfrc_ext[1:].ravel(),
+    "cfrc_ext_clipped": lambda d, spec: jnp.clip(d._impl.cfrc_ext[1:], *spec["contact_force_range"]).ravel(),
+}
 
 
 class EnvState(NamedTuple):
@@ -139,29 +158,25 @@ class MjxCourierEnv:
         self.max_episode_steps = int(self.robot.max_episode_steps)
         self.keep_task_reward = bool(keep_task_reward)
         self.economics = bool(economics)
-        self.healthy = cf.healthy_rule(self.robot.robot, p)
+        self.healthy = self.robot.robot.healthy_rule(p)
         ctrl = np.asarray(self.mj_model.actuator_ctrlrange, dtype=np.float32)
         self.action_low, self.action_high = ctrl[:, 0].copy(), ctrl[:, 1].copy()
         self.action_size = int(self.mj_model.nu)
         self._dof_lo, self._dof_hi = actuated_dof_span(self.mj_model)
-        self._free_root = int(self.mj_model.jnt_type[0]) == int(mujoco.mjtJoint.mjJNT_FREE)
-        self._needs_cfrc = self.robot.robot in ("ant", "humanoid")
+        self._free_root = has_free_root(self.mj_model)
+        self._needs_cfrc = self.robot.robot.reads_contact_forces
         # the overlay: scales and human-baseline references as the mujoco backend compiles them
         scales = dict(compile_economic_overlay(objective)) if objective is not None and economics else {}
-        unknown = [k for k in scales if k not in TERM_METRICS or k == "pose_tracking"]
-        if unknown:
-            raise ConfigError("objective", f"extra_weights.{unknown[0]}", "the mjx backend has no reward term of this "
-                              "name", [k for k in TERM_METRICS if k != "pose_tracking"])
         econ = spec.economics
         refs = human_baseline_references(econ.mp_human_units_per_hour, econ.error_rate_human, s.idle_power_w,
                                          self.max_episode_steps * self.control_dt_s) \
             if s.overlay_normalization == "human_baseline" else {}
         self.scales = scales
         self.references = {k: v for k, v in refs.items() if k in scales}
-        self.factors = cf.overlay_factors(self.scales, self.references)
-        self._constants = cf.meter_constants(s.leg_distance_m, s.drivetrain_efficiency, s.idle_power_w,
-                                             self.control_dt_s, s.tilt_margin_rad, s.fall_tilt_rad, self._free_root,
-                                             self.factors)
+        # scale_k / ref_k; a term the mjx env cannot weight is a ConfigError
+        self.factors = overlay_term_factors(self.scales, self.references, terms=MJX_TERMS, backend="mjx")
+        self._constants = cf.MeterConstants(s.leg_distance_m, s.drivetrain_efficiency, s.idle_power_w,
+                                            self.control_dt_s, s.tilt_margin_rad, s.fall_tilt_rad)
         self.metric_keys: tuple[str, ...] = BASE_METRIC_KEYS + tuple(f"overlay_{k}_raw" for k in self.scales) \
             if economics else ("length_steps", "return", "fell")
         self._init_qpos = jnp.asarray(self.mj_model.qpos0, dtype=jnp.float32)
@@ -170,36 +185,29 @@ class MjxCourierEnv:
 
     # ------------------------------------------------------------------ per-robot physics readouts
     def _obs(self, d: Any, m: Any) -> jax.Array:
-        """Gymnasium v5's ``_get_obs`` of this robot."""
-        robot = self.robot.robot
-        if robot in ("hopper", "walker2d"):
-            return jnp.concatenate([d.qpos[1:], jnp.clip(d.qvel, -10.0, 10.0)])
-        cfrc = d._impl.cfrc_ext
-        if robot == "ant":
-            lo, hi = self.robot["contact_force_range"]
-            return jnp.concatenate([d.qpos[2:], d.qvel, jnp.clip(cfrc[1:], lo, hi).ravel()])
-        return jnp.concatenate([d.qpos[2:], d.qvel, d._impl.cinert[1:].ravel(), d.cvel[1:].ravel(),
-                                d.qfrc_actuator[6:], cfrc[1:].ravel()])
+        """Gymnasium v5's ``_get_obs`` of this robot: the parts its record lists, in order."""
+        return jnp.concatenate([_OBS_READERS[part](d, self.robot) for part in self.robot.robot.obs_parts])
 
     def _forward_x(self, d: Any, m: Any) -> jax.Array:
-        """The x the task reward differentiates: root x (planar), main body x (ant), mass centre x (humanoid)."""
-        robot = self.robot.robot
-        if robot == "ant":
+        """The x the task reward differentiates (the record's ``forward_x``): the root's, the main
+        body's, or the mass centre's."""
+        kind = self.robot.robot.forward_x
+        if kind == "main_body_x":
             return d.xpos[1, 0]
-        if robot == "humanoid":
+        if kind == "mass_centre_x":
             mass = m.body_mass
             return jnp.sum(mass * d.xipos[:, 0]) / jnp.sum(mass)
         return d.qpos[0]
 
     def _task_reward(self, x_before: jax.Array, d: Any, m: Any, action: jax.Array, healthy: jax.Array) -> jax.Array:
-        p, robot = self.robot.params, self.robot.robot
+        p, contact_cost = self.robot.params, self.robot.robot.contact_cost
         velocity = (self._forward_x(d, m) - x_before) / self.control_dt_s
         reward = p["forward_reward_weight"] * velocity + p["healthy_reward"] * healthy
         reward = reward - p["ctrl_cost_weight"] * jnp.sum(jnp.square(action))
-        if robot == "ant":
+        if contact_cost == "clipped_forces":
             lo, hi = p["contact_force_range"]
             reward = reward - p["contact_cost_weight"] * jnp.sum(jnp.square(jnp.clip(d._impl.cfrc_ext, lo, hi)))
-        elif robot == "humanoid":
+        elif contact_cost == "clipped_total":
             lo, hi = p["contact_cost_range"]
             cost = jnp.clip(p["contact_cost_weight"] * jnp.sum(jnp.square(d._impl.cfrc_ext)), lo, hi)
             reward = reward - cost
@@ -233,12 +241,12 @@ class MjxCourierEnv:
         scale = float(self.robot["reset_noise_scale"])
         nq, nv = self.mj_model.nq, self.mj_model.nv
         qpos = self._init_qpos + jax.random.uniform(k_pos, (nq,), minval=-scale, maxval=scale)
-        if self.robot.robot == "ant":  # Ant-v5: Gaussian velocity noise
+        if self.robot.robot.reset_qvel_noise == "normal":  # Ant-v5: Gaussian velocity noise
             qvel = scale * jax.random.normal(k_vel, (nv,))
         else:
             qvel = jax.random.uniform(k_vel, (nv,), minval=-scale, maxval=scale)
         data = self._template.replace(qpos=qpos, qvel=qvel)
-        if self.robot.robot == "humanoid":
+        if self.robot.robot.obs_reads_body_kinematics:
             # Humanoid-v5's reset obs holds cinert and cvel (after Gymnasium's mj_forward); qfrc_actuator
             # (ctrl = 0) and cfrc_ext (not computed by mj_forward) read 0 there as in the template. The
             # kinematics alone give them, far cheaper to compile and run than a whole mjx.forward; the
@@ -276,7 +284,7 @@ class MjxCourierEnv:
         if self._needs_cfrc:
             data = mjx.rne_postconstraint(m, data)
         qpos, qvel = data.qpos, data.qvel
-        healthy = cf.is_healthy(self.healthy, qpos, qvel, jnp)
+        healthy = robots.is_healthy(self.healthy, qpos, qvel, jnp)
         fell = jnp.logical_not(healthy) if p["terminate_when_unhealthy"] else jnp.zeros((), bool)
         task_r = self._task_reward(x_before, data, m, action, healthy.astype(jnp.float32))
         obs = self._noisy_obs(self._obs(data, m), k_obs)
@@ -287,20 +295,26 @@ class MjxCourierEnv:
         # metering and the overlay potential: the mujoco backend's meter_step, on traced arrays
         lo, hi = self._dof_lo, self._dof_hi
         counts, bonus = self._novelty_visit(counts, obs[: s.novelty_dims])
-        novelty_sum = ep["novelty_sum"] + bonus
-        sums, j = cf.meter_step(tuple(ep[k] for k in cf.METER_SUMS), qpos, data.qfrc_actuator[lo:hi], qvel[lo:hi],
-                                fell, novelty_sum, 0.0, self._constants, jnp)
-        new = dict(zip(cf.METER_SUMS, sums, strict=True))
-        new.update(novelty_sum=novelty_sum, task_return=ep["task_return"] + task_r, overlay_j=j, x0=ep["x0"])
+        reading = cf.StepReading(x_m=qpos[0],
+                                 mechanical_w=cf.mechanical_power_w(data.qfrc_actuator[lo:hi], qvel[lo:hi], jnp),
+                                 tilt_rad=root_tilt_rad(qpos, self._free_root, jnp), fell=fell, novelty_bonus=bonus)
+        sums = cf.meter_step(self._meter_sums(ep), reading, self._constants, jnp)
+        j = jnp.asarray(cf.overlay_potential(cf.running_metrics(sums, self.control_dt_s, jnp), self.factors),
+                        jnp.float32)
+        new = {**ep, **{k: getattr(sums, k) for k in _METER_KEYS}, "task_return": ep["task_return"] + task_r,
+               "overlay_j": j}
         overlay_r = j - ep["overlay_j"]
         reward = (task_r if self.keep_task_reward else 0.0) + overlay_r
         finished = self._episode_metrics(new, fell)
         return data, obs, reward, fell, new, counts, finished
 
+    @staticmethod
+    def _meter_sums(ep: dict[str, jax.Array]) -> cf.MeterSums:
+        """The meter's running sums of an episode dict (``EnvState.episode`` of one env)."""
+        return cf.MeterSums(**{k: ep[k] for k in _METER_KEYS})
+
     def _episode_metrics(self, ep: dict[str, jax.Array], fell: jax.Array) -> dict[str, jax.Array]:
-        metrics = dict(zip(cf.RUNNING_METRIC_KEYS, cf.running_metrics(
-            ep["steps"], ep["units"], ep["errors"], ep["energy_wh"], ep["risk_sum"], ep["novelty_sum"], 0.0,
-            self.control_dt_s, jnp), strict=True))
+        metrics = cf.running_metrics(self._meter_sums(ep), self.control_dt_s, jnp)
         out = {
             "units_completed": ep["units"],
             "units_attempted": ep["units"] + ep["errors"],
@@ -308,15 +322,15 @@ class MjxCourierEnv:
             "episode_length_s": ep["steps"] * self.control_dt_s,
             "length_steps": ep["steps"],
             "energy_wh": ep["energy_wh"],
-            "risk_score": metrics["risk_score"],
-            "novelty_score": metrics["novelty_score"],
+            "risk_score": metrics.risk_score,
+            "novelty_score": metrics.novelty_score,
             "return": ep["task_return"],
             "forward_distance_m": ep["best_x"] - ep["x0"],
             "fell": fell.astype(jnp.float32),
             "overlay_return": ep["overlay_j"],
         }
         for k in self.scales:
-            out[f"overlay_{k}_raw"] = jnp.asarray(metrics[k], jnp.float32)
+            out[f"overlay_{k}_raw"] = jnp.asarray(getattr(metrics, k), jnp.float32)
         return out
 
     # ------------------------------------------------------------------ the batched API

@@ -9,7 +9,7 @@ The graph computes, for observations ``obs`` [batch, obs_dim] (float32), exactly
 
 The batch axis is dynamic. The ``econmotor`` metadata entry is the same JSON the mujoco
 backend writes (task id, compiled overlay, datapack ids, economic assumptions, observation /
-action layout, ...). The handle is the mujoco backend's onnxruntime handle with ``step`` as an
+action layout, ...). The handle is the couriers' onnxruntime handle with ``step`` as an
 alias of ``act``.
 """
 
@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from econmotor.motor_backend.couriers.onnx_policy import METADATA_KEY, OnnxPolicyHandle
 from econmotor.motor_backend.mjx.networks import NORM_EPS
-from econmotor.motor_backend.mujoco.export import METADATA_KEY, OnnxPolicyHandle
 
 OPSET = 17
 

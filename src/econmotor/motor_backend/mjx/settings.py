@@ -10,9 +10,10 @@ Schema::
         checkpoint_every_steps: 5000000
         ppo: {unroll_length: 20, ...}   # the JAX PPO trainer's hyperparameters, passed through
 
-The metering keys (:data:`INHERITED_KEYS`) are the ``mujoco`` backend's own: with
-``inherit: mujoco`` they are read from that entry (validated by ``parse_mujoco_settings``), so
-the two backends cannot drift; without it they may be written here with the same meaning.
+The metering keys (:data:`INHERITED_KEYS`) are the couriers' (``couriers/settings.py``): with
+``inherit: mujoco`` they are read from the task's ``backends.mujoco`` entry, so the two backends
+cannot drift; without it they may be written here with the same meaning. Both go through
+:func:`~econmotor.motor_backend.couriers.settings.parse_metering_settings`.
 """
 
 from __future__ import annotations
@@ -22,12 +23,11 @@ from typing import Any
 
 from econmotor.config.loading import as_int, as_str, check_keys, require_mapping
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.mujoco.settings import MujocoTaskSettings, parse_mujoco_settings
+from econmotor.motor_backend.couriers.settings import METERING_KEYS, MeteringSettings, parse_metering_settings
 from econmotor.tasks.catalog import TaskSpec
 
 #: keys shared with the mujoco backend's entry (the economics of the physics).
-INHERITED_KEYS = ("env_id", "leg_distance_m", "drivetrain_efficiency", "idle_power_w", "tilt_margin_rad",
-                  "fall_tilt_rad", "novelty_dims", "novelty_bin", "overlay_normalization", "env_kwargs")
+INHERITED_KEYS = METERING_KEYS
 OWN_KEYS = ("inherit", "num_envs", "cpu_num_envs_cap", "normalize_obs", "checkpoint_every_steps", "ppo",
             "novelty_table_size")
 
@@ -37,7 +37,7 @@ class MjxTaskSettings:
     """How the mjx backend runs one catalog task; the :data:`INHERITED_KEYS` read through to ``metering``."""
 
     task_id: str
-    metering: MujocoTaskSettings  # env_id, leg_distance_m, ... validated by the mujoco backend's parser
+    metering: MeteringSettings  # env_id, leg_distance_m, ... validated by the couriers' parser
     num_envs: int = 2048
     cpu_num_envs_cap: int = 64
     normalize_obs: bool = True
@@ -69,12 +69,10 @@ def parse_mjx_settings(spec: TaskSpec) -> MjxTaskSettings:
         repeated = [k for k in INHERITED_KEYS if k in entry]
         if repeated:
             raise ConfigError(src, key(repeated[0]), "comes from the mujoco entry (inherit: mujoco); remove it here")
-        base: MujocoTaskSettings = parse_mujoco_settings(spec)
-    else:  # the metering keys written here: validate them with the mujoco parser's rules
-        metering = {k: entry[k] for k in INHERITED_KEYS if k in entry}
-        proxy = TaskSpec(spec.task_id, spec.description, spec.unit, spec.error_definition, spec.economics,
-                         {"mujoco": metering}, spec.tags, src)
-        base = parse_mujoco_settings(proxy)
+        base = parse_metering_settings(spec.backend_entry("mujoco"), spec.source,
+                                       f"tasks.{spec.task_id}.backends.mujoco")
+    else:  # the metering keys written here, with the same rules
+        base = parse_metering_settings(entry, src, prefix)
     kw: dict[str, Any] = {"task_id": spec.task_id, "metering": base, "source": src}
     for name in ("num_envs", "cpu_num_envs_cap", "checkpoint_every_steps", "novelty_table_size"):
         if name in entry:

@@ -3,7 +3,7 @@
 Gymnasium MuJoCo tasks (Hopper-v5, Walker2d-v5, Ant-v5, Humanoid-v5, ... as listed in the
 task catalog's ``backends.mujoco`` entries, see ``tasks/mujoco.yaml``) trained with
 Stable-Baselines3 PPO or SAC on the CPU. The reward is the task's own reward plus the
-compiled economic overlay (``mujoco/overlay.py``); the physics is metered into the raw
+compiled economic overlay (``couriers/overlay.py``); the physics is metered into the raw
 metrics :class:`~econmotor.economics.EconomicMeter` reads (``mujoco/metering.py``);
 datapacks add domain randomization, a curriculum and motion clips (``mujoco/randomization.py``,
 ``mujoco/clips.py``); policies deploy to ONNX (``mujoco/export.py``).
@@ -32,12 +32,12 @@ from econmotor.motor_backend.base import (
     read_run_config,
     summarize_episodes,
 )
+from econmotor.motor_backend.couriers.overlay import human_baseline_references
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.motor_backend.mujoco.clips import load_bundle_clips, record_clip
 from econmotor.motor_backend.mujoco.env_factory import EnvRecipe, make_env
 from econmotor.motor_backend.mujoco.evaluation import load_policy, rollout_episodes, torch_act_fn
 from econmotor.motor_backend.mujoco.export import OnnxPolicyHandle, export_onnx
-from econmotor.motor_backend.mujoco.overlay import human_baseline_references
 from econmotor.motor_backend.mujoco.randomization import parse_randomization
 from econmotor.motor_backend.mujoco.run import TrainingRun
 from econmotor.motor_backend.mujoco.settings import MujocoTaskSettings, parse_mujoco_settings

@@ -9,7 +9,8 @@ The exported graph computes, for observations ``obs`` [batch, obs_dim] (float32)
 i.e. exactly SB3's ``predict(obs, deterministic=True)`` without torch.distributions (the
 dynamo exporter trips on their argument validation). The batch axis is dynamic. Metadata
 (``econmotor`` key of the ONNX ``metadata_props``, JSON): task id, compiled overlay,
-datapack ids, economic assumptions, observation / action layout.
+datapack ids, economic assumptions, observation / action layout. The onnxruntime handle that
+serves it is the couriers' (``couriers/onnx_policy.py``), shared with the mjx backend.
 """
 
 from __future__ import annotations
@@ -25,9 +26,9 @@ import torch
 from torch import nn
 
 from econmotor.errors import BackendError
-from econmotor.motor_backend.base import StepAlias
+from econmotor.motor_backend.couriers.onnx_policy import METADATA_KEY, OnnxPolicyHandle
 
-METADATA_KEY = "econmotor"
+__all__ = ["METADATA_KEY", "DeterministicActor", "OnnxPolicyHandle", "export_onnx"]
 
 
 class DeterministicActor(nn.Module):
@@ -86,32 +87,3 @@ def export_onnx(model: Any, normalizer: tuple[np.ndarray, np.ndarray, float, flo
     onnx.save(proto, str(tmp))
     tmp.replace(path)
     return path
-
-
-class OnnxPolicyHandle(StepAlias):
-    """A deployed policy on onnxruntime: ``act(obs)`` (or ``step(obs)``) for one observation or a batch.
-
-    Args:
-        path: the exported ``policy.onnx``.
-        threads: onnxruntime intra-op threads (1 keeps latency low on small machines).
-    """
-
-    def __init__(self, path: str | Path, threads: int = 1) -> None:
-        import onnxruntime as ort
-
-        self.path = Path(path)
-        if not self.path.is_file():
-            raise BackendError(f"no ONNX policy at {self.path}; train or export one first")
-        options = ort.SessionOptions()
-        options.intra_op_num_threads = threads
-        options.inter_op_num_threads = 1
-        self._session = ort.InferenceSession(str(self.path), options, providers=["CPUExecutionProvider"])
-        meta = self._session.get_modelmeta().custom_metadata_map
-        self.metadata: dict[str, Any] = json.loads(meta.get(METADATA_KEY, "{}"))
-
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        """Deterministic action(s) for ``obs`` [obs_dim] or [batch, obs_dim]."""
-        obs = np.asarray(obs, dtype=np.float32)
-        single = obs.ndim == 1
-        out = self._session.run(["action"], {"obs": obs[None] if single else obs})[0]
-        return out[0] if single else out

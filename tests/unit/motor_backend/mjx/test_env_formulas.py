@@ -1,5 +1,6 @@
-"""One definition per courier formula: the mujoco (NumPy / Python-float) and mjx (JAX) paths call
-the same functions of ``econmotor.economics.courier_formulas``; the catalog shares the metering."""
+"""One definition per courier formula: the mujoco (Python-float) and mjx (JAX) paths call the same
+functions of ``econmotor.economics.courier_formulas`` and ``motor_backend.couriers``; the catalog
+shares the metering."""
 
 from __future__ import annotations
 
@@ -13,128 +14,114 @@ import pytest
 
 from econmotor.economics import courier_formulas as cf
 from econmotor.errors import ConfigError
+from econmotor.motor_backend.couriers import overlay, physics, robots
 from econmotor.motor_backend.datapacks import DatapackConfig
 from econmotor.motor_backend.mjx import env as mjx_env
-from econmotor.motor_backend.mjx.assets import ROBOTS, robot_spec
 from econmotor.motor_backend.mjx.settings import INHERITED_KEYS, parse_mjx_settings
-from econmotor.motor_backend.mujoco import metering, overlay
+from econmotor.motor_backend.mujoco import metering
 from econmotor.motor_backend.mujoco.settings import parse_mujoco_settings
 from econmotor.tasks import load_catalog
 
-FORMULAS = ("meter_step", "meter_constants", "novelty_bonus", "novelty_cell_py", "running_metrics")
+FORMULAS = ("meter_step", "mechanical_power_w", "novelty_bonus", "novelty_cell", "running_metrics",
+            "overlay_potential")
 
 
 def test_the_mujoco_meter_and_overlay_use_the_shared_functions():
     for name in FORMULAS:
         assert getattr(metering, name) is getattr(cf, name), name
+    assert metering.root_tilt_rad is physics.root_tilt_rad
     assert overlay.overlay_factors is cf.overlay_factors
-    assert overlay.episode_metric is cf.episode_metric
-    assert metering.RUNNING_METRIC_KEYS is cf.RUNNING_METRIC_KEYS
+    assert overlay.TERM_METRICS is cf.RUNNING_METRIC_KEYS
 
 
 def test_the_mjx_step_traces_through_the_shared_functions(monkeypatch, hopper):
-    """Spy on the shared module while the jitted step is traced (eval_shape: no compile)."""
+    """Spy on the shared modules while the jitted step is traced (eval_shape: no compile)."""
     calls: dict[str, list[bool]] = {}
-    for name in ("meter_step", "novelty_bonus", "novelty_cell", "running_metrics", "is_healthy"):
-        original = getattr(cf, name)
+    spied = {cf: ("meter_step", "mechanical_power_w", "novelty_bonus", "novelty_cell", "running_metrics",
+                  "overlay_potential"), robots: ("is_healthy",)}
+    for module, names in spied.items():
+        for name in names:
+            original = getattr(module, name)
 
-        def spy(*args, _name=name, _original=original, **kwargs):
-            leaves = jax.tree_util.tree_leaves(args)
-            calls.setdefault(_name, []).append(any(isinstance(a, jax.core.Tracer) for a in leaves))
-            return _original(*args, **kwargs)
+            def spy(*args, _name=name, _original=original, **kwargs):
+                leaves = jax.tree_util.tree_leaves(args)
+                calls.setdefault(_name, []).append(any(isinstance(a, jax.core.Tracer) for a in leaves))
+                return _original(*args, **kwargs)
 
-        monkeypatch.setattr(cf, name, spy)
+            monkeypatch.setattr(module, name, spy)
     env = hopper.env
     state = jax.eval_shape(lambda k: env.reset(k, 2), jax.random.PRNGKey(0))
     # a fresh function: a traced env.step may be cached from another test's jit
     jax.eval_shape(lambda s, a: env.step(s, a), state, jax.ShapeDtypeStruct((2, env.action_size), jnp.float32))
-    assert set(calls) == {"meter_step", "novelty_bonus", "novelty_cell", "running_metrics", "is_healthy"}
-    assert all(all(traced) for traced in calls.values()), calls  # called on traced JAX arrays
+    assert set(calls) == {n for names in spied.values() for n in names}
+    assert all(all(traced) for name, traced in calls.items() if name != "overlay_potential"), calls
+    assert any(calls["overlay_potential"])  # called on traced JAX arrays
 
 
 def _meter_case(xp_name: str, free_root: bool):
     """One step of meter_step from hand-picked sums and state, in namespace ``xp_name``."""
     xp = {"py": cf.PY, "np": np, "jnp": jnp}[xp_name]
     conv = {"py": float, "np": np.float64, "jnp": lambda v: jnp.asarray(v, jnp.float32)}[xp_name]
-    arr = (lambda v: [float(x) for x in v]) if xp_name == "py" else (
-        (lambda v: np.asarray(v, np.float64)) if xp_name == "np" else (lambda v: jnp.asarray(v, jnp.float32)))
+    arr = (lambda v: np.asarray(v, np.float64)) if xp_name != "jnp" else (lambda v: jnp.asarray(v, jnp.float32))
     # x = 1.25 past best_x = 1.0; planar angle -0.15 (free root: qx = sin(0.15), so tilt 0.3)
     qpos = arr([1.25, 1.1, -0.15, 1.0, np.sin(0.15), 0.0, 0.0]) if free_root else arr([1.25, 1.1, -0.15])
+    if xp_name == "py":
+        qpos = qpos.tolist()
     f, v = arr([2.0, -3.0, 0.5]), arr([1.0, 2.0, -4.0])  # |2*1| + |-3*2| + |0.5*-4| = 10 W mechanical
     factors = {"mpl_per_hour": 2.0, "risk_score": -3.0, "novelty_score": 0.5, "error_rate": -4.0,
                "energy_kwh": -5.0, "pose_tracking": 0.25}
-    c = cf.meter_constants(10.0, 0.5, 20.0, 0.008, 0.1, 0.5 if free_root else 0.2, free_root, factors)
-    sums = tuple(conv(x) for x in (3.0, 0.5, 1.0, 1.0, 2.0, 0.25))  # steps, units, best_x, errors, Wh, risk
+    c = cf.MeterConstants(10.0, 0.5, 20.0, 0.008, 0.1, 0.5 if free_root else 0.2)
+    sums = cf.MeterSums(*(conv(x) for x in (3.0, 0.5, 1.0, 1.0, 2.0, 0.25, 1.0, 1.5)))
     fell = True if xp_name == "py" else xp.asarray(True)
-    (steps, units, best_x, errors, wh, risk_sum), j = cf.meter_step(sums, qpos, f, v, fell, conv(1.5), conv(2.0), c,
-                                                                    xp)
-    return [float(x) for x in (steps, units, best_x, errors, wh, risk_sum, j)]
+    reading = cf.StepReading(qpos[0], cf.mechanical_power_w(f, v, xp), physics.root_tilt_rad(qpos, free_root, xp),
+                             fell, conv(0.5), conv(0.5))
+    after = cf.meter_step(sums, reading, c, xp)
+    j = cf.overlay_potential(cf.running_metrics(after, 0.008, xp), factors)
+    return [float(x) for x in (*after, j)]
 
 
 @pytest.mark.parametrize("free_root", [False, True])
 @pytest.mark.parametrize("xp", ["py", "np", "jnp"])
 def test_meter_step_gives_the_same_numbers_in_every_namespace(xp, free_root):
-    steps, units, best_x, errors, wh, risk_sum, j = _meter_case(xp, free_root)
-    assert (steps, best_x, errors) == pytest.approx((4.0, 1.25, 2.0))
+    steps, units, best_x, errors, wh, risk_sum, novelty_sum, pose_sum, j = _meter_case(xp, free_root)
+    assert (steps, best_x, errors, novelty_sum, pose_sum) == pytest.approx((4.0, 1.25, 2.0, 1.5, 2.0))
     assert units == pytest.approx(0.5 + 0.025)
     assert wh == pytest.approx(2.0 + (10 / 0.5 + 20) * 0.008 / 3600, rel=1e-6)
     # (tilt - margin) / span: planar (0.15 - 0.1) / 0.1, free root (0.3 - 0.1) / 0.4
     assert risk_sum == pytest.approx(0.25 + 0.5, rel=1e-5)
-    m = cf.running_metrics(4.0, units, errors, wh, risk_sum, 1.5, 2.0, 0.008, cf.PY)
+    m = cf.running_metrics(cf.MeterSums(4.0, units, best_x, errors, wh, risk_sum, 1.5, 2.0), 0.008, cf.PY)
     expected_j = 2.0 * m[0] - 3.0 * m[3] + 0.5 * m[4] - 4.0 * m[1] - 5.0 * m[2] + 0.25 * m[5]
     assert j == pytest.approx(expected_j, rel=1e-5)
-    # no progress, no tilt past the margin, no fall: only energy and the step count move
-    c = cf.meter_constants(10.0, 0.5, 20.0, 0.008, 0.1, 0.2, False, {"mpl_per_hour": 1.0})
-    space = {"py": cf.PY, "np": np, "jnp": jnp}[xp]
-    qpos = [0.5, 1.1, 0.05] if xp == "py" else space.asarray([0.5, 1.1, 0.05])
-    zeros = [0.0, 0.0] if xp == "py" else space.asarray([0.0, 0.0])
-    sums, j = cf.meter_step((0, 0.0, 1.0, 0.0, 0.0, 0.0), qpos, zeros, zeros, False, 0.0, 0.0, c, space)
-    assert [float(x) for x in sums] == pytest.approx([1.0, 0.0, 1.0, 0.0, 20 * 0.008 / 3600, 0.0])
-    assert float(j) == 0.0
+    assert _meter_case(xp, free_root) == pytest.approx(_meter_case("py", free_root), rel=1e-5)
 
 
 @pytest.mark.parametrize("n", [0, 1, 3, 17])
-def test_the_written_out_power_sum_equals_the_array_formula(n):
-    """abs_dot_py(n) (the Python-float path's sum_j |f_j v_j|, written out per n) and its any-length
-    loop give the array namespaces' xp.sum(xp.abs(f * v)) on MjData-like memoryviews."""
+def test_mechanical_power_is_the_same_sum_in_every_namespace(n):
+    """sum_j |f_j v_j| over MjData-like float64 arrays: Python floats (PY), NumPy and JAX agree."""
     rng = np.random.default_rng(n)
     f, v = rng.normal(size=n), rng.normal(size=n)
     expected = float(np.sum(np.abs(f * v)))
-    for abs_dot in (cf.abs_dot_py(n), cf.abs_dot_py(None)):
-        assert abs_dot(memoryview(f), memoryview(v)) == pytest.approx(expected, rel=1e-12, abs=0)
-    assert cf.abs_dot_py(n) is cf.abs_dot_py(n)  # compiled once per dof count
-    assert cf.meter_constants(10.0, 0.5, 20.0, 0.008, 0.1, 0.2, False, dofs=n).abs_dot is cf.abs_dot_py(n)
-    with pytest.raises(ValueError, match="n must be >= 0"):
-        cf.abs_dot_py(-1)
+    assert cf.mechanical_power_w(f, v, cf.PY) == pytest.approx(expected, rel=1e-12, abs=0)
+    assert type(cf.mechanical_power_w(f, v, cf.PY)) is float
+    assert float(cf.mechanical_power_w(jnp.asarray(f), jnp.asarray(v), jnp)) == pytest.approx(expected, rel=1e-5)
 
 
 def test_running_metrics_are_zero_before_the_first_step():
-    m = cf.running_metrics(10.0, 0.5, 1.0, 2.0, 3.0, 4.0, 0.0, 0.01, cf.PY)
+    m = cf.running_metrics(cf.MeterSums(10.0, 0.5, 0.0, 1.0, 2.0, 3.0, 4.0, 0.0), 0.01, cf.PY)
     assert list(m) == pytest.approx([0.5 * 3600 / 0.1, 1 / 1.5, 0.002, 0.3, 0.4, 0.0], rel=1e-9)
     for xp in (cf.PY, np, jnp):
-        zero = cf.running_metrics(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.01, xp)
+        zero = cf.running_metrics(cf.MeterSums(*(xp.asarray(0.0) if xp is not cf.PY else 0.0 for _ in range(8))),
+                                  0.01, xp)
         assert [float(x) for x in zero] == [0.0] * 6  # no division by zero at the episode's start
 
 
-@pytest.mark.parametrize("env_id", list(ROBOTS))
-def test_the_fall_rule_is_gymnasiums_healthy_check(env_id):
-    """cf.is_healthy (the mjx fall) agrees with the Gymnasium env's own is_healthy on random states."""
-    env = gym.make(env_id).unwrapped
-    spec = robot_spec(env_id)
-    rule = cf.healthy_rule(spec.robot, spec.params)
-    rng = np.random.default_rng(0)
-    env.reset(seed=0)
-    agree = {True: 0, False: 0}
-    for _ in range(300):
-        qpos = env.init_qpos + rng.normal(0, 0.4, env.model.nq)
-        qvel = rng.normal(0, 60, env.model.nv)
-        qpos[rule.z_index] = rng.uniform(rule.z_range[0] - 0.5, min(rule.z_range[1], 3.0) + 0.5)
-        env.set_state(qpos, qvel)
-        expected = bool(env.is_healthy)
-        assert bool(cf.is_healthy(rule, qpos, qvel, np)) == expected
-        assert bool(cf.is_healthy(rule, jnp.asarray(qpos), jnp.asarray(qvel), jnp)) == expected
-        agree[expected] += 1
-    assert min(agree.values()) > 20  # both outcomes were exercised
+def test_the_per_step_formulas_are_plain_functions_of_named_quantities():
+    """The public per-step formulas (the Holosoma evaluator calls them too)."""
+    assert cf.forward_units(1.0, 1.25, 10.0, cf.PY) == (1.25, pytest.approx(0.025))
+    assert cf.forward_units(1.25, 1.0, 10.0, cf.PY) == (1.25, 0.0)  # moving back earns nothing
+    assert cf.electrical_energy_wh(10.0, 0.5, 20.0, 3600.0) == pytest.approx(40.0)
+    assert cf.tilt_risk(0.15, 0.1, 0.2, cf.PY) == pytest.approx(0.5)
+    assert cf.tilt_risk(0.05, 0.1, 0.2, cf.PY) == 0.0 and cf.tilt_risk(0.5, 0.1, 0.2, cf.PY) == 1.0
 
 
 def test_mjx_catalog_entries_inherit_the_mujoco_metering():
@@ -197,20 +184,3 @@ def test_every_courier_has_the_gymnasium_layout(task_id):
     after = jax.eval_shape(env.step, state, jax.ShapeDtypeStruct((3, env.action_size), jnp.float32))
     assert after.obs.shape == (3, env.observation_size) and after.reward.shape == (3,)
     assert jax.tree_util.tree_structure(after) == jax.tree_util.tree_structure(state)  # scan-able
-
-
-@pytest.mark.parametrize("dims", [1, 5, 11])
-def test_the_written_out_novelty_cell_equals_the_array_formula(dims):
-    """novelty_cell_py(dims) (the Python-float path's cell, written out) gives the ints of the
-    array formula xp.floor(point * inv_bin), the same as novelty_cell with xp=PY."""
-    rng = np.random.default_rng(dims)
-    points = rng.normal(scale=3.0, size=(50, dims + 2))
-    points[:5] = np.round(points[:5] * 4) / 4  # on the cell edges
-    cell = cf.novelty_cell_py(dims)
-    expected = cf.novelty_cell(points[:, :dims], 4.0, np).astype(np.int64).tolist()
-    assert [list(cell(tuple(p.tolist()), 4.0)) for p in points] == expected
-    assert [list(cf.novelty_cell(p[:dims].tolist(), 4.0, cf.PY)) for p in points] == expected
-    assert cf.novelty_cell_py(dims) is cell  # compiled once per dims
-    assert cell((np.nan,) * dims, 4.0) == (None,) * dims
-    with pytest.raises(ValueError, match="dims must be >= 1"):
-        cf.novelty_cell_py(0)

@@ -1,0 +1,52 @@
+"""What the couriers' metering reads from a MuJoCo model and state, for any robot.
+
+- :func:`actuated_dof_span`: the dofs power is summed over,
+- :func:`has_free_root`: whether the root joint is free-floating (Ant, Humanoid) or planar,
+- :func:`root_tilt_rad`: the torso's angle from upright, from ``qpos``.
+
+``model`` is a ``mujoco.MjModel`` (the mjx backend's too, before ``mjx.put_model``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import mujoco
+import numpy as np
+
+
+def actuated_dof_span(model: Any) -> tuple[int, int]:
+    """``(lo, hi)``: the smallest dof range holding every joint-driven actuator's dof.
+
+    Power is summed over ``qfrc_actuator[lo:hi] * qvel[lo:hi]``; unactuated dofs inside the
+    range read ``qfrc_actuator = 0`` and add nothing. Any non-joint transmission (tendon,
+    site, ...) can push force onto any dof, so then the range is all ``nv`` dofs.
+    """
+    joint_types = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT))
+    gravcomp = getattr(model, "jnt_actgravcomp", None)  # actuator gravity compensation also lands there
+    if (model.nu == 0 or any(int(t) not in joint_types for t in model.actuator_trntype)
+            or (gravcomp is not None and bool(np.any(gravcomp)))):
+        return 0, int(model.nv)
+    joints = [int(j) for j in model.actuator_trnid[:, 0]]
+    ndof = {int(mujoco.mjtJoint.mjJNT_FREE): 6, int(mujoco.mjtJoint.mjJNT_BALL): 3}
+    lo = min(int(model.jnt_dofadr[j]) for j in joints)
+    hi = max(int(model.jnt_dofadr[j]) + ndof.get(int(model.jnt_type[j]), 1) for j in joints)
+    return lo, hi
+
+
+def has_free_root(model: Any) -> bool:
+    """Whether joint 0 is a free joint (``qpos[3:7]`` the root quaternion) rather than planar slides and a hinge."""
+    return int(model.jnt_type[0]) == int(mujoco.mjtJoint.mjJNT_FREE)
+
+
+def root_tilt_rad(qpos: Any, free_root: bool, xp: Any) -> Any:
+    """The torso's angle from upright, rad.
+
+    Planar robots: ``|qpos[2]|`` (the root hinge). Free roots: from the quaternion
+    ``(w, x, y, z) = qpos[3:7]``, ``acos(1 - 2 (x^2 + y^2))`` (the angle between the body's z
+    axis and the world's), its argument clipped to [-1, 1] against rounding.
+    """
+    if free_root:
+        qx, qy = qpos[4], qpos[5]
+        return xp.arccos(xp.clip(1.0 - 2.0 * (qx * qx + qy * qy), -1.0, 1.0))
+    return xp.abs(qpos[2])
