@@ -205,6 +205,14 @@ def _plural(name: str, count: float) -> str:
     return name if count == 1 else (name[:-1] + "ies" if name.endswith("y") else name + "s")
 
 
+def judge(economics: TaskEconomics, acceptance: Acceptance, unit: str, episodes: Sequence[Mapping[str, Any]],
+          point: TaskPrice, policy: PricingPolicy = PricingPolicy()) -> tuple[Uncertainty, Verdict]:
+    """The intervals of evaluation episodes (:func:`assess`) and the verdict on them (:func:`decide`):
+    the one judgement a report prints and evaluation-driven training selects checkpoints by."""
+    uncertainty = assess(economics, episodes, point, policy)
+    return uncertainty, decide(acceptance, uncertainty, economics.error_rate_human, unit)
+
+
 def decide(acceptance: Acceptance, uncertainty: Uncertainty, human_error_rate: float, unit: str) -> Verdict:
     """Apply the acceptance rule to the evaluation (module docstring)."""
     ev, iv = uncertainty.evidence, uncertainty.intervals

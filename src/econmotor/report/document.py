@@ -20,6 +20,11 @@ Schema ``econmotor.task_pricing_report`` version :data:`REPORT_SCHEMA_VERSION`::
     metrics:     raw {..}, econ {..}  (aggregate over the priced episodes)
     episodes:    [{episode_index, termination_reason, mpl_units_per_hour, ..., J}]
     training_curve: [{timesteps, mean_return}]
+    selection:   null, or the training run's evaluation-driven selection (motor_backend/selection.py):
+                 {why, kept_env_steps, kept_acceptable, became_deployable {env_steps, wall_s} | null,
+                  evaluation_cost {count, episodes, env_steps, wall_s}, held_out_seeds [first, end),
+                  priced_seeds [first, end) | null, fresh_seeds}: which checkpoint was kept and why, and
+                 whether the priced episodes are apart from the held-out ones the checkpoint was chosen on
     registry:    {db_url, report_id}
 
 JSON has no infinity: non-finite numbers are written as ``null`` (a robot that
@@ -39,7 +44,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from econmotor.economics.pricing import PricingSummary, pricing_inputs
-from econmotor.economics.uncertainty import Uncertainty, Verdict, assess, decide
+from econmotor.economics.uncertainty import Uncertainty, Verdict, judge
 from econmotor.objectives import compile_economic_overlay
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.objectives.loader import objective_weights_vector
@@ -119,6 +124,23 @@ def _objective_hints(run: Any) -> dict[str, str]:
     packs = (getattr(run, "config", None) or {}).get("datapacks") or []
     return {str(p["id"]): str(p["objective_hint"]) for p in packs
             if isinstance(p, dict) and p.get("id") and p.get("objective_hint")}
+def selection_facts(train_run: Any, priced: Any, num_episodes: int) -> dict[str, Any] | None:
+    """The document's ``selection`` (module docstring) from the training run's recorded config."""
+    config = (getattr(train_run, "config", None) or {}).get("backend_config") or {}
+    selection = config.get("selection")
+    if not selection:
+        return None
+    held_out = list(selection["seeds"])
+    priced_seeds = [priced.seed, priced.seed + num_episodes] if priced is not None and priced.kind == "eval" \
+        and priced.seed is not None else None
+    fresh = None if priced_seeds is None else (priced_seeds[1] <= held_out[0] or priced_seeds[0] >= held_out[1])
+    kept = selection.get("kept") or {}
+    return {"why": selection["why"], "kept_env_steps": kept.get("env_steps"),
+            "kept_acceptable": selection.get("kept_acceptable"), "became_deployable": selection.get("became_deployable"),
+            "evaluation_cost": selection.get("evaluation_cost"), "held_out_seeds": held_out,
+            "priced_seeds": priced_seeds, "fresh_seeds": fresh}
+
+
 def recommendation(verdict: Verdict, uncertainty: Uncertainty, spread_share: float) -> dict[str, Any] | None:
     """The price to charge, at the unfavourable end of the intervals; ``None`` when not deployable."""
     if not verdict.deployable:
@@ -146,9 +168,8 @@ def acceptance_inputs(verdict: Verdict) -> list[dict[str, Any]]:
 
 def assess_context(ctx: ReportContext) -> tuple[Uncertainty, Verdict]:
     """Intervals and the deployability verdict of the priced episodes."""
-    unc = assess(ctx.task.economics, ctx.episodes, ctx.pricing.aggregate, ctx.pricing.policy)
-    verdict = decide(ctx.task.acceptance, unc, ctx.task.economics.error_rate_human, ctx.task.unit)
-    return unc, verdict
+    return judge(ctx.task.economics, ctx.task.acceptance, ctx.task.unit, ctx.episodes, ctx.pricing.aggregate,
+                 ctx.pricing.policy)
 
 
 def build_document(ctx: ReportContext, generated_at: dt.datetime | None = None) -> dict[str, Any]:
@@ -186,6 +207,7 @@ def build_document(ctx: ReportContext, generated_at: dt.datetime | None = None) 
         "episodes": [{**{k: ep.get(k) for k in EPISODE_FIELDS if k in ep}, "J": j}
                      for ep, j in zip(ctx.episodes, js, strict=True)],
         "training_curve": list(ctx.training_curve),
+        "selection": selection_facts(ctx.train_run, priced, len(ctx.episodes)),
         "registry": {"db_url": ctx.db_url, "report_id": None},
     }
     return json_ready(doc)

@@ -5,7 +5,9 @@ Run directory (``policy_id``), as the mujoco backend's::
     run_config.json                     # task, objective, datapacks, hyperparameters, seed, device, num_envs
     checkpoints/ckpt_<N>_steps.npz      # every checkpoint_every_steps and at the end (checkpoint.py)
     tb/                                 # TensorBoard: rollout/, train/, overlay/<key>_raw|_weighted, econ/<key>
-    policy.npz                          # the final learner (params, optimizer state, normaliser)
+    policy.npz                          # the run's learner (params, optimizer state, normaliser): the kept
+                                        #   held-out checkpoint of evaluation-driven training (selection.py)
+    best/policy.npz                     # the best held-out learner so far (while training)
     policy.onnx                         # the deployed actor (export.py)
 
 The host loop calls the one jitted iteration (``ppo.make_train_iteration``) until ``max_steps``
@@ -17,6 +19,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,8 +32,10 @@ from econmotor.motor_backend import base
 from econmotor.motor_backend.base import RUN_CONFIG_FILE, ProgressFn, check_resume_request, no_progress
 from econmotor.motor_backend.mjx import checkpoint as ckpt
 from econmotor.motor_backend.mjx import ppo
+from econmotor.motor_backend.selection import Selection
 
 POLICY_FILE = "policy.npz"
+BEST_DIR = "best"
 
 
 def read_run_config(run_dir: str | Path, task_id: str | None = None) -> dict[str, Any]:
@@ -65,10 +70,12 @@ def env_layout(env: Any, normalized: bool) -> tuple[dict[str, Any], dict[str, An
 
 
 def evaluate_episodes(evaluate: Any, batch: int, env: Any, learner: ppo.Learner, num_episodes: int, seed: int,
-                      progress: ProgressFn = no_progress, label: str = "evaluate") -> list[dict[str, Any]]:
+                      progress: ProgressFn = no_progress, label: str = "evaluate",
+                      stop: Callable[[list[dict[str, Any]]], bool] | None = None) -> list[dict[str, Any]]:
     """``num_episodes`` deterministic episodes, ``batch`` at a time (batch j keyed by ``seed`` and j).
 
     ``evaluate`` is ``ppo.make_evaluate(env, cfg, batch)``; one raw-metrics dict per episode.
+    ``stop(rows so far)`` after each batch may end the evaluation early (held-out evaluations).
     """
     rows: list[dict[str, Any]] = []
     progress(label, 0, num_episodes)
@@ -78,6 +85,8 @@ def evaluate_episodes(evaluate: Any, batch: int, env: Any, learner: ppo.Learner,
         keep = np.asarray(seen, bool)
         rows += env.finished_to_dicts({k: np.asarray(v)[keep] for k, v in first.items()})
         progress(label, min(len(rows), num_episodes), num_episodes)
+        if stop is not None and len(rows) < num_episodes and stop(rows[:num_episodes]):
+            break
     return rows[:num_episodes]
 
 
@@ -121,6 +130,19 @@ class MjxTrainingRun:
     checkpoint_every_steps: int
     extra_config: dict[str, Any] = field(default_factory=dict)
     config: dict[str, Any] = field(default_factory=dict)
+    #: evaluation-driven training (motor_backend/selection.py) and its held-out evaluation:
+    #: ``held_out(learner, num_episodes, first_seed, stop) -> raw episodes``
+    selection: Selection | None = None
+    held_out: Callable[..., list[dict[str, Any]]] | None = None
+
+    def _consider(self, learner: ppo.Learner, key: Any, steps: int, writer: Any) -> None:
+        """One held-out evaluation of ``learner``; saved to ``best/`` when the best so far; TensorBoard."""
+        result, better = self.selection.consider(
+            steps, lambda n, seed, stop: self.held_out(learner, n, seed, stop))
+        if better:
+            ckpt.save_tree(self.run_dir / BEST_DIR / POLICY_FILE, learner, key, steps)
+        for name, value in result.scalars().items():
+            writer.add_scalar(name, value, steps)
 
     def _check_resume_request(self, previous: dict[str, Any]) -> None:
         """As the mujoco backend: a resumed run keeps its recorded hyperparameters; asking for others fails."""
@@ -162,10 +184,17 @@ class MjxTrainingRun:
         next_curve = (steps // every_curve + 1) * every_curve
         next_ckpt = (steps // self.checkpoint_every_steps + 1) * self.checkpoint_every_steps
         window: list[tuple[float, float, float]] = []  # (return sum, length sum, count) of recent iterations
-        progress("train", min(steps, self.max_steps), self.max_steps)
+        def report(done: int) -> None:
+            said = self.selection.status() if self.selection is not None else ""
+            progress(f"train · {said}" if said else "train", min(done, self.max_steps), self.max_steps)
+
+        report(steps)
+        if self.selection is not None:
+            self.selection.started = started
+        last_held_out = steps
         first_done, t_loop = None, time.perf_counter()
         try:
-            while steps < self.max_steps:
+            while steps < self.max_steps and not (self.selection is not None and self.selection.should_stop):
                 state, metrics = iteration(state)
                 metrics = jax.device_get(metrics)
                 steps += per_iteration
@@ -186,16 +215,30 @@ class MjxTrainingRun:
                 if steps >= next_ckpt:
                     next_ckpt = (steps // self.checkpoint_every_steps + 1) * self.checkpoint_every_steps
                     ckpt.save_tree(ckpt.checkpoint_path(self.run_dir, steps), state.learner, state.key, steps)
-                progress("train", min(steps, self.max_steps), self.max_steps)
+                if self.selection is not None and self.selection.due(steps, last_held_out):
+                    last_held_out = steps
+                    self._consider(state.learner, state.key, steps, writer)
+                report(steps)
+            if self.selection is not None and first_done is not None and self.selection.final_due(steps, last_held_out):
+                self._consider(state.learner, state.key, steps, writer)  # the last weights are a candidate too
         finally:
             writer.close()
         if first_done is not None:
             ckpt.save_tree(ckpt.checkpoint_path(self.run_dir, steps), state.learner, state.key, steps)
-        ckpt.save_tree(self.run_dir / POLICY_FILE, state.learner, state.key, steps)
+        learner = state.learner
+        if self.selection is not None:  # the record first: policy.npz marks a complete run
+            self.config = {**self.config, "trained_steps": steps, "selection": self.selection.record()}
+            base.write_run_config(self.run_dir, self.config)
+        if self.selection is not None and self.selection.best is not None:
+            best = self.run_dir / BEST_DIR / POLICY_FILE
+            learner, _, _, _ = ckpt.load_tree(best, state.learner)
+            ckpt.save_tree(self.run_dir / POLICY_FILE, learner, state.key, steps)
+        else:
+            ckpt.save_tree(self.run_dir / POLICY_FILE, state.learner, state.key, steps)
         trained = steps - int(self.config["resumed_from_steps"])
         loop_s = time.perf_counter() - t_loop
         timing = {"total_steps": steps, "first_iteration_s": first_done or 0.0, "train_wall_s":
                   time.perf_counter() - started,
                   "env_steps_per_s_after_compile": (trained - per_iteration) / loop_s
                   if trained > per_iteration and loop_s > 0 else None}
-        return state.learner, curve, timing
+        return learner, curve, timing

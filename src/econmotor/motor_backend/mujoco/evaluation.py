@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -65,3 +65,40 @@ def rollout_episodes(env: gym.Env, act: ActFn, num_episodes: int, seed: int,
         episodes.append(flatten_episode(info))
         progress(label, i + 1, num_episodes)
     return episodes
+
+
+def rollout_batched(envs: Sequence[gym.Env], act: ActFn, num_episodes: int, seed: int,
+                    stop: Callable[[list[dict[str, Any]]], bool] | None = None) -> list[dict[str, Any]]:
+    """``num_episodes`` deterministic episodes (episode i reset with ``seed + i``, as
+    :func:`rollout_episodes`), ``len(envs)`` at a time with one batched ``act`` per step: the
+    policy's forward pass, most of a single-env step's cost, is shared by the batch.
+
+    After each ``len(envs)`` finished episodes ``stop(rows so far)`` may end the evaluation early
+    (episodes still running are dropped). Rows are returned in episode order.
+    """
+    rows: dict[int, dict[str, Any]] = {}
+    next_episode, running = 0, {}  # env index -> episode index
+    obs = [None] * len(envs)
+    for k, env in enumerate(envs):
+        if next_episode < num_episodes:
+            obs[k], _ = env.reset(seed=seed + next_episode)
+            running[k] = next_episode
+            next_episode += 1
+    checked = 0
+    while running:
+        active = sorted(running)
+        actions = act(np.stack([obs[k] for k in active]))
+        for k, action in zip(active, actions, strict=True):
+            obs[k], _, terminated, truncated, info = envs[k].step(action)
+            if not (terminated or truncated):
+                continue
+            rows[running.pop(k)] = flatten_episode(info)
+            if next_episode < num_episodes:
+                obs[k], _ = envs[k].reset(seed=seed + next_episode)
+                running[k] = next_episode
+                next_episode += 1
+        if stop is not None and len(rows) - checked >= len(envs) and running:
+            checked = len(rows)
+            if stop([rows[i] for i in sorted(rows)]):
+                break
+    return [rows[i] for i in sorted(rows)]

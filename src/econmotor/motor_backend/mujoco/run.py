@@ -2,11 +2,15 @@
 
 ``train()`` writes ``run_config.json`` first (so an interrupted run can be resumed and
 its policy read by any process), trains with progress, curve, checkpoint, curriculum and
-TensorBoard callbacks, and saves the final policy atomically.
+TensorBoard callbacks, and saves the final policy atomically. With a :class:`Selection`
+(evaluation-driven training, ``motor_backend/selection.py``) the held-out evaluations run in
+:class:`HeldOutSelectionCallback`; the best policy so far is saved to ``best/`` and becomes the
+run's ``policy.zip`` at the end, and ``run_config.json`` records the selection.
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,7 +26,8 @@ from econmotor.motor_backend.base import (
     read_run_config,
     write_run_config,
 )
-from econmotor.motor_backend.mujoco.env_factory import EnvRecipe, make_vec_env
+from econmotor.motor_backend.mujoco.env_factory import EnvRecipe, make_env, make_vec_env
+from econmotor.motor_backend.mujoco.evaluation import rollout_batched, torch_act_fn
 from econmotor.motor_backend.mujoco.settings import merge_hyperparameters
 from econmotor.motor_backend.mujoco.training import (
     CurriculumCallback,
@@ -30,13 +35,28 @@ from econmotor.motor_backend.mujoco.training import (
     build_model,
     checkpoint_callback,
     checkpoint_vecnormalize,
+    algorithm_class,
     find_checkpoint,
+    install_policy,
     load_checkpoint,
     log,
     save_final,
     wrap_normalize,
 )
-from econmotor.motor_backend.sb3_callbacks import ProgressFnCallback, TrainingCurveCallback
+from econmotor.motor_backend.sb3_callbacks import HeldOutSelectionCallback, ProgressFnCallback, TrainingCurveCallback
+from econmotor.motor_backend.selection import Selection
+
+#: envs stepped together in a held-out evaluation (one batched forward pass per step)
+HELD_OUT_BATCH = 16
+BEST_DIR = "best"
+
+
+def current_normalizer(model: Any) -> tuple[Any, Any, float, float] | None:
+    """``(mean, var, epsilon, clip)`` of the model's VecNormalize now (copies), or None."""
+    normed = model.get_vec_normalize_env()
+    if normed is None:
+        return None
+    return normed.obs_rms.mean.copy(), normed.obs_rms.var.copy(), float(normed.epsilon), float(normed.clip_obs)
 
 
 def env_layout(venv: Any) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -68,7 +88,23 @@ class TrainingRun:
     vec_env: str = "dummy"
     checkpoint_every_steps: int = 20_000
     requested_algorithm: str | None = None
+    selection: Selection | None = None
+    eval_recipe: EnvRecipe | None = None
     config: dict[str, Any] = field(default_factory=dict)
+
+    def _held_out(self, model: Any, num_episodes: int, first_seed: int, stop: Any) -> list[dict[str, Any]]:
+        """Deterministic held-out episodes of the model as it is now (selection.EvaluateFn)."""
+        recipe = self.eval_recipe or self.recipe
+        envs = [make_env(recipe, seed=first_seed + i) for i in range(min(HELD_OUT_BATCH, num_episodes))]
+        try:
+            return rollout_batched(envs, torch_act_fn(model, current_normalizer(model)), num_episodes, first_seed,
+                                   stop)
+        finally:
+            for env in envs:
+                env.close()
+
+    def _save_best(self, model: Any) -> None:
+        save_final(model, self.run_dir / BEST_DIR)
 
     def _hyperparameters(self) -> dict[str, Any]:
         hp = merge_hyperparameters(self.recipe.settings.algo_hyperparameters(self.algorithm), self.hyperparameters)
@@ -88,6 +124,8 @@ class TrainingRun:
     def train(self, resume: bool = False, progress: ProgressFn = no_progress) -> tuple[Any, list[dict[str, float]]]:
         """Train to ``max_steps`` total environment steps; returns (model, training curve)."""
         self.run_dir.mkdir(parents=True, exist_ok=True)
+        if self.selection is not None:
+            self.selection.started = time.perf_counter()  # "deployable after N wall seconds" counts from here
         ckpt, skipped = find_checkpoint(self.run_dir, self.recipe.settings.normalize_obs) if resume else (None, [])
         for problem in skipped:
             log.warning("skipped a damaged checkpoint: %s; resuming from %s", problem,
@@ -121,9 +159,20 @@ class TrainingRun:
                                          save_replay_buffer=self.algorithm == "sac")]
         if self.recipe.curriculum.ramp_steps > 0:
             callbacks.append(CurriculumCallback(self.recipe.curriculum))
+        if self.selection is not None:
+            callbacks[0].status = self.selection.status
+            callbacks.append(HeldOutSelectionCallback(self.selection, self._held_out, self._save_best))
         remaining = self.max_steps - model.num_timesteps
         if remaining > 0:
             model.learn(remaining, callback=callbacks, reset_num_timesteps=ckpt is None, tb_log_name="run")
-        save_final(model, self.run_dir)
+        if self.selection is not None:  # the record first: policy.zip marks a complete run
+            self.config = {**self.config, "trained_steps": int(model.num_timesteps),
+                           "selection": self.selection.record()}
+            write_run_config(self.run_dir, self.config)
+        if self.selection is not None and self.selection.best is not None:
+            install_policy(self.run_dir / BEST_DIR, self.run_dir)
+            model = algorithm_class(self.algorithm).load(str(self.run_dir / "policy.zip"), device="cpu")
+        else:
+            save_final(model, self.run_dir)
         venv.close()
         return model, curve.curve

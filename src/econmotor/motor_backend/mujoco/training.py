@@ -5,7 +5,9 @@ Run directory (``policy_id``)::
     run_config.json                     # task, objective, datapacks, algorithm, hyperparameters, seed
     checkpoints/ckpt_<N>_steps.zip      # every checkpoint_every_steps (+ ckpt_vecnormalize_<N>_steps.pkl)
     tb/                                 # TensorBoard: SB3 scalars + overlay/<key>_raw|_weighted + econ/<key>
-    policy.zip, vecnormalize.pkl        # the final policy and its observation statistics
+    policy.zip, vecnormalize.pkl        # the run's policy and its observation statistics: the kept
+                                        #   checkpoint of evaluation-driven training (selection.py)
+    best/policy.zip, best/vecnormalize.pkl   # the best held-out policy so far (while training)
     policy.onnx                         # the deployed actor (export.py)
 
 Every checkpoint file is written to a temporary name and renamed into place, the
@@ -231,15 +233,28 @@ class EconEpisodeLogCallback(BaseCallback):
 
 
 def save_final(model: BaseAlgorithm, run_dir: Path) -> None:
-    """Write ``policy.zip`` (and ``vecnormalize.pkl``) atomically into ``run_dir``."""
-    tmp = run_dir / "policy.tmp.zip"
-    model.save(str(tmp))
-    tmp.replace(run_dir / POLICY_FILE)
+    """Write ``vecnormalize.pkl`` (when normalised), then ``policy.zip``, each atomically, into ``run_dir``.
+
+    The policy last, as for checkpoints: ``policy.zip`` marks a complete run, so a crash before
+    it leaves a run that resumes, never one that looks complete without its normalisation.
+    """
+    run_dir.mkdir(parents=True, exist_ok=True)
     venv = model.get_env()
     if isinstance(venv, VecNormalize):
-        tmp_stats = run_dir / "vecnormalize.tmp.pkl"
-        venv.save(str(tmp_stats))
-        tmp_stats.replace(run_dir / VECNORM_FILE)
+        _atomic(str(run_dir / VECNORM_FILE), venv.save)
+    _atomic(str(run_dir / POLICY_FILE), model.save)
+
+
+def install_policy(source_dir: Path, run_dir: Path) -> None:
+    """Copy a saved policy (``policy.zip`` and its ``vecnormalize.pkl`` when present) from
+    ``source_dir`` into ``run_dir`` as its final policy, statistics first, each atomically."""
+    import shutil
+
+    run_dir.mkdir(parents=True, exist_ok=True)
+    stats = source_dir / VECNORM_FILE
+    if stats.is_file():
+        _atomic(str(run_dir / VECNORM_FILE), lambda tmp: shutil.copyfile(stats, tmp))
+    _atomic(str(run_dir / POLICY_FILE), lambda tmp: shutil.copyfile(source_dir / POLICY_FILE, tmp))
 
 
 def obs_normalizer(run_dir: str | Path) -> tuple[np.ndarray, np.ndarray, float, float] | None:

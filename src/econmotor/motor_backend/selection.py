@@ -1,0 +1,246 @@
+"""Evaluation-driven training: held-out evaluations judged like the report, and the checkpoint to keep.
+
+Every ``every_steps`` environment steps a backend's trainer evaluates its current policy on
+``episodes`` deterministic held-out episodes (episode i reset with seed ``seed +
+SELECTION_SEED_OFFSET + i``: the same episodes for every checkpoint of a run, apart from
+training's seeds, from the post-training evaluation's ``seed + 10,000`` and from the report's
+``seed + 1,000``) and hands the raw episodes to :meth:`Selection.consider`, which
+
+- judges them with the report's own judgement (:func:`econmotor.economics.uncertainty.judge`:
+  the task's acceptance rule, ``decide``, on the same intervals), and scores them by the
+  objective's J (the mean of :func:`econmotor.valuation.episode_j` over the episodes);
+- says whether the policy is the best so far: an acceptable policy beats any that is not,
+  then the higher J wins; the trainer then saves it as the run's policy;
+- with ``until_deployable``, asks the trainer to stop at the first acceptable evaluation.
+
+A held-out evaluation that cannot pass any more is cut short (:meth:`Selection.hopeless`): the
+episodes still to run are assumed to be copies of its best episode (fall-free first), and if even then
+the report's judgement says not deployable, the rest are not run. So early checkpoints, that
+fall in most episodes, cost a few episodes each; a passing one costs all ``episodes``.
+
+The report's verdict comes from a separate evaluation on fresh seeds, so it is not selected
+on its own data. :meth:`Selection.record` is what the run's ``run_config.json`` keeps under
+``selection``: every evaluation, the checkpoint kept and why, when the run became deployable
+(env steps, wall seconds) and what the evaluations cost.
+
+Backend-agnostic: it sees raw-metric episode dicts (``base.py``'s keys) and two callables.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from econmotor.economics.pricing import price_evaluation
+from econmotor.economics.uncertainty import judge
+from econmotor.errors import ConfigError
+from econmotor.motor_backend.base import summarize_episodes
+from econmotor.objectives.economic_objective import EconomicObjectiveSpec
+from econmotor.objectives.loader import objective_weights_vector
+from econmotor.valuation.reward_builder import episode_j
+
+#: held-out episode i of a run with seed s is reset with s + SELECTION_SEED_OFFSET + i.
+SELECTION_SEED_OFFSET = 50_000
+#: a backend's defaults: a held-out evaluation every 25k env steps (a courier's PPO improves over
+#: ~10^5 steps), of 80 episodes (the demo report's evidence: 0 falls in ~80 legs bounds a fall rate at ~3.7%).
+DEFAULT_SELECT_EVERY = 25_000
+DEFAULT_SELECT_EPISODES = 80
+
+#: ``evaluate(num_episodes, first_seed, stop) -> raw episodes``; the backend calls ``stop(rows so far)``
+#: whenever a batch of episodes has ended and ends the evaluation when it returns True.
+EvaluateFn = Callable[[int, int, Callable[[list[dict[str, Any]]], bool]], list[dict[str, Any]]]
+
+
+@dataclass(frozen=True)
+class SelectionConfig:
+    """How a run selects its policy.
+
+    Attributes:
+        every_steps: environment steps between held-out evaluations (all envs together).
+        episodes: deterministic episodes per held-out evaluation (the evidence a verdict needs:
+            a courier's 5% fall-rate limit needs ~60 fall-free legs).
+        until_deployable: stop training at the first evaluation that passes the acceptance rule.
+        seed: the run's seed (held-out seeds start at ``seed + SELECTION_SEED_OFFSET``).
+    """
+
+    every_steps: int = DEFAULT_SELECT_EVERY
+    episodes: int = DEFAULT_SELECT_EPISODES
+    until_deployable: bool = False
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.every_steps < 1 or self.episodes < 1:
+            raise ConfigError("<selection>", "every_steps/episodes", "must be >= 1")
+
+    @property
+    def first_seed(self) -> int:
+        return self.seed + SELECTION_SEED_OFFSET
+
+
+@dataclass(frozen=True)
+class HeldOutResult:
+    """One held-out evaluation of the policy at ``env_steps``.
+
+    ``fall_rate_upper`` is the 95% upper bound on the error rate (falls / attempted legs for the
+    couriers), ``units_per_hour`` the point throughput and ``units_per_hour_low`` its 95% lower
+    bound, ``j_mean`` the mean episode J under the run's objective; ``cut_short`` is True when the
+    evaluation stopped before ``episodes_planned`` because it could no longer pass.
+    """
+
+    env_steps: int
+    wall_s: float
+    eval_s: float
+    episodes: int
+    episodes_planned: int
+    cut_short: bool
+    deployable: bool
+    j_mean: float
+    fall_rate_upper: float
+    units_per_hour: float
+    units_per_hour_low: float
+    errors: float
+    eval_env_steps: int = 0
+    reasons: tuple[str, ...] = ()
+
+    def status(self) -> str:
+        """One short line for a progress bar: ``'@120k: deployable'`` / ``'@40k: falls<=0.31'``."""
+        at = f"@{self.env_steps / 1000:.0f}k"
+        if self.deployable:
+            return f"{at}: deployable"
+        return f"{at}: not deployable (fall rate<={self.fall_rate_upper:.2f})"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self).items()}
+
+    def scalars(self) -> dict[str, float]:
+        """The TensorBoard scalars of this evaluation (``held_out/...``)."""
+        return {"held_out/fall_rate_upper95": self.fall_rate_upper, "held_out/units_per_hour": self.units_per_hour,
+                "held_out/units_per_hour_low95": self.units_per_hour_low, "held_out/J": self.j_mean,
+                "held_out/deployable": float(self.deployable), "held_out/eval_s": self.eval_s}
+
+
+@dataclass
+class Selection:
+    """The held-out evaluations of one run and the best policy among them (module docstring)."""
+
+    task: Any  # a TaskSpec: economics, acceptance, unit
+    objective: EconomicObjectiveSpec
+    config: SelectionConfig
+    history: list[HeldOutResult] = field(default_factory=list)
+    best: HeldOutResult | None = None
+    started: float = field(default_factory=time.perf_counter)
+
+    # --- the judgement -------------------------------------------------------------------------
+    def judge(self, raw_episodes: Sequence[Mapping[str, Any]]) -> tuple[Any, Any, float]:
+        """``(Uncertainty, Verdict, mean J)`` of raw episodes: the report's judgement and the objective's J."""
+        economics = self.task.economics
+        _, econ, summaries = summarize_episodes(raw_episodes, economics)
+        pricing = price_evaluation(economics, econ, summaries)
+        uncertainty, verdict = judge(economics, self.task.acceptance, self.task.unit, summaries,
+                                     pricing.aggregate, pricing.policy)
+        vector = objective_weights_vector(self.objective)
+        js = [episode_j(ep, vector, economics) for ep in summaries]
+        return uncertainty, verdict, (sum(js) / len(js) if js else -math.inf)
+
+    def hopeless(self, raw_episodes: Sequence[Mapping[str, Any]]) -> bool:
+        """True when the evaluation cannot pass even if every episode still to run matched its best one
+        (fall-free first, then the most units)."""
+        rows = list(raw_episodes)
+        left = self.config.episodes - len(rows)
+        if left <= 0 or not rows:
+            return False
+        best = max(rows, key=lambda r: (float(r.get("errors", 0.0)) == 0.0, float(r.get("units_completed", 0.0))))
+        return not self.judge(rows + [best] * left)[1].deployable
+
+    def consider(self, env_steps: int, evaluate: EvaluateFn) -> tuple[HeldOutResult, bool]:
+        """Run one held-out evaluation of the current policy; ``(result, is the best so far)``."""
+        t0 = time.perf_counter()
+        rows = evaluate(self.config.episodes, self.config.first_seed, self.hopeless)
+        uncertainty, verdict, j_mean = self.judge(rows)
+        iv = uncertainty.intervals
+        result = HeldOutResult(
+            env_steps=int(env_steps), wall_s=round(time.perf_counter() - self.started, 3),
+            eval_s=round(time.perf_counter() - t0, 3), episodes=len(rows), episodes_planned=self.config.episodes,
+            cut_short=len(rows) < self.config.episodes, deployable=verdict.deployable and len(rows) >= self.config.episodes,
+            j_mean=float(j_mean), fall_rate_upper=float(iv["error_rate"].high),
+            units_per_hour=float(iv["mpl_units_per_hour"].point), units_per_hour_low=float(iv["mpl_units_per_hour"].low),
+            errors=float(uncertainty.evidence.errors),
+            eval_env_steps=int(sum(float(r.get("length_steps", 0.0)) for r in rows)), reasons=tuple(verdict.reasons))
+        self.history.append(result)
+        better = self.best is None or (result.deployable, result.j_mean) > (self.best.deployable, self.best.j_mean)
+        if better:
+            self.best = result
+        return result, better
+
+    # --- what the trainer asks --------------------------------------------------------------
+    def due(self, env_steps: int, last_env_steps: int) -> bool:
+        """An evaluation is due when ``env_steps`` crossed a multiple of ``every_steps`` since the last one."""
+        every = self.config.every_steps
+        return env_steps // every > last_env_steps // every
+
+    def final_due(self, env_steps: int, last_env_steps: int) -> bool:
+        """Evaluate the last weights too at the end of training: unless they were just evaluated, or training
+        stopped deployable, or the run was shorter than one interval (no evaluation ran: the last weights
+        are kept unjudged, so a short run pays nothing) and was not asked to run until deployable."""
+        return (env_steps != last_env_steps and not self.should_stop
+                and (bool(self.history) or self.config.until_deployable))
+
+    @property
+    def deployable_at(self) -> HeldOutResult | None:
+        """The first held-out evaluation that passed, or None."""
+        return next((r for r in self.history if r.deployable), None)
+
+    @property
+    def should_stop(self) -> bool:
+        return self.config.until_deployable and self.deployable_at is not None
+
+    def status(self) -> str:
+        """The latest verdict for the progress bar (empty before the first evaluation)."""
+        return self.history[-1].status() if self.history else ""
+
+    def kept_reason(self) -> str:
+        """Which policy the run keeps and why, in words."""
+        best = self.best
+        if best is None:
+            return "no held-out evaluation ran: the last weights are kept"
+        what = f"the checkpoint at {best.env_steps:,} env steps"
+        if best.deployable:
+            if self.config.until_deployable:
+                return (f"{what}: the first to pass the task's acceptance rule on {best.episodes} held-out "
+                        "episodes (training stopped there: --until-deployable)")
+            return (f"{what}: the best J ({best.j_mean:.4g}) of the {sum(r.deployable for r in self.history)} "
+                    f"held-out evaluations that passed the task's acceptance rule (of {len(self.history)})")
+        return (f"{what}: none of {len(self.history)} held-out evaluations passed the task's acceptance rule, "
+                f"so the best by J ({best.j_mean:.4g}) is kept; it is not deployable on held-out episodes")
+
+    def record(self) -> dict[str, Any]:
+        """The run record's ``selection`` entry (module docstring)."""
+        cfg, first = self.config, self.deployable_at
+        return {
+            "every_steps": cfg.every_steps, "episodes": cfg.episodes, "until_deployable": cfg.until_deployable,
+            "seeds": [cfg.first_seed, cfg.first_seed + cfg.episodes],
+            "judged_by": "economics.uncertainty.judge (the report's acceptance rule), J = mean episode_j",
+            "evaluations": [r.to_dict() for r in self.history],
+            "kept": self.best.to_dict() if self.best is not None else None,
+            "kept_acceptable": bool(self.best and self.best.deployable),
+            "why": self.kept_reason(),
+            "became_deployable": ({"env_steps": first.env_steps, "wall_s": first.wall_s} if first else None),
+            "evaluation_cost": {"count": len(self.history), "episodes": sum(r.episodes for r in self.history),
+                                "env_steps": sum(r.eval_env_steps for r in self.history),
+                                "wall_s": round(sum(r.eval_s for r in self.history), 3)},
+        }
+
+
+def selection_for(task: Any, objective: EconomicObjectiveSpec, every_steps: int, episodes: int,
+                  until_deployable: bool, seed: int) -> Selection | None:
+    """A backend's :class:`Selection` from its ``train_policy`` arguments; None when ``every_steps``
+    is 0 (no held-out evaluations: the last weights are kept). ``until_deployable`` needs them."""
+    if every_steps <= 0:
+        if until_deployable:
+            raise ConfigError("<train>", "until_deployable", "needs held-out evaluations (select_every_steps > 0)")
+        return None
+    return Selection(task, objective, SelectionConfig(int(every_steps), int(episodes), bool(until_deployable),
+                                                      int(seed)))

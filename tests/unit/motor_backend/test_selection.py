@@ -1,0 +1,111 @@
+"""Evaluation-driven selection (motor_backend/selection.py) on the real hopper_courier economics and
+acceptance rule: the best acceptable policy is kept, not the last; a hopeless evaluation is cut short;
+held-out seeds are apart from the report's and the post-training evaluation's."""
+
+from __future__ import annotations
+
+import pytest
+
+from econmotor.cli.demo import DEMO_OBJECTIVE
+from econmotor.motor_backend.selection import SELECTION_SEED_OFFSET, Selection, SelectionConfig, selection_for
+from econmotor.objectives import load_objective_spec
+from econmotor.tasks import get_task
+
+TASK = get_task("hopper_courier")  # fall rate upper bound <= 0.05, >= 100 legs/h
+OBJECTIVE = load_objective_spec(DEMO_OBJECTIVE)
+
+
+def episode(legs: float, fell: bool, energy_wh: float = 0.05) -> dict:
+    """One 8 s courier episode's raw metrics (a fall ends it and counts as an attempted leg)."""
+    return {"units_completed": legs, "units_attempted": legs + (1.0 if fell else 0.0), "errors": 1.0 if fell else 0.0,
+            "episode_length_s": 8.0, "energy_wh": energy_wh, "risk_score": 0.0, "novelty_score": 0.0,
+            "return": 100.0 * legs, "length_steps": 1000.0, "termination_reason": "fall" if fell else "max_steps"}
+
+
+def evaluation(rows: list[dict]):
+    """An EvaluateFn handing out ``rows`` 16 at a time, asking ``stop`` after each batch, as the backends do."""
+
+    def evaluate(num_episodes: int, first_seed: int, stop) -> list[dict]:
+        assert first_seed == SELECTION_SEED_OFFSET
+        out: list[dict] = []
+        for row in rows[:num_episodes]:
+            out.append(row)
+            if len(out) % 16 == 0 and len(out) < num_episodes and stop(out):
+                break
+        return out
+
+    return evaluate
+
+
+SAFE = [episode(1.2, False) for _ in range(80)]  # 96 legs, no fall: upper bound 0.031
+SAFE_SLOW = [episode(1.0, False, energy_wh=0.5) for _ in range(80)]  # passes, lower J (fewer legs, more Wh)
+FAST_FALLING = [episode(3.0, i % 4 == 0) for i in range(80)]  # many legs (the highest J), falls in a quarter
+FALLING = [episode(0.1, True) for _ in range(80)]
+
+
+def selection(until: bool = False) -> Selection:
+    return Selection(TASK, OBJECTIVE, SelectionConfig(every_steps=1000, episodes=80, until_deployable=until))
+
+
+def test_the_best_acceptable_policy_is_kept_not_the_last():
+    sel = selection()
+    outcomes = [sel.consider(steps, evaluation(rows)) for steps, rows in
+                ((1000, FALLING), (2000, SAFE), (3000, SAFE_SLOW), (4000, FAST_FALLING))]
+    assert [r.deployable for r, _ in outcomes] == [False, True, True, False]
+    assert [better for _, better in outcomes] == [True, True, False, False]
+    assert sel.best.env_steps == 2000  # not 4000, the last; not 3000, acceptable with a lower J
+    assert outcomes[1][0].j_mean > outcomes[2][0].j_mean
+    assert outcomes[3][0].j_mean > outcomes[1][0].j_mean  # the last has the highest J, but falls too often
+    record = sel.record()
+    assert record["kept"]["env_steps"] == 2000 and record["kept_acceptable"]
+    assert record["became_deployable"]["env_steps"] == 2000
+    assert "best J" in record["why"] and "2 held-out evaluations that passed" in record["why"]
+    assert record["evaluation_cost"]["count"] == 4
+    assert not sel.should_stop  # not asked to stop
+
+
+def test_no_acceptable_policy_keeps_the_best_by_j_and_says_so():
+    sel = selection()
+    sel.consider(1000, evaluation(FALLING))
+    sel.consider(2000, evaluation(FAST_FALLING))
+    assert sel.best.env_steps == 2000 and not sel.best.deployable
+    assert sel.record()["became_deployable"] is None
+    assert "none of 2 held-out evaluations passed" in sel.kept_reason() and "best by J" in sel.kept_reason()
+
+
+def test_until_deployable_stops_at_the_first_pass():
+    sel = selection(until=True)
+    sel.consider(1000, evaluation(FALLING))
+    assert not sel.should_stop and "not deployable" in sel.status()
+    sel.consider(2000, evaluation(SAFE))
+    assert sel.should_stop and sel.status() == "@2k: deployable"
+    assert "training stopped there" in sel.kept_reason()
+
+
+def test_a_hopeless_evaluation_is_cut_short_and_a_passing_one_runs_in_full():
+    sel = selection()
+    falling, _ = sel.consider(1000, evaluation(FALLING))
+    assert falling.cut_short and falling.episodes == 16 and not falling.deployable
+    safe, _ = sel.consider(2000, evaluation(SAFE))
+    assert not safe.cut_short and safe.episodes == 80
+
+
+def test_a_cut_short_evaluation_never_passes():
+    sel = selection()
+    short, _ = sel.consider(1000, lambda n, seed, stop: SAFE[:40])
+    assert short.cut_short and not short.deployable
+
+
+def test_held_out_seeds_are_apart_from_the_reports_and_the_post_training_evaluations():
+    cfg = SelectionConfig(episodes=80, seed=7)
+    held_out = set(range(cfg.first_seed, cfg.first_seed + cfg.episodes))
+    report = set(range(7 + 1_000, 7 + 1_000 + 10_000))  # report evaluation: seed + 1000 + i (even 10,000 episodes)
+    after_training = set(range(7 + 10_000, 7 + 10_000 + 1_000))
+    training_envs = set(range(7, 7 + 256))  # vector env i seeded seed + i
+    assert not held_out & (report | after_training | training_envs)
+
+
+def test_selection_off_and_until_deployable_needs_it():
+    assert selection_for(TASK, OBJECTIVE, 0, 80, False, 0) is None
+    with pytest.raises(Exception, match="until_deployable"):
+        selection_for(TASK, OBJECTIVE, 0, 80, True, 0)
