@@ -92,9 +92,9 @@ class HeldOutSelectionCallback(BaseCallback):
     the best so far; log ``held_out/*`` to TensorBoard; stop training once deployable when asked to."""
 
     def __init__(self, selection: Selection, evaluate: ModelEvaluateFn,
-                 save_best: Callable[[BaseAlgorithm], None]) -> None:
+                 save_best: Callable[[BaseAlgorithm], None], after: Callable[[], None] | None = None) -> None:
         super().__init__()
-        self.selection, self.evaluate, self.save_best = selection, evaluate, save_best
+        self.selection, self.evaluate, self.save_best, self.after = selection, evaluate, save_best, after
         self._last = -1
 
     def _on_training_start(self) -> None:
@@ -106,6 +106,8 @@ class HeldOutSelectionCallback(BaseCallback):
             self.num_timesteps, lambda n, seed, stop: self.evaluate(self.model, n, seed, stop))
         if better:
             self.save_best(self.model)
+        if self.after is not None:
+            self.after()  # e.g. record the selection so far in run_config.json
         for name, value in result.scalars().items():
             self.logger.record(name, value)
         self.logger.dump(self.num_timesteps)

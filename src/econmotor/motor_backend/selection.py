@@ -20,7 +20,8 @@ fall in most episodes, cost a few episodes each; a passing one costs all ``episo
 
 The report's verdict comes from a separate evaluation on fresh seeds, so it is not selected
 on its own data. :meth:`Selection.record` is what the run's ``run_config.json`` keeps under
-``selection``: every evaluation, the checkpoint kept and why, when the run became deployable
+``selection`` (rewritten after every evaluation, and restored by :meth:`Selection.restore` when the
+run is resumed): every evaluation, the checkpoint kept and why, when the run became deployable
 (env steps, wall seconds) and what the evaluations cost.
 
 Backend-agnostic: it sees raw-metric episode dicts (``base.py``'s keys) and two callables.
@@ -160,13 +161,13 @@ class Selection:
         t0 = time.perf_counter()
         rows = evaluate(self.config.episodes, self.config.first_seed, self.hopeless)
         uncertainty, verdict, j_mean = self.judge(rows)
-        iv = uncertainty.intervals
+        errors, mpl = uncertainty.intervals["error_rate"], uncertainty.intervals["mpl_units_per_hour"]
+        complete = len(rows) >= self.config.episodes  # a cut-short evaluation never passes
         result = HeldOutResult(
             env_steps=int(env_steps), wall_s=round(time.perf_counter() - self.started, 3),
             eval_s=round(time.perf_counter() - t0, 3), episodes=len(rows), episodes_planned=self.config.episodes,
-            cut_short=len(rows) < self.config.episodes, deployable=verdict.deployable and len(rows) >= self.config.episodes,
-            j_mean=float(j_mean), fall_rate_upper=float(iv["error_rate"].high),
-            units_per_hour=float(iv["mpl_units_per_hour"].point), units_per_hour_low=float(iv["mpl_units_per_hour"].low),
+            cut_short=not complete, deployable=verdict.deployable and complete, j_mean=float(j_mean),
+            fall_rate_upper=float(errors.high), units_per_hour=float(mpl.point), units_per_hour_low=float(mpl.low),
             errors=float(uncertainty.evidence.errors),
             eval_env_steps=int(sum(float(r.get("length_steps", 0.0)) for r in rows)), reasons=tuple(verdict.reasons))
         self.history.append(result)
@@ -174,6 +175,16 @@ class Selection:
         if better:
             self.best = result
         return result, better
+
+    def restore(self, record: Mapping[str, Any] | None) -> None:
+        """Continue a resumed run's selection from its recorded ``selection`` (evaluations and the kept one),
+        so a checkpoint kept before the interruption is only replaced by a better one."""
+        if not record:
+            return
+        fields_ = HeldOutResult.__dataclass_fields__
+        load = lambda d: HeldOutResult(**{k: (tuple(v) if k == "reasons" else v) for k, v in d.items() if k in fields_})
+        self.history = [load(d) for d in record.get("evaluations") or []]
+        self.best = load(record["kept"]) if record.get("kept") else None
 
     # --- what the trainer asks --------------------------------------------------------------
     def due(self, env_steps: int, last_env_steps: int) -> bool:

@@ -136,7 +136,8 @@ def selection_facts(train_run: Any, priced: Any, num_episodes: int) -> dict[str,
     fresh = None if priced_seeds is None else (priced_seeds[1] <= held_out[0] or priced_seeds[0] >= held_out[1])
     kept = selection.get("kept") or {}
     return {"why": selection["why"], "kept_env_steps": kept.get("env_steps"),
-            "kept_acceptable": selection.get("kept_acceptable"), "became_deployable": selection.get("became_deployable"),
+            "kept_acceptable": selection.get("kept_acceptable"),
+            "became_deployable": selection.get("became_deployable"),
             "evaluation_cost": selection.get("evaluation_cost"), "held_out_seeds": held_out,
             "priced_seeds": priced_seeds, "fresh_seeds": fresh}
 

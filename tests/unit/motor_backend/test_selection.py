@@ -109,3 +109,13 @@ def test_selection_off_and_until_deployable_needs_it():
     assert selection_for(TASK, OBJECTIVE, 0, 80, False, 0) is None
     with pytest.raises(Exception, match="until_deployable"):
         selection_for(TASK, OBJECTIVE, 0, 80, True, 0)
+
+
+def test_a_resumed_run_keeps_its_earlier_best_unless_beaten():
+    sel = selection()
+    sel.consider(1000, evaluation(SAFE))
+    resumed = selection()
+    resumed.restore(sel.record())
+    assert resumed.best == sel.best and resumed.history == sel.history
+    _, better = resumed.consider(2000, evaluation(SAFE_SLOW))  # acceptable, lower J: the earlier one stays
+    assert not better and resumed.best.env_steps == 1000

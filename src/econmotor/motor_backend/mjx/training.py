@@ -141,6 +141,8 @@ class MjxTrainingRun:
             steps, lambda n, seed, stop: self.held_out(learner, n, seed, stop))
         if better:
             ckpt.save_tree(self.run_dir / BEST_DIR / POLICY_FILE, learner, key, steps)
+        self.config = {**self.config, "selection": self.selection.record()}
+        base.write_run_config(self.run_dir, self.config)
         for name, value in result.scalars().items():
             writer.add_scalar(name, value, steps)
 
@@ -159,6 +161,8 @@ class MjxTrainingRun:
             self._check_resume_request(previous)
             self.cfg = ppo.PPOConfig.from_mapping(previous["hyperparameters"], str(self.run_dir / RUN_CONFIG_FILE))
             found = ckpt.latest_checkpoint(self.run_dir)
+            if self.selection is not None and (self.run_dir / BEST_DIR / POLICY_FILE).is_file():
+                self.selection.restore(previous.get("selection"))
         env, cfg = self.env, self.cfg
         template = ppo.init_learner(jax.random.PRNGKey(self.seed), env.observation_size, env.action_size, cfg)
         learner, key, steps = None, None, 0
@@ -171,6 +175,8 @@ class MjxTrainingRun:
             "checkpoint_every_steps": self.checkpoint_every_steps, "obs_layout": obs_layout,
             "action_layout": action_layout, "resumed_from_steps": steps, **self.extra_config,
         }
+        if self.selection is not None and self.selection.history:
+            self.config["selection"] = self.selection.record()  # a resumed run's selection so far
         base.write_run_config(self.run_dir, self.config)
 
         state = ppo.init_train_state(env, cfg, self.num_envs, self.seed, learner=learner, key=key)

@@ -32,10 +32,10 @@ from econmotor.motor_backend.mujoco.settings import merge_hyperparameters
 from econmotor.motor_backend.mujoco.training import (
     CurriculumCallback,
     EconEpisodeLogCallback,
+    algorithm_class,
     build_model,
     checkpoint_callback,
     checkpoint_vecnormalize,
-    algorithm_class,
     find_checkpoint,
     install_policy,
     load_checkpoint,
@@ -106,6 +106,10 @@ class TrainingRun:
     def _save_best(self, model: Any) -> None:
         save_final(model, self.run_dir / BEST_DIR)
 
+    def _record_selection(self) -> None:
+        self.config = {**self.config, "selection": self.selection.record()}
+        write_run_config(self.run_dir, self.config)
+
     def _hyperparameters(self) -> dict[str, Any]:
         hp = merge_hyperparameters(self.recipe.settings.algo_hyperparameters(self.algorithm), self.hyperparameters)
         if self.algorithm == "sac":  # a replay buffer larger than the run only costs memory and checkpoints
@@ -134,6 +138,8 @@ class TrainingRun:
             previous = read_run_config(self.run_dir, "mujoco")
             self._check_resume_request(previous)
             self.algorithm = previous["algorithm"]
+            if self.selection is not None and (self.run_dir / BEST_DIR / "policy.zip").is_file():
+                self.selection.restore(previous.get("selection"))
         hp = previous["hyperparameters"] if resume else self._hyperparameters()
         venv = make_vec_env(self.recipe, self.num_envs, self.seed, self.vec_env)
         stats = checkpoint_vecnormalize(*ckpt) if ckpt else None
@@ -146,6 +152,8 @@ class TrainingRun:
             "action_layout": action_layout, "resumed_from_steps": ckpt[1] if ckpt else 0,
             "skipped_checkpoints": skipped,
         }
+        if self.selection is not None and self.selection.history:
+            self.config["selection"] = self.selection.record()  # a resumed run's selection so far
         write_run_config(self.run_dir, self.config)
         tb_dir = str(self.run_dir / "tb")
         if ckpt:
@@ -161,7 +169,8 @@ class TrainingRun:
             callbacks.append(CurriculumCallback(self.recipe.curriculum))
         if self.selection is not None:
             callbacks[0].status = self.selection.status
-            callbacks.append(HeldOutSelectionCallback(self.selection, self._held_out, self._save_best))
+            callbacks.append(HeldOutSelectionCallback(self.selection, self._held_out, self._save_best,
+                                                      self._record_selection))
         remaining = self.max_steps - model.num_timesteps
         if remaining > 0:
             model.learn(remaining, callback=callbacks, reset_num_timesteps=ckpt is None, tb_log_name="run")
