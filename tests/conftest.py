@@ -33,3 +33,16 @@ def _sb3_logger_folder(tmp_path_factory: pytest.TempPathFactory):
     patch.setenv("SB3_LOGDIR", str(tmp_path_factory.mktemp("sb3-logger")))
     yield
     patch.undo()
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _jax_compilation_cache():
+    """XLA's persistent compilation cache for every test that builds a backend the way the CLI does
+    (``environment_options``): the one the mjx tests keep under .pytest_cache, so compiling the
+    smoke-sized couriers once serves every later test and a second `make test`."""
+    patch = pytest.MonkeyPatch()
+    if not os.environ.get("ECONMOTOR_JAX_CACHE_DIR"):
+        patch.setenv("ECONMOTOR_JAX_CACHE_DIR", str(Path(__file__).resolve().parents[1] / ".pytest_cache"
+                                                    / "econmotor-jax"))
+    yield
+    patch.undo()

@@ -34,14 +34,14 @@ def trained(tmp_path_factory):
 @pytest.mark.slow
 def test_train_writes_policy_config_and_curve(trained):
     _, result, out, calls = trained
-    policy = Path(result.policy_id)
-    assert policy.is_file() and policy.suffix == ".zip" and policy.parent.parent == out
-    config = json.loads((policy.parent / "run_config.json").read_text())
+    run_dir = Path(result.policy_id)
+    assert run_dir == out and (run_dir / "policy.zip").is_file()  # output_dir is the run directory
+    config = json.loads((run_dir / "run_config.json").read_text())
     assert config["seed"] == 7 and config["num_envs"] == 2 and config["max_steps"] == 2000
     assert config["objective"]["name"] == "throughput" and config["datapack_ids"] == ["dw_rates"]
     assert config["randomization"]["ranges"] == {"base_rate": [1.8, 2.2]}
     assert result.training_curve and result.training_curve[-1]["timesteps"] >= 2000
-    assert json.loads((policy.parent / "training_curve.json").read_text()) == result.training_curve
+    assert json.loads((run_dir / "training_curve.json").read_text()) == result.training_curve
     train_calls = [c for c in calls if c[0].startswith("train")]
     assert train_calls[0][1] == 0 and train_calls[-1][1] == train_calls[-1][2] == 2000
     assert ("evaluate", 3, 3) in calls

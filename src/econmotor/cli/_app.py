@@ -11,7 +11,9 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
 
 import typer
 from rich.console import Console
@@ -56,11 +58,27 @@ def set_cpu_threads() -> None:
 
 #: progress labels longer than this are messages: printed whole above the bars instead of cut to fit one.
 MAX_BAR_LABEL = 40
-def announce_device(backend: object, doing: str = "training") -> None:
-    """Say which device a backend computes on, for backends that know (mjx: the JAX device)."""
-    describe = getattr(backend, "device_description", None)
-    if callable(describe):
-        err_console.print(f"{getattr(backend, 'name', 'backend')}: {doing} on {describe()}", highlight=False)
+def make_backend(name: str, task_files: Sequence[str | Path] = (), **options: Any) -> Any:
+    """Construct motor backend ``name`` at the edge: ``task_files``, the options the backend takes from
+    environment variables (its ``environment_options``, read here and nowhere inside it), then ``options``."""
+    from econmotor.motor_backend.factory import environment_options, make_motor_backend
+
+    return make_motor_backend(name, task_files=list(task_files), **{**environment_options(name, os.environ),
+                                                                       **options})
+
+
+def announce_device(backend: Any, doing: str = "training") -> None:
+    """Say which device a backend computes on, for backends that declare one (e.g. a JAX device)."""
+    described = backend.device_description()
+    if described:
+        err_console.print(f"{backend.name}: {doing} on {described}", highlight=False)
+
+
+def announce_num_envs(backend: Any, task_id: str, num_envs: int | None) -> None:
+    """Say how the backend adapts a ``--num-envs`` request on this machine (e.g. capped on a CPU)."""
+    note = backend.num_envs_note(task_id, int(num_envs or 0))
+    if note:
+        err_console.print(f"[yellow]note[/]: {note}", highlight=False, soft_wrap=True)
 
 
 class RateColumn(ProgressColumn):
@@ -88,14 +106,15 @@ def progress_bars() -> Iterator:
     said: set[str] = set()
 
     def update(label: str, completed: float, total: float) -> None:
-        if len(label) > MAX_BAR_LABEL:  # a message (e.g. an adaptation), not a bar: printed whole, once
+        key = label.split(" · ", 1)[0]  # "train · @50k: deployable": the train bar, showing the latest verdict
+        if len(key) > MAX_BAR_LABEL:  # a message (e.g. an adaptation), not a bar: printed whole, once
             if label not in said:
                 said.add(label)
                 progress.console.print(label, highlight=False, soft_wrap=True)
             return
-        if label not in tasks:
-            tasks[label] = progress.add_task(label, total=total)
-        progress.update(tasks[label], completed=completed, total=total)
+        if key not in tasks:
+            tasks[key] = progress.add_task(label, total=total)
+        progress.update(tasks[key], completed=completed, total=total, description=label)
 
     with progress:
         yield update

@@ -8,7 +8,6 @@ no backend can use fails here rather than later in ``report``.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 
 import typer
@@ -18,40 +17,16 @@ from econmotor.cli._app import console, datapacks_app
 from econmotor.cli.validation import check_choice
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_configs
-
-
-def _mujoco(pack: DatapackConfig, source: str) -> None:
-    from econmotor.motor_backend.mujoco.randomization import parse_randomization
-
-    parse_randomization(pack.domain_randomization, pack.curriculum, source)
-
-
-def _dishwashing(pack: DatapackConfig, source: str) -> None:
-    from econmotor.envs.dishwashing_randomization import parse_econ_randomization
-
-    parse_econ_randomization(pack.domain_randomization, pack.curriculum, source)
-
-
-def _holosoma(pack: DatapackConfig, source: str) -> None:
-    from econmotor.motor_backend.datapacks import DatapackProvider
-    from econmotor.motor_backend.holosoma.datapack_mapping import map_datapacks
-
-    bundle = DatapackProvider().resolve("<validate>", [pack.id], [pack])
-    map_datapacks(bundle, [pack], uses_motion_clip=bool(pack.motion_clips))
-
-
-#: backend -> the check its training runs apply to a datapack's randomization and curriculum.
-BACKEND_CHECKS: dict[str, Callable[[DatapackConfig, str], None]] = {
-    "mujoco": _mujoco, "dishwashing": _dishwashing, "holosoma": _holosoma}
+from econmotor.motor_backend.factory import backend_class, known_backends
 
 
 def check_for_backends(pack: DatapackConfig, backend: str | None = None) -> list[str]:
     """The backends that accept ``pack`` (only ``backend`` when given); none: its ConfigError."""
-    names = [backend] if backend else list(BACKEND_CHECKS)
+    names = [backend] if backend else known_backends()
     accepted, errors = [], []
     for name in names:
         try:
-            BACKEND_CHECKS[name](pack, pack.source)
+            backend_class(name).check_datapack(pack, pack.source)
             accepted.append(name)
         except ConfigError as exc:
             errors.append(exc)
@@ -65,10 +40,10 @@ def check_for_backends(pack: DatapackConfig, backend: str | None = None) -> list
 def validate_command(
     paths: list[Path] = typer.Argument(..., help="Datapack YAML files."),
     motor_backend: str = typer.Option(None, "--motor-backend", help="Check the randomization for this backend "
-                                      f"({', '.join(BACKEND_CHECKS)}; default: any of them)."),
+                                      f"({', '.join(known_backends())}; default: any of them)."),
 ) -> None:
     """Validate datapacks and show what each one sets."""
-    check_choice("--motor-backend", motor_backend, BACKEND_CHECKS)
+    check_choice("--motor-backend", motor_backend, known_backends())
     table = Table(title="datapacks")
     for col in ("id", "clips", "domain_randomization", "curriculum", "backends", "file"):
         table.add_column(col)

@@ -19,7 +19,7 @@ from econmotor.cli.validation import (
 )
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.errors import ConfigError
-from econmotor.report.pipeline import new_run_dir
+from econmotor.motor_backend.base import new_run_dir
 from econmotor.store.registry import Registry
 from econmotor.valuation import load_constraint_set
 

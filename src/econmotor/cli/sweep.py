@@ -15,6 +15,7 @@ from econmotor.cli.validation import (
     MAX_SWEEP_CELLS,
     check_db_url,
     check_flags,
+    check_num_envs,
     check_output_dir,
     check_size,
     note_abandoned,
@@ -22,6 +23,7 @@ from econmotor.cli.validation import (
     simplex_size,
 )
 from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_configs
+from econmotor.motor_backend.factory import backend_class
 from econmotor.tasks import load_catalog
 
 
@@ -67,8 +69,10 @@ def sweep_command(
     use_ray: bool = typer.Option(False, "--ray", help="Run each cell as a Ray task (local Ray unless --ray-address)."),
     ray_address: str = typer.Option(None, "--ray-address", help="Ray cluster address (implies --ray)."),
     ray_num_cpus: int = typer.Option(None, "--ray-num-cpus", help="CPUs of a local Ray."),
-    cpus_per_cell: float = typer.Option(1.0, "--cpus-per-cell", help="CPUs each Ray task declares."),
-    gpus_per_cell: float = typer.Option(0.0, "--gpus-per-cell", help="GPUs each Ray task declares."),
+    cpus_per_cell: float = typer.Option(None, "--cpus-per-cell", help="CPUs each Ray task declares (default: "
+                                        "what the backend says a cell needs)."),
+    gpus_per_cell: float = typer.Option(None, "--gpus-per-cell", help="GPUs each Ray task declares (default: "
+                                        "the backend's: one where it trains on a GPU that is present)."),
 ) -> None:
     """Train a grid of objective x datapacks x seeds; completed cells are skipped on re-runs."""
     check_flags(grid=grid, num_envs=num_envs, max_steps=max_steps, eval_episodes=eval_episodes,
@@ -79,6 +83,7 @@ def sweep_command(
     url = check_db_url(db_url)
     set_cpu_threads()
     load_catalog().get(task_id).backend_entry(motor_backend)
+    check_num_envs(motor_backend, num_envs)
     objectives = objectives_from_options(preset, vector, grid)
     check_size("--seeds", "sweep cells (objectives x seeds)", len(objectives) * len(seed_list), MAX_SWEEP_CELLS)
     with open_registry(url) as registry:
@@ -88,7 +93,9 @@ def sweep_command(
                    len(objectives) * len(groups) * len(seed_list), MAX_SWEEP_CELLS)
         cells = plan_sweep(task_id, motor_backend, objectives, groups, seed_list, num_envs=num_envs,
                            max_steps=max_steps, eval_episodes=eval_episodes)
-        ray = RaySettings(ray_address, ray_num_cpus, cpus_per_cell, gpus_per_cell) \
+        needs = backend_class(motor_backend).sweep_resources()
+        ray = RaySettings(ray_address, ray_num_cpus, needs["num_cpus"] if cpus_per_cell is None else cpus_per_cell,
+                          needs["num_gpus"] if gpus_per_cell is None else gpus_per_cell) \
             if use_ray or ray_address else None
         console.print(f"sweep: {len(cells)} cells on {motor_backend} "
                       f"({'Ray' if ray else 'sequential'}); registry {registry.display_url}")

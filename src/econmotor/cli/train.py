@@ -9,12 +9,28 @@ from typing import Any
 import typer
 from rich.table import Table
 
-from econmotor.cli._app import announce_device, app, console, err_console, progress_bars, set_cpu_threads
-from econmotor.cli.validation import check_choice, check_db_url, check_flags, check_output_dir, check_output_file
+from econmotor.cli._app import (
+    announce_device,
+    announce_num_envs,
+    app,
+    console,
+    err_console,
+    make_backend,
+    progress_bars,
+    set_cpu_threads,
+)
+from econmotor.cli.validation import (
+    check_choice,
+    check_db_url,
+    check_flags,
+    check_num_envs,
+    check_output_dir,
+    check_output_file,
+)
 from econmotor.config.objective_profile import OBJECTIVE_PRESETS, ObjectiveVector
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.datapacks import load_datapack_configs
-from econmotor.motor_backend.factory import make_motor_backend
+from econmotor.motor_backend.factory import DEFAULT_BACKEND, backend_class, known_backends
 from econmotor.objectives import EconomicObjectiveSpec
 from econmotor.objectives.loader import load_objective_spec, objective_from_vector
 from econmotor.valuation import default_objective_vector
@@ -26,7 +42,8 @@ SHOWN_METRICS = ("mpl_units_per_hour", "error_rate", "energy_wh_per_unit", "impl
 
 # options shared by train and evaluate (module-level, as Typer allows and ruff's B008 prefers)
 TASK_OPTION = typer.Option(..., "--task-id", "--task", help="Task id from the catalog (econmotor tasks).")
-BACKEND_OPTION = typer.Option("mujoco", "--motor-backend", "--backend", help="Motor backend factory name.")
+BACKEND_OPTION = typer.Option(DEFAULT_BACKEND, "--motor-backend", "--backend",
+                              help=f"Motor backend: {' | '.join(known_backends())}.")
 OBJECTIVE_CONFIG_OPTION = typer.Option(None, "--objective-config", help="Objective YAML.")
 OBJECTIVE_PRESET_OPTION = typer.Option(None, "--objective-preset", help="Objective preset name.")
 SEED_OPTION = typer.Option(0, "--seed")
@@ -65,29 +82,66 @@ def write_json(path: Path | None, payload: dict[str, Any]) -> None:
         path.write_text(json.dumps(payload, indent=2, default=str), encoding="utf-8")
 
 
-#: the final policy and the checkpoint files of the backends that resume (mujoco: SB3 zips, mjx: npz).
-FINAL_POLICY = {"mujoco": "policy.zip", "mjx": "policy.npz"}
-CHECKPOINT_GLOB = {"mujoco": "*.zip", "mjx": "ckpt_*_steps.npz"}
+def completed_run_note(backend: str, run_dir: Path) -> str | None:
+    """What a finished run of ``backend`` holds, or ``None`` when ``run_dir`` has no final policy."""
+    from econmotor.motor_backend.base import read_run_config
 
-
-def completed_run_note(run_dir: Path) -> str | None:
-    """What a finished MuJoCo or MJX run holds, or ``None`` when ``run_dir`` has no final policy."""
-    from econmotor.motor_backend.base import RUN_CONFIG_FILE, read_run_config
-
-    final = next((name for name in FINAL_POLICY.values() if (run_dir / name).is_file()), None)
-    if final is None or not (run_dir / RUN_CONFIG_FILE).is_file():
+    cls = backend_class(backend)
+    if not cls.is_complete_run(run_dir):
         return None
+    final = cls.final_policy_file
     config = read_run_config(run_dir, "trained")
     return (f"{run_dir} is a complete run ({config.get('algorithm', '?')}, {config.get('max_steps', '?'):,} "
             f"steps, final {final})" if isinstance(config.get("max_steps"), int)
             else f"{run_dir} is a complete run (final {final})")
 
 
+# evaluation-driven training (motor_backend/selection.py), shared by train and report
+UNTIL_DEPLOYABLE_OPTION = typer.Option(
+    False, "--until-deployable", help="Stop as soon as a held-out evaluation passes the task's acceptance rule "
+    "(or at --max-steps); the run records when it became deployable.")
+SELECT_EVERY_OPTION = typer.Option(None, "--select-every", help="Env steps between held-out evaluations that "
+                                   "choose the kept checkpoint (0: none, keep the last weights; default 25,000).")
+SELECT_EPISODES_OPTION = typer.Option(None, "--select-episodes", help="Episodes per held-out evaluation "
+                                      "(default 80).")
+
+
+def selection_options(backend: str, until_deployable: bool, select_every: int | None,
+                      select_episodes: int | None) -> dict[str, Any]:
+    """The backend options of evaluation-driven training; an error for a backend without it."""
+    check_flags(select_every=select_every, select_episodes=select_episodes)
+    options: dict[str, Any] = {}
+    if until_deployable:
+        options["until_deployable"] = True
+    if select_every is not None:
+        options["select_every_steps"] = select_every
+    if select_episodes is not None:
+        options["select_episodes"] = select_episodes
+    if until_deployable and select_every == 0:
+        raise ConfigError("<command line>", "--until-deployable", "needs held-out evaluations: drop --select-every 0")
+    if options and not getattr(backend_class(backend), "evaluation_driven", False):
+        raise ConfigError("<command line>", "--until-deployable/--select-every/--select-episodes",
+                          f"backend '{backend}' does not select checkpoints by held-out evaluation",
+                          [b for b in known_backends() if getattr(backend_class(b), "evaluation_driven", False)])
+    return options
+
+
+def selection_note(run_config: dict[str, Any]) -> str | None:
+    """Which checkpoint a run kept and why, when it became deployable and what its evaluations cost."""
+    selection = run_config.get("selection")
+    if not selection:
+        return None
+    cost = selection["evaluation_cost"]
+    first = selection.get("became_deployable")
+    when = (f"deployable on held-out episodes after {first['env_steps']:,} env steps ({first['wall_s']:.0f} s); "
+            if first else "")
+    return (f"policy kept: {selection['why']}. {when}{cost['count']} held-out evaluations cost "
+            f"{cost['wall_s']:.0f} s ({cost['episodes']} episodes).")
+
+
 def interrupted_note(backend: str, task: str, run_dir: Path, max_steps: int, run_id: str) -> str:
     """What an interrupted training run kept and how to go on."""
-    pattern = CHECKPOINT_GLOB.get(backend)
-    folder = run_dir / "checkpoints"
-    checkpoints = sorted(folder.glob(pattern)) if pattern and folder.is_dir() else []
+    checkpoints = backend_class(backend).checkpoints(run_dir)
     if checkpoints:
         return (f"{run_id} recorded as interrupted. Kept: {len(checkpoints)} checkpoint(s) in {run_dir}/checkpoints "
                 f"(newest {checkpoints[-1].name}). Resume with: econmotor train --task-id {task} --motor-backend "
@@ -112,48 +166,59 @@ def train_command(
     eval_episodes: int = typer.Option(5, "--eval-episodes", help="Deterministic episodes after training."),
     resume: bool = typer.Option(False, "--resume", help="Continue the interrupted run in --output-dir from its last "
                                 "checkpoint (a complete run is left as it is)."),
-    algorithm: str = typer.Option(None, "--algorithm", help="Override the task's algorithm (mujoco: ppo | sac)."),
-    vec_env: str = typer.Option(None, "--vec-env", help="mujoco: dummy (in-process, default) | subproc."),
+    algorithm: str = typer.Option(None, "--algorithm", help="Override the task's algorithm (the backend's "
+                                  "capabilities list the choices)."),
+    vec_env: str = typer.Option(None, "--vec-env", help="Vector env kind, for backends that offer a choice "
+                                "(e.g. dummy: in-process | subproc)."),
+    until_deployable: bool = UNTIL_DEPLOYABLE_OPTION,
+    select_every: int = SELECT_EVERY_OPTION,
+    select_episodes: int = SELECT_EPISODES_OPTION,
     db_url: str = typer.Option(None, "--db-url", help="Registry URL (default $ECONMOTOR_DB_URL or "
                                "sqlite:///./.econmotor/registry.sqlite)."),
     json_out: Path = JSON_OPTION,
 ) -> None:
     """Train a motor policy for an economic objective, record it in the registry, print its economics."""
-    from econmotor.report.pipeline import TrainRequest, new_run_dir, train_and_record
+    from econmotor.report.pipeline import TrainRequest, train_and_record
     from econmotor.store.registry import Registry
     from econmotor.tasks import load_catalog
 
     check_flags(num_envs=num_envs, max_steps=max_steps, seed=seed, eval_episodes=eval_episodes)
-    check_choice("--algorithm", algorithm, ("ppo", "sac"))
-    check_choice("--vec-env", vec_env, ("dummy", "subproc"))
+    check_num_envs(backend, num_envs)
+    capabilities = backend_class(backend).capabilities
+    for flag, value, allowed in (("--algorithm", algorithm, capabilities.algorithms),
+                                 ("--vec-env", vec_env, capabilities.vec_env_kinds)):
+        if value is not None and not allowed:
+            raise ConfigError("<command line>", flag, f"backend '{backend}' offers no choice here: leave it out")
+        check_choice(flag, value, allowed)
+    if resume and not capabilities.resume:
+        raise ConfigError("<command line>", "--resume", f"backend '{backend}' cannot resume a run",
+                          [b for b in known_backends() if backend_class(b).capabilities.resume])
     check_output_dir("--output-dir", output_dir)
     check_output_file("--json", json_out)
     set_cpu_threads()
     objective = resolve_objective(objective_config, objective_preset)
     configs = load_datapack_configs(datapacks)
     spec = load_catalog().get(task)
-    extra: dict[str, Any] = {}
+    extra: dict[str, Any] = selection_options(backend, until_deployable, select_every, select_episodes)
     if resume:
         extra["resume"] = True
     if algorithm:
         extra["algorithm"] = algorithm
-    if (extra and backend not in ("mujoco", "mjx")) or (vec_env and backend != "mujoco"):
-        raise ConfigError("<command line>", "--resume/--algorithm/--vec-env",
-                          f"backend '{backend}' does not support them", ["mujoco", "mjx (--resume, --algorithm)"])
     if resume and output_dir is None:
         raise ConfigError("<command line>", "--resume", "needs --output-dir: the run directory to continue")
     if resume:
-        complete = completed_run_note(output_dir)
+        complete = completed_run_note(backend, output_dir)
         if complete is not None:
             console.print(f"{complete}: nothing to resume, nothing changed. To train further, start a new run "
                           "(a new --output-dir, or none for a fresh directory).", highlight=False)
             return
-    motor = make_motor_backend(backend, **({"vec_env": vec_env} if vec_env else {}))
+    motor = make_backend(backend, **({"vec_env": vec_env} if vec_env else {}))
     announce_device(motor)
+    announce_num_envs(motor, task, num_envs)
     url = check_db_url(db_url)
-    run_dir = output_dir or new_run_dir(Path("runs"), task, seed)
+    run_dir = motor.run_dir(output_dir, task, seed)
     request = TrainRequest(task=spec, backend_name=backend, objective=objective, datapacks=tuple(configs),
-                           num_envs=num_envs if (num_envs > 0 or backend in ("mujoco", "mjx")) else 1,
+                           num_envs=num_envs if num_envs > 0 else motor.defaults.num_envs,
                            max_steps=max_steps,
                            seed=seed, train_eval_episodes=eval_episodes, output_dir=run_dir, backend_options=extra)
     registry = None
@@ -170,6 +235,9 @@ def train_command(
     if record.training_curve:
         last = record.training_curve[-1]
         console.print(f"training: {last['timesteps']:.0f} steps, mean return {last['mean_return']:.1f}")
+    note = selection_note((record.config or {}).get("backend_config") or {})
+    if note:
+        console.print(note, highlight=False)
     console.print(f"recorded as run #{run_id} in {registry.display_url}; run directory {record.policy_path}; "
                   f"price it with: econmotor report --motor-backend none --task-id {task} --run-id {run_id}",
                   highlight=False)
@@ -181,7 +249,8 @@ def train_command(
 
 @app.command("evaluate")
 def evaluate_command(
-    policy: str = typer.Option(..., "--policy", help="Policy id (mujoco: the run directory)."),
+    policy: str = typer.Option(..., "--policy", help="Policy id: a run directory (or, for a backend that "
+                               "imports policies, a policy file or shipped name)."),
     task: str = TASK_OPTION,
     backend: str = BACKEND_OPTION,
     objective_config: Path = OBJECTIVE_CONFIG_OPTION,
@@ -199,7 +268,7 @@ def evaluate_command(
     set_cpu_threads()
     objective = resolve_objective(objective_config, objective_preset)
     configs = load_datapack_configs(datapacks)
-    motor = make_motor_backend(backend)
+    motor = make_backend(backend)
     announce_device(motor, "evaluating")
     with progress_bars() as progress:
         result = motor.evaluate_policy(policy, task, objective, episodes, seed, datapack_configs=configs,

@@ -29,7 +29,6 @@ from econmotor.errors import ConfigError
 MAX_STEPS = 1_000_000_000
 #: Seeds are stored in 32-bit columns and evaluation uses ``seed + 1000``.
 MAX_SEED = 2_000_000_000
-MAX_NUM_ENVS = 256
 MAX_EPISODES = 100_000
 #: Cells of one sweep (objectives x datapack groups x seeds); each cell trains a policy.
 MAX_SWEEP_CELLS = 10_000
@@ -81,8 +80,10 @@ FLAG_RULES: dict[str, Rule] = {
     "--total-steps": Rule("int", 1, MAX_STEPS),
     "--learning-starts": Rule("int", 0, MAX_STEPS),
     "--max-episode-steps": Rule("int", 1, 10_000_000),
-    "--num-envs": Rule("int", 0, MAX_NUM_ENVS),
+    "--num-envs": Rule("int", 0),  # the chosen backend checks its own limit (check_num_envs)
     "--eval-episodes": Rule("int", 0, MAX_EPISODES),
+    "--select-every": Rule("int", 0, MAX_STEPS),
+    "--select-episodes": Rule("int", 1, MAX_EPISODES),
     "--episodes": Rule("int", 1, MAX_EPISODES),
     "--steps": Rule("int", 1, 10_000_000),
     "--run-id": Rule("int", 1, 2**31 - 1),
@@ -104,6 +105,13 @@ def check_flags(**values: Any) -> None:
         flag = "--" + name.replace("_", "-")
         for item in value if isinstance(value, (list, tuple)) else (value,):
             FLAG_RULES[flag].check(flag, item)
+
+
+def check_num_envs(backend: str, num_envs: int | None, flag: str = "--num-envs") -> None:
+    """``num_envs`` within what backend ``backend`` declares it can run (its ``max_num_envs``)."""
+    from econmotor.motor_backend.factory import backend_class
+
+    backend_class(backend).check_num_envs(num_envs, flag)
 
 
 def check_choice(flag: str, value: str | None, choices: Iterable[str]) -> str | None:

@@ -9,8 +9,19 @@ A backend trains, evaluates and deploys low-level motor policies::
 and returns :class:`MotorTrainingResult` / :class:`MotorEvalResult` carrying the
 raw metrics of the motor stack, the econ metrics from
 :class:`econmotor.economics.EconomicMeter`, and one summary per evaluation episode.
-``policy_id`` is the path of the saved policy (a directory or file), so any
-process can evaluate or deploy it.
+Every backend extends :class:`MotorBackendBase`, which owns what they all share (SB3's
+``BaseAlgorithm`` is the model) and where each declares what differs: its capabilities,
+defaults, ``num_envs`` limits on the device it will use, final-policy and checkpoint files,
+datapack check and the Ray resources of a sweep cell. The CLI asks these; it never looks a
+backend up by name.
+
+One meaning everywhere: ``output_dir`` *is* the run directory (default: a new
+``<runs_dir>/<task>-<UTC time>-s<seed>-<pid>``), its record is ``run_config.json``, and
+``policy_id`` names that directory (or, for a backend that imports policies, a policy file
+or shipped name), so any process can evaluate or deploy it. Evaluation seeds follow one
+rule: episode ``i`` of an evaluation seeded ``s`` is seeded ``s + i``; the evaluation right
+after training uses ``s = seed + TRAINING_EVAL_SEED_OFFSET`` and a report's evaluation run
+``s = seed + REPORT_EVAL_SEED_OFFSET``, so neither shares an episode with the other.
 
 Per-episode raw metrics use the meter's keys (``units_completed``, ``units_attempted``,
 ``errors``, ``episode_length_s``, ``energy_wh``, ``risk_score``, ``novelty_score``)
@@ -23,10 +34,12 @@ the RewardBuilder names (``mpl_episode``, ``error_rate_episode``, ``energy_Wh``,
 from __future__ import annotations
 
 import json
+import os
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -91,7 +104,9 @@ class MotorEvalResult:
 @runtime_checkable
 class PolicyHandle(Protocol):
     """A deployed policy: observation(s) in, action(s) out; ``step(obs)`` is ``act(obs)``
-    (upstream's deployed handles answer both)."""
+    (upstream's deployed handles answer both); ``obs_dim`` is the observation width it takes."""
+
+    obs_dim: int
 
     def act(self, obs: np.ndarray) -> np.ndarray: ...
 
@@ -248,3 +263,157 @@ def evaluation_result(backend: str, policy_id: str, task_id: str, raw_episodes: 
             indent=2, default=str), encoding="utf-8")
     return MotorEvalResult(policy_id=str(policy_id), task_id=task_id, backend=backend, raw_metrics=raw,
                            econ_metrics=econ, episodes=episodes, config=dict(config))
+
+
+# --- the contract every backend extends ------------------------------------------------------
+
+#: the evaluation right after training seeds its episodes from ``seed + TRAINING_EVAL_SEED_OFFSET``.
+TRAINING_EVAL_SEED_OFFSET = 10_000
+#: a report's evaluation run seeds its episodes from ``seed + REPORT_EVAL_SEED_OFFSET`` (fresh episodes).
+REPORT_EVAL_SEED_OFFSET = 1_000
+
+
+def new_run_dir(runs_dir: str | Path, task_id: str, seed: int) -> Path:
+    """A run directory of its own: ``<runs_dir>/<task>-<UTC time>-s<seed>-<pid>`` (never reused)."""
+    return Path(runs_dir) / f"{task_id}-{time.strftime('%Y%m%d-%H%M%S', time.gmtime())}-s{seed}-{os.getpid()}"
+
+
+@dataclass(frozen=True)
+class BackendCapabilities:
+    """What a backend can do beyond the three operations.
+
+    Attributes:
+        resume: ``train_policy(..., resume=True)`` continues an interrupted run from its checkpoints.
+        algorithms: learners ``train_policy(..., algorithm=...)`` accepts (empty: the backend's own only).
+        vec_env_kinds: vector-env kinds the constructor's ``vec_env`` accepts (empty: not selectable).
+        imported_policies: ``evaluate_policy`` also takes policies trained elsewhere (a file or a
+            shipped name), not only this backend's run directories.
+        records_clips: ``record_clip(policy_id, path, num_steps, seed)`` saves a motion clip.
+    """
+
+    resume: bool = False
+    algorithms: tuple[str, ...] = ()
+    vec_env_kinds: tuple[str, ...] = ()
+    imported_policies: bool = False
+    records_clips: bool = False
+
+
+@dataclass(frozen=True)
+class RunSize:
+    """A training request's size: ``num_envs`` (0: the task's catalog default) and ``max_steps``
+    (environment steps); ``task_id`` where the size is meant for one task."""
+
+    num_envs: int
+    max_steps: int
+    task_id: str | None = None
+
+
+class MotorBackendBase:
+    """The base class of every motor backend: the contract in one place.
+
+    A subclass sets ``name`` and the declarations below and implements ``train_policy``,
+    ``evaluate_policy`` and ``deploy_policy_handle``; it constructs with keyword arguments,
+    ``task_files`` (extra task catalog YAML files) and ``runs_dir`` (where default run
+    directories go) first, then its own.
+
+    Class attributes (declarations the CLI reads; override in the subclass):
+        name: the factory name.
+        capabilities: :class:`BackendCapabilities`.
+        defaults: the size of a request that gives neither ``--num-envs`` nor ``--max-steps``.
+        smoke_run: the smallest request that exercises train -> export -> evaluate end to end
+            (the contract test uses it for every registered backend).
+        max_num_envs: the most environments the backend can be asked for on any device;
+            :meth:`num_envs_note` says how a request is adapted on this machine.
+        final_policy_file: the file a complete run directory holds (its presence marks a run done).
+        checkpoint_glob: checkpoint files under ``<run>/checkpoints`` (None: no checkpoints).
+        environment_options: environment variable -> constructor keyword. A backend never reads the
+            environment itself; the edge (the CLI) reads these and passes them
+            (:func:`econmotor.motor_backend.factory.environment_options`).
+    """
+
+    name: ClassVar[str] = "base"
+    capabilities: ClassVar[BackendCapabilities] = BackendCapabilities()
+    defaults: ClassVar[RunSize] = RunSize(num_envs=1, max_steps=10_000)
+    smoke_run: ClassVar[RunSize] = RunSize(num_envs=1, max_steps=256)
+    max_num_envs: ClassVar[int] = 256
+    final_policy_file: ClassVar[str] = "policy.zip"
+    checkpoint_glob: ClassVar[str | None] = None
+    environment_options: ClassVar[Mapping[str, str]] = {}
+
+    def __init__(self, *, task_files: Sequence[str | Path] = (), runs_dir: str | Path = "runs") -> None:
+        from econmotor.tasks import load_catalog
+
+        self.task_files = [Path(f) for f in task_files]
+        self.catalog = load_catalog(self.task_files)
+        self.runs_dir = Path(runs_dir)
+
+    # --- declarations asked before any work ---------------------------------------------------
+    @classmethod
+    def check_num_envs(cls, num_envs: int | None, flag: str = "--num-envs") -> None:
+        """``num_envs`` must be within :attr:`max_num_envs`; a ConfigError names the flag and the limit."""
+        if num_envs is not None and num_envs > cls.max_num_envs:
+            raise ConfigError(flag, None, f"{num_envs:,} is more than the '{cls.name}' backend can run",
+                              f"0 (the task's default) to {cls.max_num_envs:,}")
+
+    def num_envs_note(self, task_id: str, num_envs: int) -> str | None:
+        """How a request for ``num_envs`` environments is adapted on this machine (None: as asked)."""
+        return None
+
+    @classmethod
+    def check_datapack(cls, pack: Any, source: str) -> None:
+        """Raise a ConfigError when ``pack``'s randomization or curriculum cannot be used by this backend
+        (the base accepts what the generic datapack schema accepted)."""
+
+    @classmethod
+    def check_task_entry(cls, spec: Any) -> None:
+        """Raise a ConfigError naming the task file and key when ``spec``'s (a catalog ``TaskSpec``)
+        ``backends.<name>`` entry has keys or values this backend cannot use. The catalog calls it
+        when a user task file is loaded; the base accepts any mapping."""
+
+    @classmethod
+    def sweep_resources(cls) -> dict[str, float]:
+        """The Ray resources one sweep cell of this backend needs (``num_cpus``, ``num_gpus``)."""
+        return {"num_cpus": 1.0, "num_gpus": 0.0}
+
+    def device_description(self) -> str | None:
+        """The device training runs on, in words (None: the CPU, nothing to announce)."""
+        return None
+
+    # --- run directories -------------------------------------------------------------------------
+    def run_dir(self, output_dir: str | Path | None, task_id: str, seed: int) -> Path:
+        """``output_dir`` (the run directory), else a new one under :attr:`runs_dir`."""
+        return Path(output_dir) if output_dir is not None else new_run_dir(self.runs_dir, task_id, seed)
+
+    @classmethod
+    def is_complete_run(cls, run_dir: str | Path) -> bool:
+        """``run_dir`` holds this backend's final policy and its ``run_config.json``."""
+        return (Path(run_dir) / cls.final_policy_file).is_file() and (Path(run_dir) / RUN_CONFIG_FILE).is_file()
+
+    @classmethod
+    def checkpoints(cls, run_dir: str | Path) -> list[Path]:
+        """The run's checkpoint files, oldest first (empty without checkpoints)."""
+        folder = Path(run_dir) / "checkpoints"
+        if cls.checkpoint_glob is None or not folder.is_dir():
+            return []
+        return sorted(folder.glob(cls.checkpoint_glob), key=lambda p: p.stat().st_mtime)
+
+    def check_policy(self, policy_id: str) -> None:
+        """Raise a ConfigError when ``policy_id`` cannot be evaluated by this backend, before any run is
+        recorded (the base checks nothing; a backend with ``imported_policies`` checks files and names)."""
+
+    @staticmethod
+    def evaluation_seeds(seed: int, num_episodes: int) -> list[int]:
+        """The rule every backend follows: episode ``i`` of an evaluation seeded ``seed`` is ``seed + i``."""
+        return [int(seed) + i for i in range(int(num_episodes))]
+
+    # --- the three operations ----------------------------------------------------------------------
+    def train_policy(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str],
+                     num_envs: int, max_steps: int, seed: int, **kwargs: Any) -> MotorTrainingResult:
+        raise NotImplementedError
+
+    def evaluate_policy(self, policy_id: str, task_id: str, objective: EconomicObjectiveSpec, num_episodes: int,
+                        seed: int, **kwargs: Any) -> MotorEvalResult:
+        raise NotImplementedError
+
+    def deploy_policy_handle(self, policy_id: str) -> PolicyHandle:
+        raise NotImplementedError

@@ -18,8 +18,8 @@ with each term divided by a reference (``overlay_normalization``):
 - ``"none"``: the objective as given, raw terms, exactly ``sum_k scale_k * term_k``.
 
 The whole reward is multiplied by ``SACSettings.reward_scale`` for SAC's sake (it does not
-change the optimum). ``policy_id`` is the saved ``policy.zip``; beside it
-``run_config.json`` records everything needed to reproduce the run.
+change the optimum). ``policy_id`` is the run directory (``output_dir``): it holds the
+saved ``policy.zip`` and ``run_config.json``, everything needed to reproduce the run.
 """
 
 from __future__ import annotations
@@ -34,23 +34,29 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from econmotor.config.econ_params import EconParams
-from econmotor.config.loading import path_name
+from econmotor.config.econ_params import ECON_PRESETS, EconParams, econ_params_with
+from econmotor.config.loading import as_str, check_keys, require_mapping
 from econmotor.config.task_economics import TaskEconomics
 from econmotor.envs.dishwashing import DishwashingEnv
 from econmotor.envs.dishwashing_randomization import EconRandomization, parse_econ_randomization
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import (
+    RUN_CONFIG_FILE,
+    TRAINING_EVAL_SEED_OFFSET,
+    BackendCapabilities,
+    MotorBackendBase,
     MotorEvalResult,
     MotorTrainingResult,
     ProgressFn,
+    RunSize,
     StepAlias,
     no_progress,
     summarize_episodes,
+    write_run_config,
 )
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
-from econmotor.tasks.catalog import TaskSpec, get_task
+from econmotor.tasks.catalog import TaskSpec
 
 BACKEND_NAME = "dishwashing"
 OVERLAY_NORMALIZATIONS = ("human_baseline", "none")
@@ -89,6 +95,7 @@ class SACPolicyHandle(StepAlias):
 
     def __init__(self, model: Any, policy_id: str) -> None:
         self.model, self.policy_id = model, policy_id
+        self.obs_dim = int(np.prod(model.observation_space.shape))
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         action, _ = self.model.predict(np.asarray(obs, dtype=np.float32), deterministic=True)
@@ -125,7 +132,7 @@ def training_objective(objective: EconomicObjectiveSpec, normalization: str) -> 
     return replace(objective, energy_weight=0.0, extra_weights=extras)
 
 
-class DishwashingBackend:
+class DishwashingBackend(MotorBackendBase):
     """Train, evaluate and deploy SAC policies on the dishwashing workcell.
 
     Args:
@@ -133,46 +140,67 @@ class DishwashingBackend:
         overlay_normalization: ``"human_baseline"`` or ``"none"``; a task's catalog entry
             may set its own (``backends: {dishwashing: {overlay_normalization: none}}``).
         known_datapacks: datapacks that ``datapack_ids`` may name without passing configs.
-        catalog_files: extra task catalog YAML files.
+        task_files: extra task catalog YAML files.
+        runs_dir: where new run directories go when ``output_dir`` is not given.
         torch_threads: torch CPU threads (1 is fastest for these small networks).
-        default_output_dir: where runs go when ``output_dir`` is not given.
     """
 
     name = BACKEND_NAME
+    capabilities = BackendCapabilities()
+    defaults = RunSize(num_envs=1, max_steps=5_000)
+    smoke_run = RunSize(num_envs=1, max_steps=300, task_id="dishwashing")
+    max_num_envs = 256  # in-process DummyVecEnv
+    final_policy_file = "policy.zip"
 
     def __init__(
         self,
+        *,
+        task_files: Sequence[str | Path] = (),
+        runs_dir: str | Path = "runs",
         sac: SACSettings | None = None,
         overlay_normalization: str = "human_baseline",
         known_datapacks: Sequence[DatapackConfig] = (),
-        catalog_files: Sequence[str | Path] = (),
         torch_threads: int = 1,
-        default_output_dir: str | Path = "runs/dishwashing",
     ) -> None:
         if overlay_normalization not in OVERLAY_NORMALIZATIONS:
             raise ConfigError("<dishwashing backend>", "overlay_normalization",
                               f"unknown {overlay_normalization!r}", OVERLAY_NORMALIZATIONS)
+        super().__init__(task_files=task_files, runs_dir=runs_dir)
         self.sac = sac or SACSettings()
         self.overlay_normalization = overlay_normalization
         self.datapacks = DatapackProvider(known_datapacks)
-        self.catalog_files = tuple(catalog_files)
         self.torch_threads = int(torch_threads)
-        self.default_output_dir = Path(default_output_dir)
+
+    @classmethod
+    def check_datapack(cls, pack: DatapackConfig, source: str) -> None:
+        """The EconParams randomization and curriculum a dishwashing run would apply."""
+        parse_econ_randomization(pack.domain_randomization, pack.curriculum, source)
+
+    @classmethod
+    def check_task_entry(cls, spec: TaskSpec) -> None:
+        """The task entry's keys, EconParams preset and overrides, and overlay normalization."""
+        cls._entry_params(spec)
 
     # ----------------------------------------------------------- task set-up
-    def _task(self, task_id: str) -> tuple[TaskSpec, EconParams, str]:
-        spec = get_task(task_id, self.catalog_files)
+    @staticmethod
+    def _entry_params(spec: TaskSpec) -> tuple[EconParams, str | None]:
+        """(EconParams, overlay normalization or None) of ``spec``'s entry, validated."""
         entry = spec.backend_entry(BACKEND_NAME)
-        source, key = spec.source, f"tasks.{task_id}.backends.{BACKEND_NAME}"
-        for k in entry:
-            if k not in _TASK_ENTRY_KEYS:
-                raise ConfigError(source, f"{key}.{k}", "unknown key", _TASK_ENTRY_KEYS)
-        preset = entry.get("econ_preset", "toy")
-        params = EconParams.preset(preset).with_overrides(dict(entry.get("econ_overrides") or {}), source)
-        norm = entry.get("overlay_normalization", self.overlay_normalization)
-        if norm not in OVERLAY_NORMALIZATIONS:
-            raise ConfigError(source, f"{key}.overlay_normalization", f"unknown {norm!r}", OVERLAY_NORMALIZATIONS)
-        return spec, params, norm
+        source, key = spec.source, f"tasks.{spec.task_id}.backends.{BACKEND_NAME}"
+        check_keys(entry, _TASK_ENTRY_KEYS, source, key)
+        preset = as_str(entry.get("econ_preset", "toy"), source, f"{key}.econ_preset", ECON_PRESETS)
+        overrides = require_mapping(entry["econ_overrides"], source, f"{key}.econ_overrides") \
+            if entry.get("econ_overrides") else {}
+        params = econ_params_with(EconParams.preset(preset), overrides, source, f"{key}.econ_overrides")
+        norm = entry.get("overlay_normalization")
+        if norm is not None:
+            as_str(norm, source, f"{key}.overlay_normalization", OVERLAY_NORMALIZATIONS)
+        return params, norm
+
+    def _task(self, task_id: str) -> tuple[TaskSpec, EconParams, str]:
+        spec = self.catalog.get(task_id)
+        params, norm = self._entry_params(spec)
+        return spec, params, norm or self.overlay_normalization
 
     def _randomization(self, task_id: str, ids: Sequence[str], configs: Sequence[Any] | None) -> EconRandomization:
         bundle = self.datapacks.resolve(task_id, list(ids), list(configs or ()))
@@ -214,7 +242,7 @@ class DishwashingBackend:
             num_envs: environments stepped together (SB3 ``DummyVecEnv``, in-process).
             max_steps: total environment steps.
             seed: seeds SAC, torch and the environments (env ``i`` gets ``seed + i``).
-            output_dir: runs go to ``output_dir/<run name>/``.
+            output_dir: the run directory (default: a new one under ``runs_dir``); it must not hold a run.
             eval_episodes: deterministic episodes evaluated after training.
             progress: ``progress(label, done, total)``.
         """
@@ -228,6 +256,9 @@ class DishwashingBackend:
 
         if num_envs < 1 or max_steps < 1:
             raise ConfigError("<train>", "num_envs" if num_envs < 1 else "max_steps", "must be >= 1")
+        run_dir = self.run_dir(output_dir, task_id, seed)
+        if (run_dir / RUN_CONFIG_FILE).exists():
+            raise ConfigError(str(run_dir), None, "already holds a run; choose a new output directory")
         spec, params, norm = self._task(task_id)
         randomization = self._randomization(task_id, datapack_ids, datapack_configs)
         make = self._env_factory(spec, params, norm, objective, randomization)
@@ -260,10 +291,8 @@ class DishwashingBackend:
         train_s = time.perf_counter() - started
         vec.close()
 
-        run_dir = _new_run_dir(Path(output_dir) if output_dir else self.default_output_dir,
-                               f"{path_name(task_id, '<task>', 'task_id')}__"
-                               f"{path_name(objective.name, '<objective>', 'name')}__seed{seed}")
-        policy_path = run_dir / "policy.zip"
+        run_dir.mkdir(parents=True, exist_ok=True)
+        policy_path = run_dir / self.final_policy_file
         model.save(policy_path)
         config = {
             "backend": BACKEND_NAME, "task_id": task_id, "objective": objective.to_dict(),
@@ -277,14 +306,14 @@ class DishwashingBackend:
             "overlay_keys_ignored": list(make().ignored_overlay_keys),
             "randomization": randomization.to_dict(), "train_seconds": train_s,
         }
-        _write_json(run_dir / "run_config.json", config)
+        write_run_config(run_dir, config)
         _write_json(run_dir / "training_curve.json", curve.curve)
         raw, econ, episodes = self._evaluate(model, spec, params, norm, objective, randomization,
-                                             eval_episodes, seed + 1_000_003, progress)
+                                             eval_episodes, seed + TRAINING_EVAL_SEED_OFFSET, progress)
         return MotorTrainingResult(
-            policy_id=str(policy_path), task_id=task_id, backend=BACKEND_NAME, raw_metrics=raw,
+            policy_id=str(run_dir), task_id=task_id, backend=BACKEND_NAME, raw_metrics=raw,
             econ_metrics=econ, episodes=episodes, training_curve=curve.curve, config=config,
-            artifacts={"policy": str(policy_path), "run_config": str(run_dir / "run_config.json"),
+            artifacts={"policy": str(policy_path), "run_config": str(run_dir / RUN_CONFIG_FILE),
                        "training_curve": str(run_dir / "training_curve.json")},
         )
 
@@ -338,32 +367,22 @@ class DishwashingBackend:
                                econ_metrics=econ, episodes=episodes, config=config)
 
     def deploy_policy_handle(self, policy_id: str) -> SACPolicyHandle:
-        """Load a saved ``policy.zip``; a missing or unreadable file is a BackendError."""
+        """Load the run directory's ``policy.zip`` (or a ``policy.zip`` path); a missing or unreadable
+        file is a BackendError."""
         import torch
         from stable_baselines3 import SAC
 
         path = Path(policy_id)
+        path = path / self.final_policy_file if path.is_dir() else path
         if not path.is_file():
-            raise BackendError(f"no saved dishwashing policy at '{policy_id}': pass the policy_id "
-                               "(path of policy.zip) that train_policy returned")
+            raise BackendError(f"no saved dishwashing policy at '{policy_id}': pass the policy_id (the run "
+                               f"directory holding {self.final_policy_file}) that train_policy returned")
         torch.set_num_threads(self.torch_threads)
         try:
             model = SAC.load(path, device="cpu")
         except Exception as exc:  # SB3 raises many types for a bad zip
             raise BackendError(f"cannot load SAC policy '{policy_id}': {exc}") from exc
         return SACPolicyHandle(model, str(path))
-
-
-def _new_run_dir(root: Path, name: str) -> Path:
-    stamp = time.strftime("%Y%m%d-%H%M%S")
-    for n in range(1000):
-        path = root / (f"{name}__{stamp}" + (f"_{n}" if n else ""))
-        try:
-            path.mkdir(parents=True, exist_ok=False)
-            return path
-        except FileExistsError:
-            continue
-    raise BackendError(f"cannot create a run directory under '{root}'")
 
 
 def _write_json(path: Path, data: Any) -> None:

@@ -12,28 +12,31 @@ CPU runs a batch of envs about as fast per env as a few, and compiles slower wit
 result config records the request, the value used and why (``num_envs_note``).
 
 XLA compiles each jitted function once per process; a persistent compilation cache
-(``compilation_cache_dir``, default ``$ECONMOTOR_JAX_CACHE_DIR`` or ``~/.cache/econmotor/jax``)
-lets later processes skip most of it.
+(``compilation_cache_dir``, default ``~/.cache/econmotor/jax``; the CLI passes
+``$ECONMOTOR_JAX_CACHE_DIR`` when set, see :attr:`MjxBackend.environment_options`) lets later
+processes skip most of it.
 """
 
 from __future__ import annotations
 
 import json
 import math
-import os
-import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import jax
 
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import (
+    TRAINING_EVAL_SEED_OFFSET,
+    BackendCapabilities,
+    MotorBackendBase,
     MotorEvalResult,
     MotorTrainingResult,
     ProgressFn,
+    RunSize,
     evaluation_result,
     no_progress,
     summarize_episodes,
@@ -49,8 +52,8 @@ from econmotor.motor_backend.mjx.training import (
     load_learner,
     read_run_config,
 )
+from econmotor.motor_backend.selection import DEFAULT_SELECT_EPISODES, DEFAULT_SELECT_EVERY, selection_for
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
-from econmotor.tasks import load_catalog
 
 ONNX_FILE = "policy.onnx"
 ONNX_METADATA_KEYS = ("task_id", "overlay", "overlay_references", "objective", "datapack_ids", "economics",
@@ -73,30 +76,38 @@ def enable_compilation_cache(path: str | Path | None) -> None:
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
 
 
-class MjxBackend:
+class MjxBackend(MotorBackendBase):
     """Train, evaluate and deploy JAX PPO policies on the MJX couriers.
 
     Args:
         task_files: extra task catalog YAML files (besides the shipped ones).
         datapack_provider: registered datapacks that ids may refer to.
         keep_task_reward: add the overlay to the task's reward (True) or replace it (False).
-        runs_dir: where runs go when ``output_dir`` is not given.
+        runs_dir: where new run directories go when ``output_dir`` is not given.
         eval_batch: episodes evaluated at once (a fixed batch: one compiled evaluation).
         compilation_cache_dir: JAX's persistent compilation cache ("" or None: off).
     """
 
     name = "mjx"
+    capabilities = BackendCapabilities(resume=True, algorithms=("ppo",))
+    defaults = RunSize(num_envs=0, max_steps=10_000_000)
+    # the integration tests' size: 8 envs x unroll 20, so XLA's cache serves every CPU test
+    smoke_run = RunSize(num_envs=8, max_steps=320, task_id="hopper_courier")
+    max_num_envs = 1 << 20  # one batch on one accelerator; a CPU caps far lower (num_envs_note)
+    final_policy_file = "policy.npz"
+    evaluation_driven = True  # held-out evaluations choose the kept checkpoint (selection.py; --until-deployable)
+    checkpoint_glob = "ckpt_*_steps.npz"
+    environment_options: ClassVar[Mapping[str, str]] = {CACHE_ENV: "compilation_cache_dir"}
 
-    def __init__(self, task_files: Sequence[str | Path] = (), datapack_provider: DatapackProvider | None = None,
-                 keep_task_reward: bool = True, runs_dir: str | Path = "runs/mjx", eval_batch: int = 10,
-                 compilation_cache_dir: str | Path | None = os.environ.get(
-                     CACHE_ENV, str(Path.home() / ".cache" / "econmotor" / "jax"))) -> None:
+    def __init__(self, *, task_files: Sequence[str | Path] = (), runs_dir: str | Path = "runs",
+                 datapack_provider: DatapackProvider | None = None, keep_task_reward: bool = True,
+                 eval_batch: int = 10,
+                 compilation_cache_dir: str | Path | None = Path.home() / ".cache" / "econmotor" / "jax") -> None:
         if eval_batch < 1:
             raise ConfigError("<mjx backend>", "eval_batch", "must be >= 1")
-        self.catalog = load_catalog(task_files)
+        super().__init__(task_files=task_files, runs_dir=runs_dir)
         self.provider = datapack_provider or DatapackProvider()
         self.keep_task_reward = keep_task_reward
-        self.runs_dir = Path(runs_dir)
         self.eval_batch = int(eval_batch)
         enable_compilation_cache(compilation_cache_dir or None)
         self._envs: dict[str, Any] = {}
@@ -105,6 +116,28 @@ class MjxBackend:
     @staticmethod
     def device_description() -> str:
         return device_description()
+
+    def num_envs_note(self, task_id: str, num_envs: int) -> str | None:
+        """Said when this device runs fewer envs than asked (a CPU caps at the task's ``cpu_num_envs_cap``)."""
+        used, note = self.resolve_num_envs(self.settings(task_id), int(num_envs))
+        return None if used == num_envs or num_envs <= 0 else f"mjx: {note}"
+
+    @classmethod
+    def sweep_resources(cls) -> dict[str, float]:
+        """One CPU per cell, and the GPU when JAX trains on one."""
+        return {"num_cpus": 1.0, "num_gpus": 1.0 if jax.default_backend() == "gpu" else 0.0}
+
+    @classmethod
+    def check_datapack(cls, pack: DatapackConfig, source: str) -> None:
+        """The domain randomization the batched couriers honour (no curriculum)."""
+        from econmotor.motor_backend.mjx.env import parse_mjx_randomization
+
+        parse_mjx_randomization([pack])
+
+    @classmethod
+    def check_task_entry(cls, spec: Any) -> None:
+        """The ``backends.mjx`` entry (and with ``inherit: mujoco`` the mujoco entry) as a run reads it."""
+        parse_mjx_settings(spec)
 
     # --- configuration -------------------------------------------------------------------
     def settings(self, task_id: str) -> MjxTaskSettings:
@@ -173,11 +206,15 @@ class MjxBackend:
                      output_dir: str | Path | None = None, eval_episodes: int = 5,
                      progress: ProgressFn = no_progress, resume: bool = False, algorithm: str | None = None,
                      hyperparameters: dict[str, Any] | None = None,
-                     checkpoint_every_steps: int | None = None) -> MotorTrainingResult:
+                     checkpoint_every_steps: int | None = None, select_every_steps: int = DEFAULT_SELECT_EVERY,
+                     select_episodes: int = DEFAULT_SELECT_EPISODES,
+                     until_deployable: bool = False) -> MotorTrainingResult:
         """Train with JAX PPO, export ONNX, evaluate ``eval_episodes`` deterministic episodes.
 
         ``num_envs <= 0`` uses the catalog's default (capped on a CPU); ``resume=True`` continues
         the run in ``output_dir`` from its newest checkpoint up to ``max_steps`` total env steps.
+        Evaluation-driven training and ``until_deployable`` as the mujoco backend's
+        (``motor_backend/selection.py``; held-out episodes ``eval_batch`` at a time).
         """
         if algorithm not in (None, "ppo"):
             raise ConfigError("<train>", "algorithm", f"the mjx backend trains PPO only, not '{algorithm}'", ["ppo"])
@@ -188,16 +225,18 @@ class MjxBackend:
         cfg = self.ppo_config(settings, hyperparameters)
         used_envs, note = self.resolve_num_envs(settings, int(num_envs))
         cfg, note = self.fit_minibatches(cfg, used_envs, note, hyperparameters)
-        if output_dir is None:
-            if resume:
-                raise ConfigError("<train>", "output_dir", "resume needs the run directory to continue")
-            output_dir = self.runs_dir / f"{task_id}_{time.strftime('%Y%m%d-%H%M%S')}_s{seed}"
+        if output_dir is None and resume:
+            raise ConfigError("<train>", "output_dir", "resume needs the run directory to continue")
         run = MjxTrainingRun(
-            run_dir=Path(output_dir), env=env, described=described, cfg=cfg,
+            run_dir=self.run_dir(output_dir, task_id, seed), env=env, described=described, cfg=cfg,
             requested_hyperparameters=hyperparameters, num_envs=used_envs, max_steps=int(max_steps), seed=int(seed),
             checkpoint_every_steps=int(checkpoint_every_steps or settings.checkpoint_every_steps),
             extra_config={"device": device_description(), "num_envs_requested": int(num_envs),
-                          "num_envs_note": note})
+                          "num_envs_note": note},
+            selection=selection_for(self.catalog.get(task_id), objective, select_every_steps, select_episodes,
+                                    until_deployable, seed))
+        run.held_out = lambda learner, n, first_seed, stop: evaluate_episodes(
+            self._evaluator(env, run.cfg), self.eval_batch, env, learner, n, first_seed, stop=stop)
         learner, curve, timing = run.train(resume=resume, progress=progress)
         config = {**run.config, "timing": timing}
         artifacts = {"policy": str(run.run_dir / "policy.npz"), "tensorboard": str(run.run_dir / "tb"),
@@ -206,7 +245,7 @@ class MjxBackend:
         raw, econ, episodes = {}, {}, []
         if eval_episodes > 0:
             rows = evaluate_episodes(self._evaluator(env, run.cfg), self.eval_batch, env, learner, eval_episodes,
-                                     seed + 10_000, progress)
+                                     seed + TRAINING_EVAL_SEED_OFFSET, progress)
             raw, econ, episodes = summarize_episodes(rows, self.catalog.get(task_id).economics)
         return MotorTrainingResult(policy_id=str(run.run_dir), task_id=task_id, backend=self.name,
                                    raw_metrics=raw, econ_metrics=econ, episodes=episodes,

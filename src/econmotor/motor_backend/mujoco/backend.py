@@ -13,7 +13,6 @@ datapacks add domain randomization, a curriculum and motion clips (``mujoco/rand
 
 from __future__ import annotations
 
-import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -24,9 +23,13 @@ import torch
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import (
     RUN_CONFIG_FILE,
+    TRAINING_EVAL_SEED_OFFSET,
+    BackendCapabilities,
+    MotorBackendBase,
     MotorEvalResult,
     MotorTrainingResult,
     ProgressFn,
+    RunSize,
     evaluation_result,
     no_progress,
     read_run_config,
@@ -42,14 +45,14 @@ from econmotor.motor_backend.mujoco.randomization import parse_randomization
 from econmotor.motor_backend.mujoco.run import TrainingRun
 from econmotor.motor_backend.mujoco.settings import MujocoTaskSettings, parse_mujoco_settings
 from econmotor.motor_backend.mujoco.training import obs_normalizer
+from econmotor.motor_backend.selection import DEFAULT_SELECT_EPISODES, DEFAULT_SELECT_EVERY, selection_for
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
-from econmotor.tasks import load_catalog
 from econmotor.tasks.catalog import TaskSpec
 
 ONNX_FILE = "policy.onnx"
 
 
-class MujocoBackend:
+class MujocoBackend(MotorBackendBase):
     """Train, evaluate and deploy SB3 policies on Gymnasium MuJoCo tasks.
 
     Args:
@@ -57,23 +60,31 @@ class MujocoBackend:
         datapack_provider: registered datapacks that ids may refer to.
         vec_env: ``"dummy"`` (in-process, the default: fastest on 2 cores) or ``"subproc"``.
         keep_task_reward: add the overlay to the task's reward (True) or replace it (False).
-        runs_dir: where runs go when ``output_dir`` is not given.
+        runs_dir: where new run directories go when ``output_dir`` is not given.
         torch_threads: torch intra-op threads while training / evaluating (1: small MLPs run
             fastest single-threaded, and parallel jobs do not oversubscribe the cores).
     """
 
     name = "mujoco"
+    capabilities = BackendCapabilities(resume=True, algorithms=("ppo", "sac"), vec_env_kinds=("dummy", "subproc"),
+                                       records_clips=True)
+    defaults = RunSize(num_envs=0, max_steps=100_000)
+    smoke_run = RunSize(num_envs=1, max_steps=64, task_id="hopper_courier")
+    max_num_envs = 256  # SB3 vector envs: one process (subproc) or one env object (dummy) each
+    final_policy_file = "policy.zip"
+    evaluation_driven = True  # held-out evaluations choose the kept checkpoint (selection.py; --until-deployable)
+    checkpoint_glob = "*.zip"
 
-    def __init__(self, task_files: Sequence[str | Path] = (), datapack_provider: DatapackProvider | None = None,
-                 vec_env: str = "dummy", keep_task_reward: bool = True, runs_dir: str | Path = "runs/mujoco",
-                 torch_threads: int = 1) -> None:
-        if vec_env not in ("dummy", "subproc"):
-            raise ConfigError("<mujoco backend>", "vec_env", f"unknown vector env '{vec_env}'", ["dummy", "subproc"])
-        self.catalog = load_catalog(task_files)
+    def __init__(self, *, task_files: Sequence[str | Path] = (), runs_dir: str | Path = "runs",
+                 datapack_provider: DatapackProvider | None = None, vec_env: str = "dummy",
+                 keep_task_reward: bool = True, torch_threads: int = 1) -> None:
+        if vec_env not in self.capabilities.vec_env_kinds:
+            raise ConfigError("<mujoco backend>", "vec_env", f"unknown vector env '{vec_env}'",
+                              self.capabilities.vec_env_kinds)
+        super().__init__(task_files=task_files, runs_dir=runs_dir)
         self.provider = datapack_provider or DatapackProvider()
         self.vec_env = vec_env
         self.keep_task_reward = keep_task_reward
-        self.runs_dir = Path(runs_dir)
         self.torch_threads = max(1, int(torch_threads))
 
     # --- configuration -------------------------------------------------------------------
@@ -120,25 +131,31 @@ class MujocoBackend:
                      output_dir: str | Path | None = None, eval_episodes: int = 5,
                      progress: ProgressFn = no_progress, resume: bool = False, algorithm: str | None = None,
                      hyperparameters: dict[str, Any] | None = None,
-                     checkpoint_every_steps: int | None = None) -> MotorTrainingResult:
+                     checkpoint_every_steps: int | None = None, select_every_steps: int = DEFAULT_SELECT_EVERY,
+                     select_episodes: int = DEFAULT_SELECT_EPISODES,
+                     until_deployable: bool = False) -> MotorTrainingResult:
         """Train a policy and evaluate it on ``eval_episodes`` deterministic episodes.
 
         ``num_envs <= 0`` uses the catalog's default; ``resume=True`` continues the run in
         ``output_dir`` from its newest checkpoint up to ``max_steps`` total environment steps.
+        Evaluation-driven training (``motor_backend/selection.py``): every ``select_every_steps``
+        env steps and at the end, ``select_episodes`` held-out episodes judge the policy by the
+        task's acceptance rule; the best is kept (``0`` turns it off: the last weights are kept).
+        ``until_deployable`` stops at the first held-out evaluation that passes.
         """
         torch.set_num_threads(self.torch_threads)
         recipe, described = self.recipe(task_id, objective, datapack_ids, datapack_configs)
         settings = recipe.settings
-        if output_dir is None:
-            if resume:
-                raise ConfigError("<train>", "output_dir", "resume needs the run directory to continue")
-            output_dir = self.runs_dir / f"{task_id}_{time.strftime('%Y%m%d-%H%M%S')}_s{seed}"
+        if output_dir is None and resume:
+            raise ConfigError("<train>", "output_dir", "resume needs the run directory to continue")
         run = TrainingRun(
-            run_dir=Path(output_dir), recipe=recipe, described=described,
+            run_dir=self.run_dir(output_dir, task_id, seed), recipe=recipe, described=described,
             algorithm=algorithm or settings.algorithm, hyperparameters=hyperparameters,
             num_envs=num_envs if num_envs > 0 else settings.num_envs, max_steps=int(max_steps), seed=int(seed),
             vec_env=self.vec_env, checkpoint_every_steps=checkpoint_every_steps or settings.checkpoint_every_steps,
-            requested_algorithm=algorithm,
+            requested_algorithm=algorithm, eval_recipe=self._eval_recipe(recipe),
+            selection=selection_for(self.catalog.get(task_id), objective, select_every_steps, select_episodes,
+                                    until_deployable, seed),
         )
         model, curve = run.train(resume=resume, progress=progress)
         artifacts = {"policy": str(run.run_dir / "policy.zip"), "tensorboard": str(run.run_dir / "tb"),
@@ -148,8 +165,9 @@ class MujocoBackend:
                                             self._onnx_metadata(run.config)))
         raw, econ, episodes = {}, {}, []
         if eval_episodes > 0:
-            env = make_env(self._eval_recipe(recipe), seed=seed + 10_000)
-            raw_eps = rollout_episodes(env, torch_act_fn(model, normalizer), eval_episodes, seed + 10_000, progress)
+            eval_seed = seed + TRAINING_EVAL_SEED_OFFSET
+            env = make_env(self._eval_recipe(recipe), seed=eval_seed)
+            raw_eps = rollout_episodes(env, torch_act_fn(model, normalizer), eval_episodes, eval_seed, progress)
             env.close()
             raw, econ, episodes = summarize_episodes(raw_eps, self.catalog.get(task_id).economics)
         return MotorTrainingResult(policy_id=str(run.run_dir), task_id=task_id, backend=self.name,
@@ -185,6 +203,17 @@ class MujocoBackend:
             model, _ = load_policy(policy_id, config["algorithm"])
             export_onnx(model, obs_normalizer(policy_id), path, self._onnx_metadata(config))
         return OnnxPolicyHandle(path)
+
+    # --- declarations ----------------------------------------------------------------------------
+    @classmethod
+    def check_datapack(cls, pack: DatapackConfig, source: str) -> None:
+        """The randomization and curriculum a mujoco training run would apply."""
+        parse_randomization(pack.domain_randomization, pack.curriculum, source)
+
+    @classmethod
+    def check_task_entry(cls, spec: TaskSpec) -> None:
+        """The ``backends.mujoco`` entry as a training run reads it (``parse_mujoco_settings``)."""
+        parse_mujoco_settings(spec)
 
     # --- extras ------------------------------------------------------------------------------
     def record_clip(self, policy_id: str, path: str | Path, num_steps: int = 500, seed: int = 0) -> Path:

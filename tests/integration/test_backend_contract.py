@@ -1,0 +1,93 @@
+"""The motor-backend contract, held for every backend in the registry.
+
+Parametrised over ``known_backends()``: a backend added to the registry is covered here without
+editing this file. Each one trains its declared ``smoke_run`` into ``output_dir`` (which must be
+the run directory, holding ``run_config.json``), is evaluated by the ``policy_id`` it returned,
+deploys a handle answering ``act`` and ``step``, and declares its capabilities, defaults and
+limits, which the CLI reads instead of knowing backends by name.
+"""
+
+from __future__ import annotations
+
+import inspect
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from econmotor.errors import ConfigError
+from econmotor.motor_backend.base import (
+    RUN_CONFIG_FILE,
+    BackendCapabilities,
+    MotorBackendBase,
+    PolicyHandle,
+    RunSize,
+)
+from econmotor.motor_backend.factory import backend_class, environment_options, known_backends, make_motor_backend
+from econmotor.objectives import EconomicObjectiveSpec
+from econmotor.tasks import load_catalog
+
+BACKENDS = known_backends()
+
+
+def smoke_task(cls: type[MotorBackendBase]) -> str:
+    """The backend's declared smoke task, else the first catalog task with an entry for it."""
+    catalog = load_catalog()
+    if cls.smoke_run.task_id is not None:
+        return cls.smoke_run.task_id
+    return catalog.ids(cls.name)[0]
+
+
+@pytest.mark.parametrize("name", BACKENDS)
+def test_every_backend_declares_the_contract(name: str) -> None:
+    cls = backend_class(name)
+    assert issubclass(cls, MotorBackendBase) and cls.name == name
+    assert isinstance(cls.capabilities, BackendCapabilities)
+    assert isinstance(cls.defaults, RunSize) and cls.defaults.max_steps >= 1 and cls.defaults.num_envs >= 0
+    assert isinstance(cls.smoke_run, RunSize) and cls.smoke_run.max_steps <= cls.defaults.max_steps
+    assert name in load_catalog().get(smoke_task(cls)).backends
+    assert cls.final_policy_file and cls.max_num_envs >= 1
+    cls.check_num_envs(cls.max_num_envs)
+    with pytest.raises(ConfigError, match=f"more than the '{name}' backend can run.*{cls.max_num_envs:,}"):
+        cls.check_num_envs(cls.max_num_envs + 1, "--num-envs")
+    parameters = inspect.signature(cls.__init__).parameters
+    assert {"task_files", "runs_dir"} <= set(parameters)  # one constructor convention
+    for variable, keyword in cls.environment_options.items():  # the edge passes these; each is a keyword
+        assert variable.startswith("ECONMOTOR_") and keyword in parameters
+    if cls.capabilities.resume:
+        assert cls.checkpoint_glob, "a backend that resumes declares its checkpoint files"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", BACKENDS)
+def test_train_into_output_dir_evaluate_by_policy_id_and_deploy(name: str, tmp_path: Path) -> None:
+    cls = backend_class(name)
+    backend = make_motor_backend(name, runs_dir=tmp_path / "runs", **environment_options(name, os.environ))
+    task_id, size = smoke_task(cls), cls.smoke_run
+    objective = EconomicObjectiveSpec(name="contract", mpl_weight=1.0, error_weight=1.0)
+    run_dir = tmp_path / "run"
+    trained = backend.train_policy(task_id, objective, [], size.num_envs, size.max_steps, 3, output_dir=run_dir,
+                                   eval_episodes=1)
+    assert Path(trained.policy_id) == run_dir and trained.backend == name
+    config = json.loads((run_dir / RUN_CONFIG_FILE).read_text())
+    assert config["task_id"] == task_id and config.get("backend", name) == name
+    assert cls.is_complete_run(run_dir) and not (tmp_path / "runs").exists()  # nothing nested elsewhere
+
+    evaluated = backend.evaluate_policy(trained.policy_id, task_id, objective, 1, 11)
+    assert evaluated.raw_metrics["num_episodes"] == 1 and len(evaluated.episodes) == 1
+    assert np.isfinite(evaluated.econ_metrics["mpl_units_per_hour"])
+
+    handle = backend.deploy_policy_handle(trained.policy_id)
+    assert isinstance(handle, PolicyHandle)
+    obs = np.zeros(handle.obs_dim, dtype=np.float32)
+    assert np.array_equal(handle.step(obs), handle.act(obs)) and np.all(np.isfinite(handle.act(obs)))
+
+
+def test_default_run_directories_are_new_and_under_runs_dir(tmp_path: Path) -> None:
+    backend = make_motor_backend(BACKENDS[0], runs_dir=tmp_path)
+    first = backend.run_dir(None, "some_task", 7)
+    assert first.parent == tmp_path and first.name.startswith("some_task-") and first.name.endswith(f"-{os.getpid()}")
+    assert backend.run_dir(tmp_path / "mine", "some_task", 7) == tmp_path / "mine"
+    assert MotorBackendBase.evaluation_seeds(5, 3) == [5, 6, 7]
