@@ -29,8 +29,8 @@ from econmotor.report.render import fmt
 from econmotor.store.registry import Registry
 from econmotor.tasks import load_catalog
 
-COLUMNS = ("policy", "price USD/unit", "90% interval", "units/h", "Wh/unit", "fall-rate bound", "speed m/s",
-           "verdict")
+COLUMNS = ("policy", "price USD/unit", "90% interval", "units/h", "Wh/unit", "falls", "fall-rate bound",
+           "speed m/s", "mech / elec W", "verdict")
 
 
 def comparison_row(policy_id: str, doc: dict[str, Any]) -> dict[str, Any]:
@@ -45,6 +45,8 @@ def comparison_row(policy_id: str, doc: dict[str, Any]) -> dict[str, Any]:
                 "energy_wh_per_unit"), "fall_rate_bound": (intervals.get("error_rate") or {}).get("high"),
             "commanded_speed_m_per_s": config.get("commanded_speed_m_per_s"),
             "achieved_speed_m_per_s": config.get("achieved_speed_m_per_s"),
+            "falls": doc["metrics"]["raw"].get("errors"), "units_attempted": doc["metrics"]["raw"].get("units_attempted"),
+            "mean_mech_power_w": config.get("mean_mech_power_w"), "mean_power_w": config.get("mean_power_w"),
             "verdict": doc["verdict"]["label"], "deployable": doc["verdict"]["deployable"],
             "report_id": doc["registry"]["report_id"]}
 
@@ -57,7 +59,10 @@ def rank(rows: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], str]:
 
     ranked = sorted(rows, key=key)
     best, second = ranked[0], ranked[1]
-    if best["price_high"] is not None and second["price_low"] is not None and best["price_high"] < second["price_low"]:
+    if all(r["price_low"] is not None and r["price_low"] == r["price_high"] for r in (best, second)):
+        clear = ("the intervals have no width: every episode repeated the first (nominal conditions), so they "
+                 "cannot tell whether the difference would hold; compare under a datapack that varies the conditions")
+    elif best["price_high"] is not None and second["price_low"] is not None and best["price_high"] < second["price_low"]:
         clear = (f"the difference is larger than the intervals ({best['policy']}'s 90% interval ends at "
                  f"{fmt(best['price_high'])} USD/unit, below {second['policy']}'s, which starts at "
                  f"{fmt(second['price_low'])})")
@@ -70,8 +75,10 @@ def rank(rows: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], str]:
 
 def _cells(r: dict[str, Any]) -> tuple[str, ...]:
     speed = f"{fmt(r['achieved_speed_m_per_s'])} / {fmt(r['commanded_speed_m_per_s'])}"
+    power = f"{fmt(r['mean_mech_power_w'])} / {fmt(r['mean_power_w'])}"
     return (r["policy"], fmt(r["price_usd_per_unit"]), f"{fmt(r['price_low'])} - {fmt(r['price_high'])}",
-            fmt(r["units_per_hour"]), fmt(r["wh_per_unit"]), fmt(r["fall_rate_bound"]), speed, r["verdict"])
+            fmt(r["units_per_hour"]), fmt(r["wh_per_unit"]), fmt(r["falls"]), fmt(r["fall_rate_bound"]), speed, power,
+            r["verdict"])
 
 
 def write_comparison(ranked: list[dict[str, Any]], summary: str, out_dir: Path, context: dict[str, Any]) -> list[Path]:
@@ -145,6 +152,8 @@ def compare_command(
     out_dir = check_output_dir("--output-dir", output_dir or Path("reports") / task_id / "compare")
     options = {"command_speed_m_per_s": command_speed} if command_speed is not None else {}
     backend = make_backend(motor_backend, tasks_file, **options)
+    for policy_id in policies:  # bad input records nothing
+        backend.check_policy(policy_id)
     pricing = PricingPolicy(spread_share)
     rows = []
     for policy_id in policies:

@@ -253,6 +253,9 @@ def sim2sim(job: dict[str, Any]) -> dict[str, Any]:
     from econmotor.motor_backend.holosoma.policy_import import resolve_contract
 
     contract = resolve_contract(job["policy"])
+    if contract.experiment not in job["task_experiments"]:
+        raise ValueError(f"{job['policy']} drives Holosoma's '{contract.experiment}' robot but task "
+                         f"'{job['task_id']}' is priced for {job['task_experiments']} (its catalog's experiments)")
     preset_terms = {name: dict(term.params) for name, term in
                     EXPERIMENT_REGISTRY[contract.experiment].randomization.setup_terms.items()}
     stress = s.Stress.from_overrides(job["overrides"]["randomization"], job["overrides"].get("evaluation", {}),
