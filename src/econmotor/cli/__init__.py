@@ -8,15 +8,14 @@ from __future__ import annotations
 import importlib
 import logging
 import pkgutil
-import signal
 import sys
-import threading
 
 import typer
 from rich.markup import escape
 from typer._click.exceptions import ClickException  # typer vendors click
 
 from econmotor.cli._app import app, err_console
+from econmotor.cli._interrupts import InterruptGuard, end_interrupted_process, was_interrupted
 from econmotor.errors import EconmotorError
 
 
@@ -37,33 +36,16 @@ for _module in pkgutil.iter_modules(__path__):
         importlib.import_module(f"{__name__}.{_module.name}")
 
 
-def _raise_interrupt(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt(f"signal {signal.Signals(signum).name}")
-
-
-def install_interrupt_handlers() -> dict[int, object]:
-    """SIGINT and SIGTERM both raise KeyboardInterrupt, whatever disposition the process inherited.
-
-    A shell that starts a job in the background (or ``make`` under ``trap '' INT``) leaves SIGINT
-    ignored, and Python then installs no handler of its own; the run would not stop on Ctrl-C or
-    be recorded as interrupted. Every long command turns KeyboardInterrupt into a recorded
-    ``interrupted`` run and a note of what was kept and how to resume. Returns the handlers it
-    replaced (``main`` puts them back when it returns).
-    """
-    if threading.current_thread() is not threading.main_thread():
-        return {}
-    return {signum: signal.signal(signum, _raise_interrupt) for signum in (signal.SIGINT, signal.SIGTERM)}
-
-
 def main(argv: list[str] | None = None) -> int:
-    """Run the CLI; econmotor errors print as one clear line and exit with status 2."""
-    previous = install_interrupt_handlers()
+    """Run the CLI; econmotor errors print as one clear line and exit with status 2.
+
+    SIGINT and SIGTERM raise KeyboardInterrupt for the whole command, with a deadline
+    (:class:`econmotor.cli._interrupts.InterruptGuard`)."""
+    guard = InterruptGuard()
     try:
         return _run(argv)
     finally:
-        for signum, handler in previous.items():
-            if handler is not None:  # None: a handler not set from Python, which cannot be put back
-                signal.signal(signum, handler)
+        guard.close()
 
 
 def _run(argv: list[str] | None) -> int:
@@ -91,4 +73,7 @@ def _run(argv: list[str] | None) -> int:
 
 
 def entrypoint() -> None:
-    sys.exit(main())
+    exit_code = main()
+    if was_interrupted():
+        end_interrupted_process(exit_code)
+    sys.exit(exit_code)

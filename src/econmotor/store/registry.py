@@ -299,7 +299,8 @@ class Registry:
             s.add(run)
             s.flush()
             s.add_all(RunDatapackRow(run_id=run.id, datapack_id=d, position=i) for i, d in enumerate(ids))
-            return run.id
+        _URLS_WITH_OWN_RUNS.add(self.url)
+        return run.id
 
     def finish_run(self, run_id: int, result: Any = None, *, status: str = "completed",
                    episodes: Sequence[Mapping[str, Any]] | None = None, **fields: Any) -> None:
@@ -483,6 +484,39 @@ class Registry:
             stmt = stmt.where(ReportRow.task_id == task_id)
         with self._read() as s:
             return [report_record(r) for r in s.scalars(stmt)]
+
+
+#: registries this process has started runs in (for :func:`interrupt_own_runs`).
+_URLS_WITH_OWN_RUNS: set[str] = set()
+
+
+def interrupt_own_runs(reason: str, busy_timeout_s: float = 2.0) -> list[int]:
+    """Mark this process's ``running`` runs ``interrupted`` (error ``reason``) in every registry it
+    started runs in; returns their ids.
+
+    The last word of a process that must end now (the CLI's interrupt deadline, when the main thread
+    is stuck in a call that cannot be interrupted): a connection of its own with a short busy
+    timeout, so a transaction left open by the main thread cannot hold it up.
+    """
+    me = run_owner()
+    marked: list[int] = []
+    for url in sorted(_URLS_WITH_OWN_RUNS):
+        try:
+            registry = Registry(url, create=False, busy_timeout_s=busy_timeout_s)
+        except RegistryError:
+            continue
+        try:
+            with registry._write() as s:
+                for run in s.execute(select(RunRow).where(RunRow.status == "running")).scalars():
+                    owner = (run.config or {}).get("owner") or {}
+                    if owner.get("host") == me["host"] and owner.get("pid") == me["pid"]:
+                        run.status, run.error, run.finished_at = "interrupted", reason, utc_now()
+                        marked.append(run.id)
+        except RegistryError:
+            pass
+        finally:
+            registry.close()
+    return marked
 
 
 def _new_task_values(task_id: str) -> dict[str, Any]:

@@ -1,0 +1,138 @@
+"""SIGINT and SIGTERM for every command: a KeyboardInterrupt in the main thread, with a deadline.
+
+Python runs a signal handler in the main thread between two bytecodes. A long call that does not
+return to the interpreter (an XLA compilation, a long NumPy or SQLite call) delays it: a SIGTERM
+during an MJX sweep cell's compilation waited a minute. So the signal also wakes a watcher thread
+(``signal.set_wakeup_fd``: the interpreter's C-level handler writes the signal number to a socket
+at once, whatever the main thread is doing). If the command has not ended
+:data:`INTERRUPT_GRACE_S` seconds later, the watcher records this process's running runs as
+``interrupted`` (:func:`econmotor.store.registry.interrupt_own_runs`), says so in one line and
+ends the process with status 130. While it does, an ``alarm`` of :data:`LAST_RESORT_S` seconds
+stands behind it: SIGALRM's default action ends the process even if the watcher is stuck too.
+
+An interrupted command that did stop in time ends the process at once
+(:func:`end_interrupted_process`), without the interpreter's teardown.
+"""
+
+from __future__ import annotations
+
+import atexit
+import os
+import signal
+import socket
+import sys
+import threading
+from typing import NoReturn
+
+from econmotor.store.registry import interrupt_own_runs
+
+#: seconds a command has, after SIGINT or SIGTERM, to stop by itself (it records what it was doing)
+INTERRUPT_GRACE_S = 6.0
+#: seconds the watcher has to record the runs and exit before the kernel ends the process
+LAST_RESORT_S = 3
+_INTERRUPTS = (signal.SIGINT, signal.SIGTERM)
+
+
+#: the interrupts this process has received (in order)
+_received: list[int] = []
+
+
+def _raise_interrupt(signum: int, frame: object) -> None:
+    _received.append(signum)
+    raise KeyboardInterrupt(f"signal {signal.Signals(signum).name}")
+
+
+def was_interrupted() -> bool:
+    """Whether this process has received SIGINT or SIGTERM while a guard was installed."""
+    return bool(_received)
+
+
+def end_interrupted_process(exit_code: int) -> NoReturn:
+    """End the process of an interrupted command now: its atexit handlers run (under an alarm of
+    :data:`LAST_RESORT_S` seconds), then ``os._exit``, skipping the interpreter's teardown.
+
+    The command has recorded its runs and printed its note; the teardown is where a library's
+    background work can hold the process: after SIGTERM during an MJX cell's XLA compilation the
+    sweep returned in 0.3 s, then teardown waited 46 s and crashed (SIGSEGV).
+    """
+    signal.alarm(LAST_RESORT_S)
+    try:
+        atexit._run_exitfuncs()
+    finally:
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(exit_code)
+
+
+class InterruptGuard:
+    """SIGINT and SIGTERM raise KeyboardInterrupt, whatever disposition the process inherited, and
+    a watcher thread enforces the deadline (module docstring). :meth:`close` puts everything back.
+
+    A shell that starts a job in the background (or ``make`` under ``trap '' INT``) leaves SIGINT
+    ignored, and Python then installs no handler of its own; the run would not stop on Ctrl-C or
+    be recorded as interrupted. Every long command turns KeyboardInterrupt into a recorded
+    ``interrupted`` run and a note of what was kept and how to resume. Outside the main thread
+    (where signals cannot be handled) it does nothing.
+    """
+
+    def __init__(self, grace_s: float = INTERRUPT_GRACE_S) -> None:
+        self.previous: dict[int, object] = {}
+        self._done = threading.Event()
+        self._sockets: tuple[socket.socket, socket.socket] | None = None
+        self._old_wakeup_fd = -1
+        self._old_alarm: object = None
+        if threading.current_thread() is not threading.main_thread():
+            return
+        self.previous = {signum: signal.signal(signum, _raise_interrupt) for signum in _INTERRUPTS}
+        self._old_alarm = signal.signal(signal.SIGALRM, signal.SIG_DFL)
+        reader, writer = socket.socketpair()
+        writer.setblocking(False)
+        self._sockets = (reader, writer)
+        self._old_wakeup_fd = signal.set_wakeup_fd(writer.fileno(), warn_on_full_buffer=False)
+        threading.Thread(target=self._watch, args=(reader, grace_s), name="econmotor-interrupt-deadline",
+                         daemon=True).start()
+
+    def _watch(self, reader: socket.socket, grace_s: float) -> None:
+        while True:
+            try:
+                data = reader.recv(64)
+            except OSError:
+                return
+            if not data:  # closed: the command ended
+                return
+            received = [signum for signum in data if signum in _INTERRUPTS]
+            if received:
+                break
+        _received.extend(received)
+        if self._done.wait(grace_s):
+            return
+        name = signal.Signals(received[0]).name
+        signal.alarm(LAST_RESORT_S)
+        try:
+            marked = interrupt_own_runs(f"KeyboardInterrupt: signal {name} (the command was still busy "
+                                        f"{grace_s:.0f} s later, in a call that cannot be interrupted)")
+        except Exception:  # the last word: whatever the registry says, the process ends
+            marked = []
+        runs = f"run(s) {', '.join(f'#{i}' for i in marked)} recorded as interrupted" if marked \
+            else "no running run of this process to record"
+        sys.stderr.write(f"interrupted ({name}): still busy {grace_s:.0f} s later in a call that cannot be "
+                         f"interrupted; {runs}; exiting now\n")
+        sys.stderr.flush()
+        os._exit(130)
+
+    def close(self) -> None:
+        """The command has ended: stop the watcher and put the previous handlers back."""
+        self._done.set()
+        if self._sockets is None:
+            return
+        signal.set_wakeup_fd(self._old_wakeup_fd)
+        for sock in self._sockets:
+            sock.close()
+        for signum, handler in self.previous.items():
+            if handler is not None:  # None: a handler not set from Python, which cannot be put back
+                signal.signal(signum, handler)
+        if self._old_alarm is not None:
+            signal.signal(signal.SIGALRM, self._old_alarm)
