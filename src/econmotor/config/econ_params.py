@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
-from econmotor.config.loading import as_float, as_int, as_str, check_keys, read_yaml_mapping
+from econmotor.config.loading import as_float, as_int, as_str, check_keys, join_key, read_yaml_mapping
 from econmotor.errors import ConfigError, UnknownNameError
 
 
@@ -120,15 +120,24 @@ def load_econ_params(path_or_preset: str | Path | EconParams) -> EconParams:
     names = [f.name for f in fields(EconParams)]
     check_keys(data, ("preset", *names), path)
     base = ECON_PRESETS[as_str(data.pop("preset", "toy"), path, "preset", ECON_PRESETS)]
+    return econ_params_with(base, data, path)
+
+
+def econ_params_with(base: EconParams, overrides: dict[str, Any], source: str | Path,
+                     prefix: str | None = None) -> EconParams:
+    """``base`` with ``overrides`` (a YAML mapping) validated field by field: names known, numbers
+    finite, integers integral, none negative; errors name ``source`` and ``prefix.<field>``."""
+    names = [f.name for f in fields(EconParams)]
+    check_keys(overrides, names, source, prefix)
     values: dict[str, Any] = {}
     for f in fields(EconParams):
-        if f.name not in data:
+        if f.name not in overrides:
             continue
-        value = data[f.name]
+        value, key = overrides[f.name], join_key(prefix, f.name)
         if f.name == "energy_price_usd_per_kwh" and value is None:
             values[f.name] = None
         elif isinstance(getattr(base, f.name), int) and not isinstance(getattr(base, f.name), bool):
-            values[f.name] = as_int(value, path, f.name, min_value=0)
+            values[f.name] = as_int(value, source, key, min_value=0)
         else:
-            values[f.name] = as_float(value, path, f.name, allow_negative=False)
+            values[f.name] = as_float(value, source, key, allow_negative=False)
     return replace(base, **values)
