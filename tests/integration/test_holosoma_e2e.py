@@ -1,8 +1,8 @@
 """End to end through the real Holosoma (classic MuJoCo, CPU) in .venv-holosoma.
 
 G1 locomotion with the spec's example objective overlay and datapack: a few PPO
-iterations, Holosoma's recorded evaluation, econ metrics from the recording, and the
-deployed ONNX handle reproducing the recorded actions from the recorded observations.
+iterations, the run directory holding run_config.json and policy.onnx, the trained policy priced by the
+same sim-to-sim evaluator as an imported one, and the deployed ONNX handle's metadata.
 If .venv-holosoma is missing, the fixture builds it with ``make holosoma`` (minutes).
 """
 
@@ -62,7 +62,7 @@ def test_request_is_adapted_to_one_cpu_env_and_announced(trained) -> None:
     assert any(label.startswith("holosoma: num_envs 2048 -> 1") for label, _, _ in events)
     train_progress = [(d, t) for label, d, t in events if label == "holosoma train"]
     assert train_progress[-1] == (ITERATIONS, ITERATIONS)
-    assert any(label == "holosoma evaluate" for label, _, _ in events)
+    assert any(label == "sim-to-sim episodes" for label, _, _ in events)
     assert result.config["plan"]["num_envs"] == 1 and result.config["plan"]["iterations"] == ITERATIONS
 
 
@@ -83,13 +83,16 @@ def test_overlay_terms_are_holosoma_reward_terms_and_logged(trained) -> None:
     assert result.config["overrides"]["randomization"]["randomize_friction_startup"]["friction_range"] == [0.5, 1.0]
 
 
-def test_evaluation_from_the_recording_gives_finite_econ_metrics(trained) -> None:
+def test_trained_run_is_priced_by_the_sim2sim_evaluator(trained) -> None:
     _, _, result, _ = trained
+    run_dir = Path(result.policy_id)
+    assert (run_dir / "run_config.json").is_file() and (run_dir / "policy.onnx").is_file()  # output_dir is the run
+    assert result.config["evaluation"]["evaluator"] == "sim2sim" and not result.config["evaluation"]["imported"]
     assert result.raw_metrics["num_episodes"] == 2 and len(result.episodes) == 2
     for ep in result.episodes:
         assert 0 < ep["episode_length_s"] <= EPISODE_S + 1e-9
         assert ep["termination_reason"] in ("fall", "time_out", "max_steps")
-        assert ep["energy_wh"] > 0 and 0 <= ep["risk_score"] <= 1 and 0 <= ep["novelty_score"] < 1
+        assert ep["energy_wh"] > 0 and 0 <= ep["risk_score"] <= 1
     assert result.raw_metrics["energy_wh"] == pytest.approx(sum(ep["energy_wh"] for ep in result.episodes))
     for key in ("mpl_units_per_hour", "error_rate", "energy_kwh", "energy_kwh_per_hour", "implied_wage_usd_per_hour",
                 "wage_parity", "robot_cost_usd_per_hour", "risk_score", "novelty_score"):
@@ -98,7 +101,7 @@ def test_evaluation_from_the_recording_gives_finite_econ_metrics(trained) -> Non
     assert 1.0 < mean_power_w < 20_000.0  # a 35 kg humanoid's joints, through an 80 % drivetrain
 
 
-def test_onnx_handle_reproduces_recorded_actions(trained) -> None:
+def test_onnx_handle_carries_both_metadata(trained) -> None:
     backend, _, result, _ = trained
     handle = backend.deploy_policy_handle(result.policy_id)
     assert isinstance(handle, HolosomaPolicyHandle)
@@ -107,13 +110,8 @@ def test_onnx_handle_reproduces_recorded_actions(trained) -> None:
     assert handle.econmotor_metadata["task_id"] == "humanoid_locomotion_g1"
     assert handle.econmotor_metadata["objective"]["error_weight"] == 0.5
     assert handle.econmotor_metadata["task_economics"]["wage_human_usd_per_hour"] == 18.0
-    with np.load(result.config["evaluation"]["recording"]) as rec:
-        obs, actions, reset = rec["actor_obs"], rec["actions"], rec["reset"]
-    steps = [t for t in range(0, len(obs) - 1, 7) if not reset[t]][:10]
-    assert steps
-    for t in steps:  # the action at t+1 was computed by Holosoma from the observation recorded at t
-        np.testing.assert_allclose(handle.act(obs[t]), actions[t + 1], rtol=1e-4, atol=1e-4)
-    assert handle.act(obs[steps]).shape == (len(steps), handle.action_dim)
+    obs = np.zeros((3, handle.obs_dim), dtype=np.float32)
+    assert handle.act(obs).shape == (3, handle.action_dim)
 
 
 def test_holosoma_error_text_is_surfaced(trained, holosoma_venv: Path, tmp_path: Path) -> None:
