@@ -57,7 +57,7 @@ def test_ray_sweep_then_solve(tmp_path, local_ray):
     cells = {(r.objective_name, r.datapack_ids, r.seed) for r in runs}
     assert cells == {(p, (d,), s) for p in PRESETS for d in DATAPACKS for s in (0, 1)}
     assert len({r.config["cell_key"] for r in runs}) == 12
-    assert all(Path(r.policy_path).is_file() for r in runs)
+    assert all((Path(r.policy_path) / "policy.zip").is_file() for r in runs)  # the cell's run directory
     episodes = registry.episodes(task_id="dishwashing")
     assert len(episodes) == 12 * 3
 

@@ -25,7 +25,7 @@ import json
 import os
 import signal
 import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -95,9 +95,10 @@ def plan_sweep(task_id: str, backend: str, objectives: Sequence[Objective],
     return cells
 
 
-def train_cell(cell: SweepCell, output_dir: str, cpu_threads: int = 1,
-               progress: ProgressFn = no_progress) -> MotorTrainingResult:
-    """Train and evaluate one cell (runs in this process or as a Ray task)."""
+def train_cell(cell: SweepCell, output_dir: str, cpu_threads: int = 1, progress: ProgressFn = no_progress,
+               backend_options: Mapping[str, Any] | None = None) -> MotorTrainingResult:
+    """Train and evaluate one cell (runs in this process or as a Ray task) into ``<output_dir>/<cell key>``;
+    ``backend_options``: constructor keywords the edge read for the backend (its ``environment_options``)."""
     os.environ.setdefault("OMP_NUM_THREADS", str(cpu_threads))
     try:
         import torch
@@ -107,7 +108,7 @@ def train_cell(cell: SweepCell, output_dir: str, cpu_threads: int = 1,
         pass
     from econmotor.motor_backend.factory import make_motor_backend
 
-    backend = make_motor_backend(cell.backend)
+    backend = make_motor_backend(cell.backend, **dict(backend_options or {}))
     return backend.train_policy(cell.task_id, cell.objective_spec(), list(cell.datapack_ids), cell.num_envs,
                                 cell.max_steps, cell.seed, datapack_configs=list(cell.datapacks),
                                 output_dir=str(Path(output_dir) / cell.key), eval_episodes=cell.eval_episodes,
@@ -166,7 +167,8 @@ def completed_cell_keys(registry: Any, task_id: str, backend: str) -> set[str]:
 
 
 def run_sweep(registry: Any, cells: Sequence[SweepCell], output_dir: str | Path, *,
-              ray: RaySettings | None = None, progress: ProgressFn = no_progress) -> list[CellOutcome]:
+              ray: RaySettings | None = None, progress: ProgressFn = no_progress,
+              backend_options: Mapping[str, Any] | None = None) -> list[CellOutcome]:
     """Train every cell not completed before and record it (run + episodes) in ``registry``.
 
     Each pending cell is recorded ``running`` before it starts; a cell that raises is
@@ -190,9 +192,9 @@ def run_sweep(registry: Any, cells: Sequence[SweepCell], output_dir: str | Path,
         registry.record_datapacks([pack])
     tick = lambda: progress("sweep cells", len(outcomes), total)
     if ray is None:
-        _run_here(registry, pending, output_dir, outcomes, tick, progress)
+        _run_here(registry, pending, output_dir, outcomes, tick, progress, backend_options)
     else:
-        _run_on_ray(registry, pending, output_dir, outcomes, tick, ray)
+        _run_on_ray(registry, pending, output_dir, outcomes, tick, ray, backend_options)
     return [outcomes[c.key] for c in cells]
 
 
@@ -214,11 +216,11 @@ def _finish(registry: Any, cell: SweepCell, run_id: int, result: Any, error: Bas
 
 
 def _run_here(registry: Any, cells: Sequence[SweepCell], output_dir: str, outcomes: dict[str, CellOutcome],
-              tick: Any, progress: ProgressFn) -> None:
+              tick: Any, progress: ProgressFn, backend_options: Mapping[str, Any] | None) -> None:
     for cell in cells:
         run_id = _start(registry, cell)
         try:
-            result = train_cell(cell, output_dir, progress=progress)
+            result = train_cell(cell, output_dir, progress=progress, backend_options=backend_options)
         except (KeyboardInterrupt, SystemExit) as exc:
             registry.mark_run(run_id, "interrupted", f"{type(exc).__name__}: {exc}")
             raise
@@ -246,7 +248,7 @@ def _callers_sigterm_kept() -> Iterator[None]:
 
 
 def _run_on_ray(registry: Any, cells: Sequence[SweepCell], output_dir: str, outcomes: dict[str, CellOutcome],
-                tick: Any, settings: RaySettings) -> None:
+                tick: Any, settings: RaySettings, backend_options: Mapping[str, Any] | None) -> None:
     try:
         import ray
     except ImportError as exc:
@@ -267,7 +269,8 @@ def _run_on_ray(registry: Any, cells: Sequence[SweepCell], output_dir: str, outc
     in_flight: dict[Any, tuple[SweepCell, int]] = {}
     try:
         for cell in cells:
-            in_flight[remote.remote(cell, output_dir, threads)] = (cell, _start(registry, cell))
+            in_flight[remote.remote(cell, output_dir, threads, no_progress, backend_options)] = \
+                (cell, _start(registry, cell))
         while in_flight:
             (ref,), _ = ray.wait(list(in_flight), num_returns=1)
             cell, run_id = in_flight.pop(ref)

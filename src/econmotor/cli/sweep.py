@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import typer
@@ -23,7 +24,7 @@ from econmotor.cli.validation import (
     simplex_size,
 )
 from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_configs
-from econmotor.motor_backend.factory import backend_class
+from econmotor.motor_backend.factory import backend_class, environment_options
 from econmotor.tasks import load_catalog
 
 
@@ -101,7 +102,8 @@ def sweep_command(
                       f"({'Ray' if ray else 'sequential'}); registry {registry.display_url}")
         try:
             with progress_bars() as progress:
-                outcomes = run_sweep(registry, cells, output_dir, ray=ray, progress=progress)
+                outcomes = run_sweep(registry, cells, output_dir, ray=ray, progress=progress,
+                                     backend_options=environment_options(motor_backend, os.environ))
         except KeyboardInterrupt:
             done = completed_cell_keys(registry, task_id, motor_backend) & {c.key for c in cells}
             err_console.print(f"[yellow]interrupted[/]: the cells in flight are recorded as interrupted in "
