@@ -14,8 +14,8 @@ Per episode (seeded: ``seed + episode index``):
 - **observation**: :class:`ObservationBuilder`, holosoma_inference's contract (terms, scales,
   sorted order, history, gait phase); equal to holosoma_inference's own code
   (tests/integration/test_holosoma_sim2sim.py).
-- **the course** (:class:`CourseController`): a corridor along +x in legs of
-  ``leg_m`` metres; on each leg the controller commands the course speed and a yaw rate that
+- **the course** (:class:`CourseController`): a corridor along +x of ``legs`` legs of
+  ``leg_m`` metres (the episode ends after the last leg's dwell, or at its time limit); on each leg the controller commands the course speed and a yaw rate that
   steers back to the corridor's centre line (``yaw_rate = yaw_gain * heading error`` towards a
   point ``lookahead_m`` ahead on the line); at each leg end the robot stands for ``dwell_s``
   (the pick-and-place the human's leg includes, so a unit is counted alike for both).
@@ -54,14 +54,16 @@ _STAND_EPS = 0.01
 class CourseSettings:
     """The delivery course: legs of ``leg_m`` along +x, ``dwell_s`` standing at each leg end.
 
-    ``speed_m_per_s``: the commanded walking speed; ``lookahead_m`` / ``yaw_gain``: the heading
-    controller (yaw rate in rad/s per rad of heading error towards the point ``lookahead_m``
-    ahead on the centre line).
+    ``speed_m_per_s``: the commanded walking speed; ``legs``: the episode ends when the last leg's
+    dwell does (0: at the time limit only), so every unit an episode counts carries its dwell, as
+    the human's does; ``lookahead_m`` / ``yaw_gain``: the heading controller (yaw rate in rad/s per
+    rad of heading error towards the point ``lookahead_m`` ahead on the centre line).
     """
 
     leg_m: float
     dwell_s: float
     speed_m_per_s: float
+    legs: int = 0
     lookahead_m: float = 1.0
     yaw_gain: float = 2.0
 
@@ -195,6 +197,11 @@ class CourseController:
     @property
     def dwelling(self) -> bool:
         return self.dwell_left_s > 0.0
+
+    @property
+    def finished(self) -> bool:
+        """Every leg of the course walked and its dwell stood."""
+        return 0 < self.course.legs <= self.legs_done and not self.dwelling
 
     def command(self, x: float, y: float, yaw: float) -> tuple[float, float]:
         """``(vx m/s, yaw rate rad/s)`` for the robot at ``(x, y)`` with heading ``yaw`` (rad)."""
@@ -347,6 +354,8 @@ def run_episode(robot: Robot, contract: PolicyContract, policy: Callable[[np.nda
     walk_s, walk_m, pushes, max_lateral = 0.0, 0.0, 0, 0.0
     fell, steps_done = False, 0
     for step in range(control_steps):
+        if controller.finished:
+            break
         t = step * contract.control_dt_s
         if t >= next_push:
             lo, hi = stress.max_push_vel_m_per_s  # type: ignore[misc]
@@ -390,7 +399,7 @@ def run_episode(robot: Robot, contract: PolicyContract, policy: Callable[[np.nda
         "units_completed": units, "units_attempted": units + errors, "errors": errors,
         "episode_length_s": length_s, "length_steps": float(steps_done), "energy_wh": energy_wh,
         "risk_score": risk_sum / n if n else 0.0, "novelty_score": 0.0,
-        "termination_reason": "fall" if fell else "time_out",
+        "termination_reason": "fall" if fell else "course_done" if controller.finished else "time_out",
         "distance_m": best_x - contract.init_pos[0], "legs_reached": float(controller.legs_done),
         "commanded_speed_m_per_s": min(course.speed_m_per_s, controller.vx_max),
         "achieved_speed_m_per_s": walk_m / walk_s if walk_s > 0 else 0.0, "walking_s": walk_s,
