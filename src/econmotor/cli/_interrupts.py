@@ -1,8 +1,8 @@
 """SIGINT and SIGTERM for every command: a KeyboardInterrupt in the main thread, with a deadline.
 
 Python runs a signal handler in the main thread between two bytecodes. A long call that does not
-return to the interpreter (an XLA compilation, a long NumPy or SQLite call) delays it: a SIGTERM
-during an MJX sweep cell's compilation waited a minute. So the signal also wakes a watcher thread
+return to the interpreter delays it: SQLite waiting for another process's write lock (up to the
+registry's 120 s busy timeout), a long C routine. So the signal also wakes a watcher thread
 (``signal.set_wakeup_fd``: the interpreter's C-level handler writes the signal number to a socket
 at once, whatever the main thread is doing). If the command has not ended
 :data:`INTERRUPT_GRACE_S` seconds later, the watcher records this process's running runs as
@@ -31,8 +31,6 @@ INTERRUPT_GRACE_S = 6.0
 #: seconds the watcher has to record the runs and exit before the kernel ends the process
 LAST_RESORT_S = 3
 _INTERRUPTS = (signal.SIGINT, signal.SIGTERM)
-
-
 #: the interrupts this process has received (in order)
 _received: list[int] = []
 
