@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import builtins
 import math
+import operator
 from collections.abc import Mapping
 from types import SimpleNamespace
 from typing import Any, NamedTuple
@@ -53,18 +54,22 @@ def _clip(x: Any, lo: float, hi: float) -> Any:
 
 
 def _sum(a: Any, axis: int | None = None) -> float:
-    return builtins.sum(a.tolist(), 0.0)  # a NumPy array (a slice of MuJoCo's data): a Python float
+    return builtins.sum(a, 0.0)
 
 
-#: ``xp`` for one env's figures as Python floats (the ``mujoco`` backend's per-step metering):
-#: numpy's names bound to the builtins and :mod:`math`, the right tools for a few scalars a step.
-PY = SimpleNamespace(maximum=max, abs=abs, arccos=math.acos, where=_where, clip=_clip, sum=_sum)
+#: ``xp`` for one env's figures as Python floats and lists of floats (the ``mujoco`` backend's
+#: per-step metering): numpy's names bound to the builtins and :mod:`math`, which is what a few
+#: numbers a step call for (a NumPy call on a 3-vector costs more than the arithmetic). ``abs``
+#: takes a float; ``absolute``, ``multiply``, ``floor_divide`` and ``sum`` go elementwise over lists.
+PY = SimpleNamespace(maximum=max, abs=abs, arccos=math.acos, where=_where, clip=_clip, sum=_sum,
+                     absolute=lambda a: map(abs, a), multiply=lambda a, b: map(operator.mul, a, b),
+                     floor_divide=lambda a, b: [x // b for x in a])
 
 
 def safe_div(num: Any, den: Any, xp: Any) -> Any:
-    """``num / den`` where ``den > 0``, else 0 (no division by zero is evaluated)."""
-    positive = den > 0
-    return xp.where(positive, num / xp.where(positive, den, 1.0), 0.0)
+    """``num / den`` where ``den > 0``, else 0 (finite ``num`` over an infinite denominator: no
+    division by zero is evaluated)."""
+    return num / xp.where(den > 0, den, math.inf)
 
 
 # ---------------------------------------------------------------- the per-step formulas
@@ -78,7 +83,7 @@ def forward_units(best_x: Any, x: Any, leg_distance_m: float, xp: Any) -> tuple[
 def mechanical_power_w(qfrc_actuator: Any, qvel: Any, xp: Any) -> Any:
     """``sum_j |qfrc_actuator_j * qvel_j|``, W: actuator forces (after the gear, N or N m) times dof
     velocities (m/s or rad/s), over the last axis."""
-    return xp.sum(xp.abs(qfrc_actuator * qvel), axis=-1)
+    return xp.sum(xp.absolute(xp.multiply(qfrc_actuator, qvel)), axis=-1)
 
 
 def electrical_energy_wh(mechanical_w: Any, drivetrain_efficiency: float, idle_power_w: float,
@@ -92,9 +97,9 @@ def tilt_risk(tilt_rad: Any, tilt_margin_rad: float, fall_tilt_rad: float, xp: A
     return xp.clip((tilt_rad - tilt_margin_rad) / (fall_tilt_rad - tilt_margin_rad), 0.0, 1.0)
 
 
-def novelty_cell(point: Any, inv_bin: float, xp: Any) -> Any:
-    """The cell of a point: ``floor(point * inv_bin)`` per coordinate (``inv_bin = 1 / novelty_bin``)."""
-    return xp.floor(point * inv_bin)
+def novelty_cell(point: Any, novelty_bin: float, xp: Any) -> Any:
+    """The cell of a point: ``floor(point / novelty_bin)`` per coordinate (``xp=PY``: a list of floats)."""
+    return xp.floor_divide(point, novelty_bin)
 
 
 def novelty_bonus(visits: Any) -> Any:

@@ -263,7 +263,7 @@ class MjxCourierEnv:
         return obs + std * jax.random.normal(key, obs.shape) if std > 0 else obs
 
     def _novelty_visit(self, counts: jax.Array, point: jax.Array) -> tuple[jax.Array, jax.Array]:
-        cell = cf.novelty_cell(point, 1.0 / self.settings.novelty_bin, jnp).astype(jnp.int32).astype(jnp.uint32)
+        cell = cf.novelty_cell(point, self.settings.novelty_bin, jnp).astype(jnp.int32).astype(jnp.uint32)
         primes = jnp.asarray(np.array(_HASH_PRIMES[: cell.shape[0]] + (1,) * max(0, cell.shape[0] - 8),
                                       dtype=np.uint32))
         h = jnp.bitwise_xor.reduce(cell * primes) % jnp.uint32(counts.shape[0])

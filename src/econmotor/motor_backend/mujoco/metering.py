@@ -74,12 +74,12 @@ class VisitNovelty:
 
     def __init__(self, novelty_bin: float, dims: int = 5) -> None:
         self.counts: dict[tuple[float | None, ...], int] = {}  # cell -> visits, kept across episodes
-        self.inv_bin = 1.0 / float(novelty_bin)
+        self.novelty_bin = float(novelty_bin)
         self.dims = int(dims)
 
     def visit(self, point: Any) -> float:
         """Count a visit to the cell of ``point[:dims]``; its bonus ``novelty_bonus(n)``."""
-        cell = novelty_cell(point[: self.dims], self.inv_bin, np).tolist()
+        cell = novelty_cell(point[: self.dims].tolist(), self.novelty_bin, PY)
         key = tuple(cell) if math.isfinite(sum(cell)) else tuple(v if math.isfinite(v) else None for v in cell)
         n = self.counts.get(key, 0) + 1
         self.counts[key] = n
@@ -106,7 +106,7 @@ class EpisodeSums(NamedTuple):
 
     def running_metrics(self) -> RunningMetrics:
         """All six running metrics at once (:class:`~econmotor.economics.courier_formulas.RunningMetrics`)."""
-        return running_metrics(MeterSums(*self[:8]), self.dt_s, PY)
+        return running_metrics(MeterSums(*self[: len(MeterSums._fields)]), self.dt_s, PY)
 
     def mpl_per_hour(self) -> float:
         """Good units per hour so far: ``units / (steps * dt / 3600)``."""
@@ -194,7 +194,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
     @property
     def episode(self) -> EpisodeSums:
         """The current episode's running sums."""
-        return EpisodeSums(*self._sums, self._task_return, self.dt_s)
+        return EpisodeSums(**self._sums._asdict(), task_return=self._task_return, dt_s=self.dt_s)
 
     @property
     def x0(self) -> float:
@@ -216,7 +216,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
         qpos = self._data.qpos.tolist()
         reading = StepReading(
             x_m=qpos[0],
-            mechanical_w=mechanical_power_w(self._qfrc, self._qvel, PY),
+            mechanical_w=mechanical_power_w(self._qfrc.tolist(), self._qvel.tolist(), PY),
             tilt_rad=root_tilt_rad(qpos, self._free_root, PY),
             fell=terminated,
             novelty_bonus=self._novelty.visit(obs),

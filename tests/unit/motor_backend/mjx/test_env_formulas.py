@@ -65,9 +65,9 @@ def _meter_case(xp_name: str, free_root: bool):
     arr = (lambda v: np.asarray(v, np.float64)) if xp_name != "jnp" else (lambda v: jnp.asarray(v, jnp.float32))
     # x = 1.25 past best_x = 1.0; planar angle -0.15 (free root: qx = sin(0.15), so tilt 0.3)
     qpos = arr([1.25, 1.1, -0.15, 1.0, np.sin(0.15), 0.0, 0.0]) if free_root else arr([1.25, 1.1, -0.15])
-    if xp_name == "py":
-        qpos = qpos.tolist()
     f, v = arr([2.0, -3.0, 0.5]), arr([1.0, 2.0, -4.0])  # |2*1| + |-3*2| + |0.5*-4| = 10 W mechanical
+    if xp_name == "py":  # Python floats and lists of floats
+        qpos, f, v = qpos.tolist(), f.tolist(), v.tolist()
     factors = {"mpl_per_hour": 2.0, "risk_score": -3.0, "novelty_score": 0.5, "error_rate": -4.0,
                "energy_kwh": -5.0, "pose_tracking": 0.25}
     c = cf.MeterConstants(10.0, 0.5, 20.0, 0.008, 0.1, 0.5 if free_root else 0.2)
@@ -97,12 +97,13 @@ def test_meter_step_gives_the_same_numbers_in_every_namespace(xp, free_root):
 
 @pytest.mark.parametrize("n", [0, 1, 3, 17])
 def test_mechanical_power_is_the_same_sum_in_every_namespace(n):
-    """sum_j |f_j v_j| over MjData-like float64 arrays: Python floats (PY), NumPy and JAX agree."""
+    """sum_j |f_j v_j|: lists of Python floats (PY), NumPy and JAX arrays agree."""
     rng = np.random.default_rng(n)
     f, v = rng.normal(size=n), rng.normal(size=n)
     expected = float(np.sum(np.abs(f * v)))
-    assert cf.mechanical_power_w(f, v, cf.PY) == pytest.approx(expected, rel=1e-12, abs=0)
-    assert type(cf.mechanical_power_w(f, v, cf.PY)) is float
+    assert cf.mechanical_power_w(f.tolist(), v.tolist(), cf.PY) == pytest.approx(expected, rel=1e-12, abs=0)
+    assert type(cf.mechanical_power_w(f.tolist(), v.tolist(), cf.PY)) is float
+    assert float(cf.mechanical_power_w(f, v, np)) == pytest.approx(expected, rel=1e-12, abs=0)
     assert float(cf.mechanical_power_w(jnp.asarray(f), jnp.asarray(v), jnp)) == pytest.approx(expected, rel=1e-5)
 
 
@@ -117,6 +118,10 @@ def test_running_metrics_are_zero_before_the_first_step():
 
 def test_the_per_step_formulas_are_plain_functions_of_named_quantities():
     """The public per-step formulas (the Holosoma evaluator calls them too)."""
+    points = np.array([[0.3, -0.1, 1.0], [np.nan, 0.74, -0.76]])
+    assert cf.novelty_cell(points[0].tolist(), 0.25, cf.PY) == [1.0, -1.0, 4.0]
+    np.testing.assert_array_equal(cf.novelty_cell(points, 0.25, np), [[1, -1, 4], [np.nan, 2, -4]])
+    np.testing.assert_array_equal(cf.novelty_cell(jnp.asarray(points), 0.25, jnp), [[1, -1, 4], [np.nan, 2, -4]])
     assert cf.forward_units(1.0, 1.25, 10.0, cf.PY) == (1.25, pytest.approx(0.025))
     assert cf.forward_units(1.25, 1.0, 10.0, cf.PY) == (1.25, 0.0)  # moving back earns nothing
     assert cf.electrical_energy_wh(10.0, 0.5, 20.0, 3600.0) == pytest.approx(40.0)
@@ -184,3 +189,10 @@ def test_every_courier_has_the_gymnasium_layout(task_id):
     after = jax.eval_shape(env.step, state, jax.ShapeDtypeStruct((3, env.action_size), jnp.float32))
     assert after.obs.shape == (3, env.observation_size) and after.reward.shape == (3,)
     assert jax.tree_util.tree_structure(after) == jax.tree_util.tree_structure(state)  # scan-able
+
+
+def test_an_overlay_term_the_mjx_env_cannot_weight_is_a_config_error():
+    from econmotor.objectives import EconomicObjectiveSpec
+
+    with pytest.raises(ConfigError, match=r"extra_weights\.pose_tracking.*mjx backend"):
+        mjx_env.MjxCourierEnv("hopper_courier", objective=EconomicObjectiveSpec(extra_weights={"pose_tracking": 1.0}))
