@@ -22,7 +22,7 @@ def test_overlapping_intervals_are_not_a_clear_win() -> None:
 
 
 def test_intervals_without_width_cannot_separate_policies() -> None:
-    _, summary = rank([_row("a", 0.11, 0.11, 0.11), _row("b", 0.12, 0.12, 0.12)])
+    _, summary = rank([_row("a", 0.11, 0.11, 0.110001), _row("b", 0.12, 0.12, 0.12)])
     assert "no width" in summary
 
 
