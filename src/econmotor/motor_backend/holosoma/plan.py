@@ -24,6 +24,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from econmotor.config.loading import as_float
 from econmotor.errors import ConfigError
 
 SIMULATORS = ("auto", "isaacgym", "isaacsim", "mjwarp", "mujoco")
@@ -105,8 +106,9 @@ def task_settings(task_id: str, entry: Mapping[str, Any], source: str) -> dict[s
     if settings["progress_mode"] not in ("velocity", "time"):
         raise ConfigError(source, f"tasks.{task_id}.backends.holosoma.progress_mode",
                           f"got {settings['progress_mode']!r}", ("velocity", "time"))
-    if not 0.0 < float(settings["drivetrain_efficiency"]) <= 1.0:
-        raise ConfigError(source, f"tasks.{task_id}.backends.holosoma.drivetrain_efficiency", "must be in (0, 1]")
+    efficiency_key = f"tasks.{task_id}.backends.holosoma.drivetrain_efficiency"
+    if not 0.0 < as_float(settings["drivetrain_efficiency"], source, efficiency_key) <= 1.0:
+        raise ConfigError(source, efficiency_key, "must be in (0, 1]")
     return settings
 
 
