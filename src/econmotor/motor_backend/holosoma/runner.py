@@ -267,7 +267,9 @@ def sim2sim(job: dict[str, Any]) -> dict[str, Any]:
     total = int(job["num_episodes"])
     emit("message", text=f"sim-to-sim: {contract.policy} ({contract.inference_preset} observations, "
                          f"{contract.control_rate_hz:g} Hz policy, {1 / contract.physics_dt_s:g} Hz PD) in MuJoCo, "
-                         f"{total} episode(s) of {job['episode_s']:g} s at {course.speed_m_per_s:g} m/s commanded")
+                         f"{total} episode(s) of {course.legs or 'unlimited'} {course.leg_m:g} m leg(s) with a "
+                         f"{course.dwell_s:g} s dwell each (at most {job['episode_s']:g} s) at "
+                         f"{course.speed_m_per_s:g} m/s commanded")
     episodes, wall_s = s.evaluate(contract, course, meter, stress, total, float(job["episode_s"]), int(job["seed"]),
                                   lambda done, n: emit("progress", label="sim-to-sim episodes", done=done, total=n))
     return {"episodes": episodes, "wall_s": wall_s, "contract": contract.to_dict(),

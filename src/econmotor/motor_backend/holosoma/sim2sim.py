@@ -318,10 +318,10 @@ def step_reading(qpos: np.ndarray, qfrc: np.ndarray, qvel: np.ndarray, fall_tilt
     """What the shared meter reads from one physics step: the base's x (the course runs along +x),
     ``sum |qfrc_actuator qvel|`` over the policy's joints, the torso tilt, and whether the robot fell
     (tilt past ``fall_tilt_rad``, base below ``min_base_z_m`` or a non-finite state)."""
-    tilt = root_tilt_rad(qpos, True, cf.PY)
+    tilt = root_tilt_rad(qpos[:7].tolist(), True, cf.PY)
     z = float(qpos[2])
     fell = tilt > fall_tilt_rad or z < min_base_z_m or not math.isfinite(z)
-    return cf.StepReading(x_m=float(qpos[0]), mechanical_w=cf.mechanical_power_w(qfrc, qvel, cf.PY),
+    return cf.StepReading(x_m=float(qpos[0]), mechanical_w=cf.mechanical_power_w(qfrc.tolist(), qvel.tolist(), cf.PY),
                           tilt_rad=tilt, fell=fell)
 
 
