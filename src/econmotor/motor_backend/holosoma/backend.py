@@ -17,48 +17,66 @@ overrides it): ``humanoid_locomotion_g1`` -> ``g1_29dof`` / ``g1_29dof_fast_sac`
   environment steps and is adapted to the simulator (:mod:`.holosoma.plan`, every change
   announced as a ``holosoma: ...`` progress label and kept in ``config["messages"]``).
   Then ``eval_episodes`` episodes are evaluated.
-- **evaluate_policy**: Holosoma's ``eval_agent`` with its recording callback (extended);
-  raw metrics per episode from the recording (:mod:`.holosoma.recording_metrics`), econ
-  metrics from :func:`summarize_episodes`.
+- **evaluate_policy**: locomotion tasks, the sim-to-sim evaluator (:mod:`.holosoma.sim2sim`: the
+  policy's ONNX walking a delivery course in plain MuJoCo, metered by the couriers' formulas), for a
+  run trained here and for an imported policy alike; whole-body tracking, Holosoma's ``eval_agent``
+  with its recording callback (extended), raw metrics per episode from the recording
+  (:mod:`.holosoma.recording_metrics`).
 - **deploy_policy_handle**: an onnxruntime session over Holosoma's exported ONNX,
   carrying Holosoma's metadata (``dof_names``, ``kp``, ``kd``, ``action_scale``, ...) and
   ours (``econmotor_*``: task, objective, overlay weights, task economics).
 
-``policy_id`` is the run directory holding ``policy.json`` (or an ``.onnx`` file for deploy).
+``output_dir`` is the run directory (default: a new one under ``runs_dir``); a trained run holds
+``run_config.json`` and ``policy.onnx``. ``policy_id`` names that directory, or an imported policy:
+an ONNX file in Holosoma's export format or a shipped one, ``holosoma:<robot>/<algo>``
+(:mod:`.holosoma.policy_import`).
 """
 
 from __future__ import annotations
 
 import json
 import math
-import os
-import time
-from collections.abc import Sequence
+import shutil
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import (
+    RUN_CONFIG_FILE,
+    BackendCapabilities,
+    MotorBackendBase,
     MotorEvalResult,
     MotorTrainingResult,
     ProgressFn,
+    RunSize,
     StepAlias,
     no_progress,
+    evaluation_result,
+    read_run_config,
     summarize_episodes,
+    write_run_config,
 )
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.motor_backend.holosoma.datapack_mapping import map_datapacks
-from econmotor.motor_backend.holosoma.econ_formulas import OVERLAY_TERM_KEYS
+from econmotor.motor_backend.holosoma.econ_formulas import OVERLAY_TERM_KEYS, mechanical_from_electrical_w
 from econmotor.motor_backend.holosoma.jobs import run_job
 from econmotor.motor_backend.holosoma.plan import (
     DEFAULT_CPU_MAX_ENV_STEPS,
     HOLOSOMA_TASK_PRESETS,
     Capabilities,
     choose_simulator,
+    SIM2SIM_KEYS,
     plan_training,
     task_settings,
+)
+from econmotor.motor_backend.holosoma.policy_import import (
+    ALGO_FILE_PREFIX,
+    NAME_PREFIX,
+    is_imported_policy,
+    parse_policy_name,
 )
 from econmotor.motor_backend.holosoma.recording_metrics import episodes_from_recording
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
@@ -69,13 +87,14 @@ __all__ = ["HOLOSOMA_TASK_PRESETS", "HolosomaBackend", "HolosomaPolicyHandle", "
 VENV_ENV = "ECONMOTOR_HOLOSOMA_VENV"
 SIMULATOR_ENV = "ECONMOTOR_HOLOSOMA_SIMULATOR"
 ALGO_ENV = "ECONMOTOR_HOLOSOMA_ALGO"
-MANIFEST = "policy.json"
+CPU_STEPS_ENV = "ECONMOTOR_HOLOSOMA_CPU_MAX_ENV_STEPS"
+LEGACY_MANIFEST = "policy.json"  # the run record before run_config.json
 _REPO_ROOT = Path(__file__).resolve().parents[4]
 
 
 def find_holosoma_python(venv: str | Path | None = None) -> Path:
-    """The Holosoma interpreter: ``venv`` > $ECONMOTOR_HOLOSOMA_VENV > ./.venv-holosoma > repo's."""
-    candidates = [Path(v) for v in (venv, os.environ.get(VENV_ENV)) if v]
+    """The Holosoma interpreter: ``venv`` (the CLI passes $ECONMOTOR_HOLOSOMA_VENV) > ./.venv-holosoma > repo's."""
+    candidates = [Path(venv)] if venv else []
     candidates += [Path.cwd() / ".venv-holosoma", _REPO_ROOT / ".venv-holosoma"]
     for candidate in candidates:
         python = candidate / "bin" / "python"
@@ -163,49 +182,79 @@ def attach_econmotor_metadata(onnx_path: str | Path, metadata: dict[str, Any]) -
     tmp.replace(onnx_path)
 
 
-class HolosomaBackend:
+class HolosomaBackend(MotorBackendBase):
     """Holosoma through its own interpreter (module docstring).
 
     Args:
-        simulator: ``auto`` (default; $ECONMOTOR_HOLOSOMA_SIMULATOR overrides), ``isaacgym``,
-            ``isaacsim``, ``mjwarp`` or ``mujoco`` (classic, CPU, one env).
-        algo: ``ppo`` or ``fast_sac`` ($ECONMOTOR_HOLOSOMA_ALGO, else the task entry's ``algo``, else ppo).
-        venv: the Holosoma virtualenv (default: see :func:`find_holosoma_python`).
-        cpu_max_env_steps: cap on environment steps when training on the CPU.
-        eval_episode_length_s: evaluation episode length (default: the preset's, 20 s for locomotion).
-        job_timeout_s: kill a job running longer than this.
         task_files: user task catalog YAML files (added to the shipped catalog).
+        runs_dir: where new run directories go when ``output_dir`` is not given.
+        simulator: ``auto`` (default), ``isaacgym``, ``isaacsim``, ``mjwarp`` or ``mujoco`` (classic,
+            CPU, one env). The CLI passes $ECONMOTOR_HOLOSOMA_SIMULATOR (``environment_options``).
+        algo: ``ppo`` or ``fast_sac`` (else the task entry's ``algo``, else ppo; the CLI passes
+            $ECONMOTOR_HOLOSOMA_ALGO).
+        venv: the Holosoma virtualenv (default: see :func:`find_holosoma_python`; the CLI passes
+            $ECONMOTOR_HOLOSOMA_VENV).
+        cpu_max_env_steps: cap on environment steps when training on the CPU (the CLI passes
+            $ECONMOTOR_HOLOSOMA_CPU_MAX_ENV_STEPS).
+        eval_episode_length_s: evaluation episode length (default: sim-to-sim, the catalog's
+            ``sim2sim_episode_s``; eval_agent, the preset's).
+        command_speed_m_per_s: the sim-to-sim course's commanded speed (default: the catalog's
+            ``course_speed_m_per_s``).
+        job_timeout_s: kill a job running longer than this.
     """
 
     name = "holosoma"
+    capabilities = BackendCapabilities(algorithms=("ppo", "fast_sac"), imported_policies=True)
+    # Holosoma's own G1/T1 presets train 4096 envs on a GPU; the plan adapts a request to the machine
+    defaults = RunSize(num_envs=0, max_steps=50_000)
+    smoke_run = RunSize(num_envs=1, max_steps=240, task_id="humanoid_locomotion_g1")
+    max_num_envs = 65_536
+    final_policy_file = "policy.onnx"
+    environment_options: ClassVar[Mapping[str, str]] = {VENV_ENV: "venv", SIMULATOR_ENV: "simulator",
+                                                        ALGO_ENV: "algo", CPU_STEPS_ENV: "cpu_max_env_steps"}
 
     def __init__(
         self,
+        *,
+        task_files: Sequence[str | Path] = (),
+        runs_dir: str | Path = "runs",
         simulator: str | None = None,
         algo: str | None = None,
         venv: str | Path | None = None,
         cpu_max_env_steps: int = DEFAULT_CPU_MAX_ENV_STEPS,
         eval_episode_length_s: float | None = None,
+        command_speed_m_per_s: float | None = None,
         job_timeout_s: float | None = None,
-        task_files: Sequence[str | Path] = (),
     ) -> None:
-        self.simulator = simulator or os.environ.get(SIMULATOR_ENV, "auto")
+        super().__init__(task_files=task_files, runs_dir=runs_dir)
+        self.simulator = simulator or "auto"
         # an unknown simulator name fails here, before any job starts
         choose_simulator(self.simulator, Capabilities(cuda=True, isaacgym=True, isaacsim=True, mujoco_warp=True))
-        self.algo = algo or os.environ.get(ALGO_ENV) or None
-        self.task_files = list(task_files)
+        self.algo = algo or None
         self.venv = venv
         self.cpu_max_env_steps = int(cpu_max_env_steps)
         self.eval_episode_length_s = eval_episode_length_s
+        self.command_speed_m_per_s = command_speed_m_per_s
         self.job_timeout_s = job_timeout_s
         self._caps: Capabilities | None = None
+
+    @classmethod
+    def check_datapack(cls, pack: DatapackConfig, source: str) -> None:
+        """The randomization, curriculum, terrain and motion-clip overrides a Holosoma run would apply."""
+        bundle = DatapackProvider().resolve("<validate>", [pack.id], [pack])
+        map_datapacks(bundle, [pack], uses_motion_clip=bool(pack.motion_clips))
+
+    @classmethod
+    def check_task_entry(cls, spec: Any) -> None:
+        """The ``backends.holosoma`` entry's keys, experiment, progress mode and efficiency."""
+        task_settings(spec.task_id, spec.backend_entry("holosoma"), spec.source)
 
     # -- helpers ---------------------------------------------------------------------------------
     @property
     def python(self) -> Path:
         return find_holosoma_python(self.venv)
 
-    def capabilities(self, run_dir: Path) -> Capabilities:
+    def machine(self, run_dir: Path) -> Capabilities:
         """What the Holosoma interpreter can use (probed once per backend)."""
         if self._caps is None:
             outcome = run_job(self.python, {"action": "probe"}, run_dir, no_progress, self.job_timeout_s)
@@ -251,10 +300,8 @@ class HolosomaBackend:
         if overrides.motion_duration_s is not None:  # a unit of work is one pass through the clip
             settings = {**settings, "unit_duration_s": overrides.motion_duration_s}
         weights, messages = self._overlay(objective, float(settings["overlay_gain"]))
-        run_dir = Path(output_dir or Path(".econmotor") / "holosoma_runs") / (
-            f"{task_id}-{time.strftime('%Y%m%d-%H%M%S')}-seed{seed}")
-        run_dir = run_dir.resolve()
-        simulator, device = choose_simulator(self.simulator, self.capabilities(run_dir))
+        run_dir = self.run_dir(output_dir, task_id, seed).resolve()
+        simulator, device = choose_simulator(self.simulator, self.machine(run_dir))
         plan = plan_training(experiment=settings["experiment"][algo], algo=algo, simulator=simulator, device=device,
                              num_envs=num_envs, max_steps=max_steps, cpu_max_env_steps=self.cpu_max_env_steps)
         messages = [*plan.messages, *overrides.messages, *messages]
@@ -279,10 +326,13 @@ class HolosomaBackend:
                 "overlay_gain": settings["overlay_gain"], "task_economics": spec.economics.to_dict(),
                 "settings": settings}
         attach_econmotor_metadata(result["onnx"], ours)
-        manifest = {**ours, "checkpoint": result["checkpoint"], "onnx": result["onnx"],
-                    "experiment_dir": result["experiment_dir"], "episode_length_s": result["episode_length_s"],
-                    "control_dt_s": result["control_dt_s"], "simulator": plan.simulator, "algo": algo}
-        (run_dir / MANIFEST).write_text(json.dumps(manifest, indent=2, default=str), encoding="utf-8")
+        policy_onnx = run_dir / self.final_policy_file  # the run's policy, where every backend keeps its final one
+        shutil.copyfile(result["onnx"], policy_onnx)
+        write_run_config(run_dir, {
+            **ours, "backend": self.name, "checkpoint": result["checkpoint"], "onnx": str(policy_onnx),
+            "holosoma_onnx": result["onnx"], "experiment_dir": result["experiment_dir"],
+            "episode_length_s": result["episode_length_s"], "control_dt_s": result["control_dt_s"],
+            "simulator": plan.simulator, "algo": algo, "seed": int(seed)})
         curve = [{"timesteps": float(c["timesteps"]), "mean_return": float(c["mean_return"])}
                  for c in outcome.curve if c.get("mean_return") is not None]
         econ_log = {k: v for c in outcome.curve for k, v in c.get("econ", {}).items()}
@@ -303,7 +353,7 @@ class HolosomaBackend:
                                       datapack_configs=datapack_configs, output_dir=run_dir / "eval", progress=progress)
             raw, econ, episodes = ev.raw_metrics, ev.econ_metrics, ev.episodes
             config["evaluation"] = ev.config
-        artifacts = {"policy": str(run_dir), "checkpoint": result["checkpoint"], "onnx": result["onnx"],
+        artifacts = {"policy": str(run_dir), "checkpoint": result["checkpoint"], "onnx": str(policy_onnx),
                      "tensorboard": result["experiment_dir"], "train_log": outcome.log_path}
         return MotorTrainingResult(str(run_dir), task_id, self.name, raw, econ, episodes, curve, config, artifacts)
 
@@ -319,31 +369,102 @@ class HolosomaBackend:
         output_dir: str | Path | None = None,
         progress: ProgressFn = no_progress,
     ) -> MotorEvalResult:
-        """Holosoma's eval_agent with recording; econ metrics from the recording's episodes."""
+        """Evaluate a run directory trained here or an imported policy (``policy.onnx``-style file or
+        ``holosoma:<robot>/<algo>``); episode ``i`` is seeded ``seed + i``.
+
+        Locomotion tasks: the sim-to-sim evaluator (:mod:`.sim2sim`) on the policy's ONNX, the same for a
+        policy trained here and one trained elsewhere. Whole-body tracking (a motion clip): Holosoma's
+        eval_agent with recording, for run directories trained here.
+        """
         if num_episodes < 1:
             raise ConfigError("<evaluate>", "num_episodes", f"must be >= 1, got {num_episodes}")
-        manifest = self._manifest(policy_id)
-        spec = get_task(task_id, self.task_files)
-        settings = manifest["settings"]  # the physical parameters the policy was trained with
-        episode_s = float(self.eval_episode_length_s or manifest["episode_length_s"])
-        steps = num_episodes * math.ceil(episode_s / float(manifest["control_dt_s"]))
-        run_dir = Path(output_dir or Path(policy_id) / f"eval-{time.strftime('%Y%m%d-%H%M%S')}").resolve()
-        simulator = self._eval_simulator(manifest.get("simulator", "mujoco"), run_dir, progress)
-        job = {"action": "evaluate", "run_dir": str(run_dir), "checkpoint": manifest["checkpoint"],
+        spec, settings = self._task(task_id)
+        imported = is_imported_policy(policy_id)
+        self.check_policy(policy_id)
+        record = None if imported else self._run_config(policy_id)
+        run_dir = self.run_dir(output_dir, task_id, seed).resolve()
+        if settings["progress_mode"] == "velocity":
+            policy = str(policy_id) if str(policy_id).startswith(NAME_PREFIX) else \
+                str(Path(policy_id if imported else record["onnx"]).resolve())
+            return self._sim2sim(policy, str(policy_id), imported, spec, settings, num_episodes, seed,
+                                 list(datapack_configs or ()), run_dir, progress)
+        if imported:
+            raise ConfigError("--policy", str(policy_id), f"task '{task_id}' tracks a motion clip; the sim-to-sim "
+                              "evaluator walks locomotion courses", ["humanoid_locomotion_g1", "humanoid_locomotion_t1"])
+        return self._eval_agent(record, policy_id, task_id, spec, objective, num_episodes, seed, run_dir, progress)
+
+    def _sim2sim(self, policy: str, policy_id: str, imported: bool, spec: Any, settings: dict[str, Any],
+                 num_episodes: int, seed: int, packs: list[DatapackConfig], run_dir: Path,
+                 progress: ProgressFn) -> MotorEvalResult:
+        """A ``sim2sim`` job: the course, the shared meter and the datapack's stress from the task catalog."""
+        task_id = spec.task_id
+        missing = [k for k in SIM2SIM_KEYS if k not in settings]
+        if missing:
+            raise ConfigError(spec.source, f"tasks.{task_id}.backends.holosoma.{missing[0]}",
+                              "the sim-to-sim evaluation needs it (with its unit and source)", SIM2SIM_KEYS)
+        bundle = DatapackProvider().resolve(task_id, [p.id for p in packs], packs)
+        overrides = map_datapacks(bundle, packs, uses_motion_clip=False)
+        speed = float(self.command_speed_m_per_s or settings["course_speed_m_per_s"])
+        episode_s = float(self.eval_episode_length_s or settings["sim2sim_episode_s"])
+        leg_m = float(settings["unit_length_m"])
+        course = {"leg_m": leg_m, "dwell_s": float(settings["dwell_s"]), "speed_m_per_s": speed,
+                  "legs": int(settings["sim2sim_legs"])}
+        meter = {"leg_distance_m": leg_m, "drivetrain_efficiency": float(settings["drivetrain_efficiency"]),
+                 "idle_power_w": float(settings["idle_power_w"]), "tilt_margin_rad": float(settings["tilt_margin_rad"]),
+                 "fall_tilt_rad": float(settings["max_tilt_rad"])}
+        job = {"action": "sim2sim", "run_dir": str(run_dir), "policy": policy, "num_episodes": int(num_episodes),
+               "episode_s": episode_s, "seed": int(seed), "course": course, "meter": meter,
+               "overrides": overrides.to_dict(), "task_id": task_id,
+               "task_experiments": sorted(set(settings["experiment"].values()))}
+        notes = list(overrides.messages)
+        if not overrides.randomization and not overrides.evaluation:
+            notes.append("nominal conditions (no datapack randomization): every episode starts from the same state "
+                         "and repeats the first, so the intervals show no spread; a datapack such as "
+                         "configs/datapacks/humanoid_stress.yaml makes the conditions vary by seed")
+        for text in notes:
+            progress(f"holosoma: {text}", 1.0, 1.0)
+        outcome = run_job(self.python, job, run_dir, progress, self.job_timeout_s)
+        episodes = outcome.result["episodes"]
+        walking_s = sum(float(e["walking_s"]) for e in episodes)
+        achieved = sum(float(e["achieved_speed_m_per_s"]) * float(e["walking_s"]) for e in episodes) / walking_s \
+            if walking_s > 0 else 0.0
+        hours = sum(float(e["episode_length_s"]) for e in episodes) / 3600.0
+        power_w = sum(float(e["energy_wh"]) for e in episodes) / hours if hours > 0 else 0.0
+        config = {
+            "seed": int(seed), "evaluator": "sim2sim", "policy": policy_id, "imported": imported,
+            "mean_power_w": power_w, "mean_mech_power_w": mechanical_from_electrical_w(
+                power_w, meter["drivetrain_efficiency"], meter["idle_power_w"]),
+            "figures_from": "MuJoCo sim-to-sim (plain MuJoCo, the policy's ONNX, holosoma_inference's observations)",
+            "commanded_speed_m_per_s": speed, "achieved_speed_m_per_s": achieved, "episode_length_s": episode_s,
+            "course": course, "meter": meter, "datapacks": list(bundle.datapack_ids), "stress": outcome.result["stress"],
+            "contract": outcome.result["contract"], "wall_s": outcome.result["wall_s"],
+            "messages": [*notes, *outcome.messages], "eval_log": outcome.log_path}
+        return evaluation_result(self.name, policy_id, task_id, episodes, spec.economics, config, output_dir=run_dir)
+
+    def _eval_agent(self, record: dict[str, Any], policy_id: str, task_id: str, spec: Any,
+                    objective: EconomicObjectiveSpec, num_episodes: int, seed: int, run_dir: Path,
+                    progress: ProgressFn) -> MotorEvalResult:
+        """Holosoma's eval_agent with recording; econ metrics from the recording's episodes."""
+        settings = record["settings"]  # the physical parameters the policy was trained with
+        episode_s = float(self.eval_episode_length_s or record["episode_length_s"])
+        steps = num_episodes * math.ceil(episode_s / float(record["control_dt_s"]))
+        simulator = self._eval_simulator(record.get("simulator", "mujoco"), run_dir, progress)
+        job = {"action": "evaluate", "run_dir": str(run_dir), "checkpoint": record["checkpoint"],
                "num_steps": steps, "episode_length_s": episode_s, "seed": int(seed), "simulator": simulator}
         outcome = run_job(self.python, job, run_dir, progress, self.job_timeout_s)
         raw_episodes = episodes_from_recording(outcome.result["recording"], settings, num_episodes)
         if not raw_episodes:
             raise BackendError(f"Holosoma's recording {outcome.result['recording']} holds no steps")
         raw, econ, episodes = summarize_episodes(raw_episodes, spec.economics)
-        config = {"seed": seed, "objective": objective.to_dict(), "recording": outcome.result["recording"],
-                  "exported_onnx": outcome.result.get("onnx"), "episode_length_s": episode_s, "num_steps": steps,
-                  "messages": list(outcome.messages), "eval_log": outcome.log_path}
+        config = {"seed": seed, "evaluator": "eval_agent", "objective": objective.to_dict(),
+                  "recording": outcome.result["recording"], "exported_onnx": outcome.result.get("onnx"),
+                  "episode_length_s": episode_s, "num_steps": steps, "messages": list(outcome.messages),
+                  "eval_log": outcome.log_path}
         return MotorEvalResult(policy_id, task_id, self.name, raw, econ, episodes, config)
 
     def _eval_simulator(self, trained_on: str, run_dir: Path, progress: ProgressFn) -> str:
         """The training simulator when this machine has it (or the one asked for), else the auto choice."""
-        caps = self.capabilities(run_dir)
+        caps = self.machine(run_dir)
         wanted = trained_on if self.simulator == "auto" else self.simulator
         try:
             return choose_simulator(wanted, caps)[0]
@@ -354,18 +475,43 @@ class HolosomaBackend:
             return fallback
 
     def deploy_policy_handle(self, policy_id: str) -> HolosomaPolicyHandle:
-        """An onnxruntime handle for a trained run directory (or an ONNX file)."""
-        path = Path(policy_id)
-        onnx_path = path if path.suffix == ".onnx" else Path(self._manifest(policy_id)["onnx"])
+        """An onnxruntime handle for a trained run directory, an ONNX file or a shipped policy name."""
+        if str(policy_id).startswith(NAME_PREFIX):
+            onnx_path = shipped_policy_file(self.python, str(policy_id))
+        else:
+            path = Path(policy_id)
+            onnx_path = path if path.suffix == ".onnx" else Path(self._run_config(policy_id)["onnx"])
         if not onnx_path.is_file():
             raise BackendError(f"no ONNX policy at {onnx_path}")
         return HolosomaPolicyHandle(onnx_path)
 
-    @staticmethod
-    def _manifest(policy_id: str) -> dict[str, Any]:
-        path = Path(policy_id) / MANIFEST
-        if not path.is_file():
-            raise BackendError(f"{policy_id} is not a Holosoma run directory (no {MANIFEST}); "
-                               "pass the policy_id that train_policy returned")
-        return json.loads(path.read_text(encoding="utf-8"))
+    def check_policy(self, policy_id: str) -> None:
+        """An imported policy must be a shipped name this .venv-holosoma has or an existing ONNX file; a run
+        directory must hold its ``run_config.json`` (ConfigErrors, before any job starts)."""
+        if str(policy_id).startswith(NAME_PREFIX):
+            shipped_policy_file(self.python, str(policy_id))
+        elif str(policy_id).endswith(".onnx"):
+            if not Path(policy_id).is_file():
+                raise ConfigError("--policy", str(policy_id), "no such ONNX file")
+        else:
+            self._run_config(policy_id)
 
+    def _run_config(self, policy_id: str) -> dict[str, Any]:
+        """The run's ``run_config.json`` (a run written before it had one: its ``policy.json``)."""
+        legacy = Path(policy_id) / LEGACY_MANIFEST
+        if not (Path(policy_id) / RUN_CONFIG_FILE).is_file() and legacy.is_file():
+            return json.loads(legacy.read_text(encoding="utf-8"))
+        return read_run_config(policy_id, self.name, check_backend=True)
+
+
+def shipped_policy_file(python: Path, name: str) -> Path:
+    """The ONNX file of a shipped policy name in the Holosoma interpreter's holosoma_inference (no import)."""
+    robot, algo = parse_policy_name(name)
+    file = f"{ALGO_FILE_PREFIX[algo]}_{robot}.onnx"
+    site = python.parent.parent / "lib"
+    loco = "python3*/site-packages/holosoma_inference/models/loco"
+    found = sorted(site.glob(f"{loco}/{robot}/{file}"))
+    if not found:
+        shipped = sorted(f"{NAME_PREFIX}{p.parent.name}/{p.stem.split('_', 1)[0]}" for p in site.glob(f"{loco}/*/*.onnx"))
+        raise ConfigError("--policy", name, f"holosoma_inference in {python.parent.parent} ships no {file}", shipped)
+    return found[0]
