@@ -38,8 +38,12 @@ def task_file(tmp_path, entry: str):
     ("mujoco: {env_id: Hopper-v5, leg_distance_m: far}", "tasks.my_task.backends.mujoco.leg_distance_m",
      "expected a number"),
     ("mujoco: {leg_distance_m: 3}", "tasks.my_task.backends.mujoco.env_id", "missing required key"),
+    ("holosoma: {progress_mode: fast}", "tasks.my_task.backends.holosoma.experiment", "name one"),
+    ("holosoma: {experiment: x, drivetrain_efficiency: abc}", "tasks.my_task.backends.holosoma.drivetrain_efficiency",
+     "expected a number"),
 ], ids=["unknown-backend", "unknown-key", "unknown-preset", "override-type", "override-negative",
-        "override-name", "normalization-type", "mujoco-type", "mujoco-missing"])
+        "override-name", "normalization-type", "mujoco-type", "mujoco-missing", "holosoma-no-preset",
+        "holosoma-efficiency-type"])
 def test_bad_entry_is_refused_at_load(tmp_path, entry, key, message):
     path = task_file(tmp_path, entry)
     with pytest.raises(ConfigError) as info:
