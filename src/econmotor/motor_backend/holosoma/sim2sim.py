@@ -178,7 +178,9 @@ class ObservationBuilder:
             buf = self.history[term]
             buf.append(frame)
             del buf[:-n]
-            parts.extend([np.zeros_like(frame)] * (n - len(buf)) + buf)
+            if len(buf) < n:  # before the history fills: zeros for the frames not seen yet
+                parts.extend([np.zeros_like(frame)] * (n - len(buf)))
+            parts.extend(buf)
         return np.concatenate(parts)[None, :]
 
 
@@ -229,9 +231,9 @@ class Robot:
 
     model: Any
     data: Any
-    qpos_adr: np.ndarray
-    dof_adr: np.ndarray
-    actuators: np.ndarray
+    qpos_adr: np.ndarray | slice
+    dof_adr: np.ndarray | slice
+    actuators: np.ndarray | slice
     torso: int
     nominal_torso_mass: float
     floor_geom: int
@@ -255,9 +257,16 @@ def build_robot(contract: PolicyContract) -> Robot:
     jids = [model.joint(n).id for n in contract.dof_names]
     torso = model.body(contract.torso_body).id
     floor = model.geom("floor").id
-    return Robot(model, mujoco.MjData(model), model.jnt_qposadr[jids].copy(), model.jnt_dofadr[jids].copy(),
-                 np.array([act_joint[n] for n in contract.dof_names]), torso, float(model.body_mass[torso]), floor,
-                 model.pair_friction.copy(), model.geom_friction[floor].copy())
+    return Robot(model, mujoco.MjData(model), _index(model.jnt_qposadr[jids]), _index(model.jnt_dofadr[jids]),
+                 _index(np.array([act_joint[n] for n in contract.dof_names])), torso, float(model.body_mass[torso]),
+                 floor, model.pair_friction.copy(), model.geom_friction[floor].copy())
+
+
+def _index(indices: np.ndarray) -> np.ndarray | slice:
+    """A slice where the indices are consecutive (a view, no gather per physics step), else the indices."""
+    first = int(indices[0])
+    return slice(first, first + len(indices)) if np.array_equal(indices, np.arange(first, first + len(indices))) \
+        else indices.copy()
 
 
 def robot_state(robot: Robot) -> dict[str, np.ndarray]:
