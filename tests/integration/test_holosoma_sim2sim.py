@@ -176,3 +176,39 @@ def test_onnx_whose_joints_fit_no_robot_is_a_clear_error(backend: HolosomaBacken
                                 output_dir=tmp_path / "eval")
     text = str(info.value)
     assert "knee_x" in text and "g1-29dof-loco" in text
+
+
+def test_report_prices_an_imported_policy_without_training(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from econmotor.cli import main
+    from econmotor.store import Registry
+
+    monkeypatch.chdir(tmp_path)
+    url = f"sqlite:///{tmp_path / 'registry.sqlite'}"
+    assert main(["report", "--task-id", "humanoid_locomotion_t1", "--motor-backend", "holosoma", "--policy",
+                 "holosoma:t1_29dof/fastsac", "--eval-episodes", "1", "--db-url", url, "--output-dir", "out"]) == 0
+    with Registry(url, create=False) as reg:
+        runs = reg.runs(task_id="humanoid_locomotion_t1")
+    assert [(r.kind, r.status, r.policy_path) for r in runs] == [("eval", "completed", "holosoma:t1_29dof/fastsac")]
+    doc = json.loads(next((tmp_path / "out").glob("*.json")).read_text(encoding="utf-8"))
+    assert doc["runs"]["train"] is None and doc["training_curve"] == []
+    assert doc["episodes"][0]["termination_reason"] == "course_done"  # three legs, each with its dwell
+    markdown = next((tmp_path / "out").glob("*.md")).read_text(encoding="utf-8")
+    assert "imported policy holosoma:t1_29dof/fastsac" in markdown and "MuJoCo sim-to-sim" in markdown
+    assert "m/s commanded" in markdown
+
+
+def test_compare_ranks_policies_on_the_same_seeds(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from econmotor.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    url = f"sqlite:///{tmp_path / 'registry.sqlite'}"
+    assert main(["compare", "--task-id", "humanoid_locomotion_g1", "--policy", "holosoma:g1_29dof/ppo", "--policy",
+                 "holosoma:g1_29dof/fastsac", "--eval-episodes", "1", "--command-speed", "0.8", "--db-url", url,
+                 "--output-dir", "cmp"]) == 0
+    result = json.loads((tmp_path / "cmp" / "compare.json").read_text(encoding="utf-8"))
+    ranked = result["ranking"]
+    assert {r["policy"] for r in ranked} == {"holosoma:g1_29dof/ppo", "holosoma:g1_29dof/fastsac"}
+    assert ranked[0]["price_usd_per_unit"] <= ranked[1]["price_usd_per_unit"]
+    assert all(r["commanded_speed_m_per_s"] == 0.8 and r["falls"] == 0.0 for r in ranked)
+    assert result["summary"].startswith(f"winner: {ranked[0]['policy']}")
+    assert (tmp_path / "cmp" / "compare.png").stat().st_size > 0 and (tmp_path / "cmp" / "compare.md").is_file()
