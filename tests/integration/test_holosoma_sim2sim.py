@@ -212,3 +212,26 @@ def test_compare_ranks_policies_on_the_same_seeds(tmp_path: Path, monkeypatch: p
     assert all(r["commanded_speed_m_per_s"] == 0.8 and r["falls"] == 0.0 for r in ranked)
     assert result["summary"].startswith(f"winner: {ranked[0]['policy']}")
     assert (tmp_path / "cmp" / "compare.png").stat().st_size > 0 and (tmp_path / "cmp" / "compare.md").is_file()
+
+
+def test_onnx_with_the_wrong_observation_width_is_a_clear_error(backend: HolosomaBackend, python: Path,
+                                                                  tmp_path: Path) -> None:
+    """A policy taking 50 observations with G1's metadata: the error names its width and the preset's 100."""
+    onnx_file = tmp_path / "narrow.onnx"
+    script = ("import sys, onnx\nfrom onnx import TensorProto, helper\n"
+              "from econmotor.motor_backend.holosoma.policy_import import shipped_policy_path\n"
+              "shipped = onnx.load(str(shipped_policy_path('holosoma:g1_29dof/ppo')))\n"
+              "w = helper.make_tensor('w', TensorProto.FLOAT, [50, 29], [0.0] * (50 * 29))\n"
+              "graph = helper.make_graph([helper.make_node('MatMul', ['actor_obs', 'w'], ['action'])], 'narrow',\n"
+              "    [helper.make_tensor_value_info('actor_obs', TensorProto.FLOAT, [1, 50])],\n"
+              "    [helper.make_tensor_value_info('action', TensorProto.FLOAT, [1, 29])], [w])\n"
+              "model = helper.make_model(graph, opset_imports=[helper.make_opsetid('', 13)])\n"
+              "model.ir_version = shipped.ir_version\n"
+              "model.metadata_props.extend(shipped.metadata_props)\n"
+              "onnx.save(model, sys.argv[1])\n")
+    subprocess.run([str(python), "-c", script, str(onnx_file)], check=True, env=job_environment(), timeout=120)
+    with pytest.raises(Exception) as info:
+        backend.evaluate_policy(str(onnx_file), "humanoid_locomotion_g1", EconomicObjectiveSpec(), 1, 0,
+                                output_dir=tmp_path / "eval")
+    text = str(info.value)
+    assert "takes 50 observations" in text and "'g1-29dof-loco' builds 100" in text
