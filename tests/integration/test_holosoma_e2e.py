@@ -19,8 +19,8 @@ import pytest
 from econmotor.errors import BackendError
 from econmotor.motor_backend.datapacks import load_datapack_configs
 from econmotor.motor_backend.factory import make_motor_backend
-from econmotor.motor_backend.holosoma.jobs import run_job
 from econmotor.motor_backend.holosoma.backend import HolosomaPolicyHandle, find_holosoma_python
+from econmotor.motor_backend.holosoma.jobs import run_job
 from econmotor.objectives import compile_economic_overlay, load_objective_spec
 
 pytestmark = [pytest.mark.slow, pytest.mark.holosoma]

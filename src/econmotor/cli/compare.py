@@ -47,7 +47,8 @@ def comparison_row(policy_id: str, doc: dict[str, Any]) -> dict[str, Any]:
                 "energy_wh_per_unit"), "fall_rate_bound": (intervals.get("error_rate") or {}).get("high"),
             "commanded_speed_m_per_s": config.get("commanded_speed_m_per_s"),
             "achieved_speed_m_per_s": config.get("achieved_speed_m_per_s"),
-            "falls": doc["metrics"]["raw"].get("errors"), "units_attempted": doc["metrics"]["raw"].get("units_attempted"),
+            "falls": doc["metrics"]["raw"].get("errors"),
+            "units_attempted": doc["metrics"]["raw"].get("units_attempted"),
             "mean_mech_power_w": config.get("mean_mech_power_w"), "mean_power_w": config.get("mean_power_w"),
             "verdict": doc["verdict"]["label"], "deployable": doc["verdict"]["deployable"],
             "report_id": doc["registry"]["report_id"]}
@@ -65,7 +66,8 @@ def rank(rows: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], str]:
            for r in (best, second)):
         clear = ("the intervals have no width: every episode repeated the first (nominal conditions), so they "
                  "cannot tell whether the difference would hold; compare under a datapack that varies the conditions")
-    elif best["price_high"] is not None and second["price_low"] is not None and best["price_high"] < second["price_low"]:
+    elif (best["price_high"] is not None and second["price_low"] is not None
+          and best["price_high"] < second["price_low"]):
         clear = (f"the difference is larger than the intervals ({best['policy']}'s 90% interval ends at "
                  f"{fmt(best['price_high'])} USD/unit, below {second['policy']}'s, which starts at "
                  f"{fmt(second['price_low'])})")
@@ -108,8 +110,10 @@ def write_comparison(ranked: list[dict[str, Any]], summary: str, out_dir: Path, 
         ax = fig.add_subplot(1, 4, i + 1)
         values = [r[key] if r[key] is not None else 0.0 for r in ranked]
         if key == "price_usd_per_unit":
-            err = [[max(v - (r["price_low"] if r["price_low"] is not None else v), 0.0) for v, r in zip(values, ranked)],
-                   [max((r["price_high"] if r["price_high"] is not None else v) - v, 0.0) for v, r in zip(values, ranked)]]
+            lows = [r["price_low"] if r["price_low"] is not None else v for v, r in zip(values, ranked, strict=True)]
+            highs = [r["price_high"] if r["price_high"] is not None else v for v, r in zip(values, ranked, strict=True)]
+            err = [[max(v - lo, 0.0) for v, lo in zip(values, lows, strict=True)],
+                   [max(hi - v, 0.0) for v, hi in zip(values, highs, strict=True)]]
             ax.bar(names, values, yerr=err, capsize=4, color="tab:blue")
         else:
             ax.bar(names, values, color="tab:gray")

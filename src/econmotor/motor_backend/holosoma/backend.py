@@ -46,6 +46,7 @@ import numpy as np
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import (
     RUN_CONFIG_FILE,
+    TRAINING_EVAL_SEED_OFFSET,
     BackendCapabilities,
     MotorBackendBase,
     MotorEvalResult,
@@ -53,8 +54,8 @@ from econmotor.motor_backend.base import (
     ProgressFn,
     RunSize,
     StepAlias,
-    no_progress,
     evaluation_result,
+    no_progress,
     read_run_config,
     summarize_episodes,
     write_run_config,
@@ -66,9 +67,9 @@ from econmotor.motor_backend.holosoma.jobs import run_job
 from econmotor.motor_backend.holosoma.plan import (
     DEFAULT_CPU_MAX_ENV_STEPS,
     HOLOSOMA_TASK_PRESETS,
+    SIM2SIM_KEYS,
     Capabilities,
     choose_simulator,
-    SIM2SIM_KEYS,
     plan_training,
     task_settings,
 )
@@ -349,8 +350,9 @@ class HolosomaBackend(MotorBackendBase):
                                   for c in outcome.curve],
         }
         if eval_episodes > 0:
-            ev = self.evaluate_policy(str(run_dir), task_id, objective, eval_episodes, seed,
-                                      datapack_configs=datapack_configs, output_dir=run_dir / "eval", progress=progress)
+            ev = self.evaluate_policy(str(run_dir), task_id, objective, eval_episodes,
+                                      seed + TRAINING_EVAL_SEED_OFFSET, datapack_configs=datapack_configs,
+                                      output_dir=run_dir / "eval", progress=progress)
             raw, econ, episodes = ev.raw_metrics, ev.econ_metrics, ev.episodes
             config["evaluation"] = ev.config
         artifacts = {"policy": str(run_dir), "checkpoint": result["checkpoint"], "onnx": str(policy_onnx),
@@ -390,7 +392,8 @@ class HolosomaBackend(MotorBackendBase):
                                  list(datapack_configs or ()), run_dir, progress)
         if imported:
             raise ConfigError("--policy", str(policy_id), f"task '{task_id}' tracks a motion clip; the sim-to-sim "
-                              "evaluator walks locomotion courses", ["humanoid_locomotion_g1", "humanoid_locomotion_t1"])
+                              "evaluator walks locomotion courses",
+                              ["humanoid_locomotion_g1", "humanoid_locomotion_t1"])
         return self._eval_agent(record, policy_id, task_id, spec, objective, num_episodes, seed, run_dir, progress)
 
     def _sim2sim(self, policy: str, policy_id: str, imported: bool, spec: Any, settings: dict[str, Any],
@@ -436,7 +439,8 @@ class HolosomaBackend(MotorBackendBase):
                 power_w, meter["drivetrain_efficiency"], meter["idle_power_w"]),
             "figures_from": "MuJoCo sim-to-sim (plain MuJoCo, the policy's ONNX, holosoma_inference's observations)",
             "commanded_speed_m_per_s": speed, "achieved_speed_m_per_s": achieved, "episode_length_s": episode_s,
-            "course": course, "meter": meter, "datapacks": list(bundle.datapack_ids), "stress": outcome.result["stress"],
+            "course": course, "meter": meter, "datapacks": list(bundle.datapack_ids),
+            "stress": outcome.result["stress"],
             "contract": outcome.result["contract"], "wall_s": outcome.result["wall_s"],
             "messages": [*notes, *outcome.messages], "eval_log": outcome.log_path}
         return evaluation_result(self.name, policy_id, task_id, episodes, spec.economics, config, output_dir=run_dir)
@@ -512,6 +516,7 @@ def shipped_policy_file(python: Path, name: str) -> Path:
     loco = "python3*/site-packages/holosoma_inference/models/loco"
     found = sorted(site.glob(f"{loco}/{robot}/{file}"))
     if not found:
-        shipped = sorted(f"{NAME_PREFIX}{p.parent.name}/{p.stem.split('_', 1)[0]}" for p in site.glob(f"{loco}/*/*.onnx"))
+        shipped = sorted(f"{NAME_PREFIX}{p.parent.name}/{p.stem.split('_', 1)[0]}"
+                         for p in site.glob(f"{loco}/*/*.onnx"))
         raise ConfigError("--policy", name, f"holosoma_inference in {python.parent.parent} ships no {file}", shipped)
     return found[0]

@@ -15,7 +15,8 @@ Per episode (seeded: ``seed + episode index``):
   sorted order, history, gait phase); equal to holosoma_inference's own code
   (tests/integration/test_holosoma_sim2sim.py).
 - **the course** (:class:`CourseController`): a corridor along +x of ``legs`` legs of
-  ``leg_m`` metres (the episode ends after the last leg's dwell, or at its time limit); on each leg the controller commands the course speed and a yaw rate that
+  ``leg_m`` metres (the episode ends after the last leg's dwell, or at its time limit); on each leg
+  the controller commands the course speed and a yaw rate that
   steers back to the corridor's centre line (``yaw_rate = yaw_gain * heading error`` towards a
   point ``lookahead_m`` ahead on the line); at each leg end the robot stands for ``dwell_s``
   (the pick-and-place the human's leg includes, so a unit is counted alike for both).
@@ -359,7 +360,7 @@ def run_episode(robot: Robot, contract: PolicyContract, policy: Callable[[np.nda
     default = np.asarray(contract.default_dof_angles)
     min_z = FALL_HEIGHT_FRACTION * contract.init_pos[2]
     next_push = float(rng.uniform(*stress.push_interval_s)) if stress.push_interval_s is not None else math.inf
-    control_steps = int(round(episode_s / contract.control_dt_s))
+    control_steps = round(episode_s / contract.control_dt_s)
     walk_s, walk_m, pushes, max_lateral = 0.0, 0.0, 0, 0.0
     fell, steps_done = False, 0
     for step in range(control_steps):
