@@ -24,9 +24,9 @@ Per control step of ``dt_s`` seconds:
 - novelty: visit ``n`` of cell ``floor(point / novelty_bin)`` (:func:`novelty_cell`) scores
   ``n ** -0.5`` (:func:`novelty_bonus`),
 - the running episode metrics (:func:`running_metrics`) and the overlay potential
-  ``J = sum_k factor_k * m_k`` (:func:`overlay_potential`); a step's overlay reward is
-  ``J(t) - J(t-1)``, so each term's episode sum is the episode metric of its key
-  (:func:`episode_metric`).
+  ``J = sum_k factor_k * m_k`` (:func:`overlay_potential`, the same sum regrouped on the running
+  sums); a step's overlay reward is ``J(t) - J(t-1)``, so each term's episode sum is the episode
+  metric of its key (:func:`episode_metric`).
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ def _sum(a: Any, axis: int | None = None) -> float:
 #: per-step metering): numpy's names bound to the builtins and :mod:`math`, which is what a few
 #: numbers a step call for (a NumPy call on a 3-vector costs more than the arithmetic). ``abs``
 #: takes a float; ``absolute``, ``multiply``, ``floor_divide`` and ``sum`` go elementwise over lists.
-PY = SimpleNamespace(maximum=max, abs=abs, arccos=math.acos, where=_where, clip=_clip, sum=_sum,
+PY = SimpleNamespace(maximum=max, minimum=min, abs=abs, arccos=math.acos, where=_where, clip=_clip, sum=_sum,
                      absolute=lambda a: map(abs, a), multiply=lambda a, b: map(operator.mul, a, b),
                      floor_divide=lambda a, b: [x // b for x in a])
 
@@ -94,7 +94,7 @@ def electrical_energy_wh(mechanical_w: Any, drivetrain_efficiency: float, idle_p
 
 def tilt_risk(tilt_rad: Any, tilt_margin_rad: float, fall_tilt_rad: float, xp: Any) -> Any:
     """Risk in [0, 1] of a tilt from upright: ``clip((tilt - margin) / (fall_tilt - margin), 0, 1)``."""
-    return xp.clip((tilt_rad - tilt_margin_rad) / (fall_tilt_rad - tilt_margin_rad), 0.0, 1.0)
+    return xp.minimum(xp.maximum((tilt_rad - tilt_margin_rad) / (fall_tilt_rad - tilt_margin_rad), 0.0), 1.0)
 
 
 def novelty_cell(point: Any, novelty_bin: float, xp: Any) -> Any:
@@ -194,12 +194,41 @@ def overlay_factors(scales: Mapping[str, float], references: Mapping[str, float]
     return {k: float(v) / float(refs.get(k, 1.0)) for k, v in scales.items()}
 
 
-def overlay_potential(metrics: RunningMetrics, factors: Mapping[str, float]) -> Any:
-    """``J = sum_k factor_k * m_k`` over the running metrics (0 without factors)."""
-    j = 0.0
-    for key, factor in factors.items():
-        j = j + factor * getattr(metrics, key)
-    return j
+class OverlayCoefficients(NamedTuple):
+    """The overlay potential's coefficients on an episode's running sums (:func:`overlay_coefficients`)."""
+
+    units: float  # factor_mpl_per_hour * 3600 / dt_s
+    risk: float  # factor_risk_score
+    novelty: float  # factor_novelty_score
+    error: float  # factor_error_rate
+    energy: float  # factor_energy_kwh / 1000 (per Wh)
+    pose: float  # factor_pose_tracking
+
+
+def overlay_coefficients(factors: Mapping[str, float], dt_s: float) -> OverlayCoefficients:
+    """:class:`OverlayCoefficients` of the overlay ``factors`` (key -> ``scale_k / ref_k``) at control step ``dt_s``."""
+    f = {k: float(v) for k, v in factors.items()}
+    return OverlayCoefficients(
+        units=f.get("mpl_per_hour", 0.0) * SECONDS_PER_HOUR / dt_s,
+        risk=f.get("risk_score", 0.0),
+        novelty=f.get("novelty_score", 0.0),
+        error=f.get("error_rate", 0.0),
+        energy=f.get("energy_kwh", 0.0) / WH_PER_KWH,
+        pose=f.get("pose_tracking", 0.0),
+    )
+
+
+def overlay_potential(sums: MeterSums, c: OverlayCoefficients, xp: Any) -> Any:
+    """``J = sum_k factor_k * m_k`` over :func:`running_metrics` of ``sums``, regrouped on the sums::
+
+        J = (c.units * units + c.risk * risk_sum + c.novelty * novelty_sum) / steps
+            + c.error * errors / (units + errors) + c.energy * energy_wh + c.pose * pose_sum
+
+    (each ratio 0 while its denominator is 0, as in :func:`running_metrics`; a test holds the two equal).
+    """
+    per_step = safe_div(c.units * sums.units + c.risk * sums.risk_sum + c.novelty * sums.novelty_sum, sums.steps, xp)
+    return (per_step + c.error * safe_div(sums.errors, sums.units + sums.errors, xp) + c.energy * sums.energy_wh
+            + c.pose * sums.pose_sum)
 
 
 def episode_metric(raw_episode: Mapping[str, Any], key: str) -> float:

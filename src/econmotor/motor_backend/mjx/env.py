@@ -177,6 +177,7 @@ class MjxCourierEnv:
         self.factors = overlay_term_factors(self.scales, self.references, terms=MJX_TERMS, backend="mjx")
         self._constants = cf.MeterConstants(s.leg_distance_m, s.drivetrain_efficiency, s.idle_power_w,
                                             self.control_dt_s, s.tilt_margin_rad, s.fall_tilt_rad)
+        self._coefficients = cf.overlay_coefficients(self.factors, self.control_dt_s)
         self.metric_keys: tuple[str, ...] = BASE_METRIC_KEYS + tuple(f"overlay_{k}_raw" for k in self.scales) \
             if economics else ("length_steps", "return", "fell")
         self._init_qpos = jnp.asarray(self.mj_model.qpos0, dtype=jnp.float32)
@@ -299,8 +300,7 @@ class MjxCourierEnv:
                                  mechanical_w=cf.mechanical_power_w(data.qfrc_actuator[lo:hi], qvel[lo:hi], jnp),
                                  tilt_rad=root_tilt_rad(qpos, self._free_root, jnp), fell=fell, novelty_bonus=bonus)
         sums = cf.meter_step(self._meter_sums(ep), reading, self._constants, jnp)
-        j = jnp.asarray(cf.overlay_potential(cf.running_metrics(sums, self.control_dt_s, jnp), self.factors),
-                        jnp.float32)
+        j = jnp.asarray(cf.overlay_potential(sums, self._coefficients, jnp), jnp.float32)
         new = {**ep, **{k: getattr(sums, k) for k in _METER_KEYS}, "task_return": ep["task_return"] + task_r,
                "overlay_j": j}
         overlay_r = j - ep["overlay_j"]

@@ -56,6 +56,7 @@ from econmotor.economics.courier_formulas import (
     meter_step,
     novelty_bonus,
     novelty_cell,
+    overlay_coefficients,
     overlay_potential,
     running_metrics,
 )
@@ -183,6 +184,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
         self.scales = {k: float(v) for k, v in (scales or {}).items()}
         self.factors = overlay_term_factors(self.scales, references) if self.overlay else {}
         self.keep_task_reward = bool(keep_task_reward) or not self.overlay
+        self._coefficients = overlay_coefficients(self.factors, self.dt_s)
         self._track_pose = _reports_pose_tracking(env)
         self._start_episode(0.0)
 
@@ -223,18 +225,19 @@ class EconomicMeteringWrapper(gym.Wrapper):
             pose_similarity=(info.get("pose_tracking") or 0.0) if self._track_pose else 0.0,
         )
         self._sums = meter_step(self._sums, reading, self.constants, PY)
-        self._task_return += float(reward)
-        metrics = running_metrics(self._sums, self.dt_s, PY) if self.factors or terminated or truncated else None
-        j = overlay_potential(metrics, self.factors) if self.factors else 0.0
+        reward = float(reward)
+        self._task_return += reward
+        j = overlay_potential(self._sums, self._coefficients, PY) if self.overlay else 0.0
         overlay_r = j - self._prev_j  # J(t) - J(t-1); J = 0 without an overlay
         self._prev_j = j
         if terminated or truncated:
-            self._end_episode(info, terminated, metrics, j)
-        return obs, (float(reward) + overlay_r if self.keep_task_reward else overlay_r), terminated, truncated, info
+            self._end_episode(info, terminated, j)
+        return obs, (reward + overlay_r if self.keep_task_reward else overlay_r), terminated, truncated, info
 
-    def _end_episode(self, info: dict[str, Any], fell: bool, metrics: RunningMetrics, j: float) -> None:
+    def _end_episode(self, info: dict[str, Any], fell: bool, j: float) -> None:
         """Add the episode's raw metrics (and the overlay's terms) to the last step's ``info``."""
         sums, dt_s = self._sums, self.dt_s
+        metrics = running_metrics(sums, dt_s, PY)
         raw: dict[str, Any] = {
             "units_completed": sums.units,
             "units_attempted": sums.units + sums.errors,

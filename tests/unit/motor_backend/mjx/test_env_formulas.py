@@ -54,8 +54,7 @@ def test_the_mjx_step_traces_through_the_shared_functions(monkeypatch, hopper):
     # a fresh function: a traced env.step may be cached from another test's jit
     jax.eval_shape(lambda s, a: env.step(s, a), state, jax.ShapeDtypeStruct((2, env.action_size), jnp.float32))
     assert set(calls) == {n for names in spied.values() for n in names}
-    assert all(all(traced) for name, traced in calls.items() if name != "overlay_potential"), calls
-    assert any(calls["overlay_potential"])  # called on traced JAX arrays
+    assert all(all(traced) for traced in calls.values()), calls  # called on traced JAX arrays
 
 
 def _meter_case(xp_name: str, free_root: bool):
@@ -76,7 +75,7 @@ def _meter_case(xp_name: str, free_root: bool):
     reading = cf.StepReading(qpos[0], cf.mechanical_power_w(f, v, xp), physics.root_tilt_rad(qpos, free_root, xp),
                              fell, conv(0.5), conv(0.5))
     after = cf.meter_step(sums, reading, c, xp)
-    j = cf.overlay_potential(cf.running_metrics(after, 0.008, xp), factors)
+    j = cf.overlay_potential(after, cf.overlay_coefficients(factors, 0.008), xp)
     return [float(x) for x in (*after, j)]
 
 
@@ -90,7 +89,7 @@ def test_meter_step_gives_the_same_numbers_in_every_namespace(xp, free_root):
     # (tilt - margin) / span: planar (0.15 - 0.1) / 0.1, free root (0.3 - 0.1) / 0.4
     assert risk_sum == pytest.approx(0.25 + 0.5, rel=1e-5)
     m = cf.running_metrics(cf.MeterSums(4.0, units, best_x, errors, wh, risk_sum, 1.5, 2.0), 0.008, cf.PY)
-    expected_j = 2.0 * m[0] - 3.0 * m[3] + 0.5 * m[4] - 4.0 * m[1] - 5.0 * m[2] + 0.25 * m[5]
+    expected_j = 2.0 * m[0] - 3.0 * m[3] + 0.5 * m[4] - 4.0 * m[1] - 5.0 * m[2] + 0.25 * m[5]  # sum_k factor_k m_k
     assert j == pytest.approx(expected_j, rel=1e-5)
     assert _meter_case(xp, free_root) == pytest.approx(_meter_case("py", free_root), rel=1e-5)
 
@@ -110,10 +109,11 @@ def test_mechanical_power_is_the_same_sum_in_every_namespace(n):
 def test_running_metrics_are_zero_before_the_first_step():
     m = cf.running_metrics(cf.MeterSums(10.0, 0.5, 0.0, 1.0, 2.0, 3.0, 4.0, 0.0), 0.01, cf.PY)
     assert list(m) == pytest.approx([0.5 * 3600 / 0.1, 1 / 1.5, 0.002, 0.3, 0.4, 0.0], rel=1e-9)
+    c = cf.overlay_coefficients(dict.fromkeys(cf.RUNNING_METRIC_KEYS, 1.0), 0.01)
     for xp in (cf.PY, np, jnp):
-        zero = cf.running_metrics(cf.MeterSums(*(xp.asarray(0.0) if xp is not cf.PY else 0.0 for _ in range(8))),
-                                  0.01, xp)
-        assert [float(x) for x in zero] == [0.0] * 6  # no division by zero at the episode's start
+        zeros = cf.MeterSums(*(xp.asarray(0.0) if xp is not cf.PY else 0.0 for _ in range(8)))
+        assert [float(x) for x in cf.running_metrics(zeros, 0.01, xp)] == [0.0] * 6  # no division by zero
+        assert float(cf.overlay_potential(zeros, c, xp)) == 0.0
 
 
 def test_the_per_step_formulas_are_plain_functions_of_named_quantities():
