@@ -184,6 +184,27 @@ def _j_line(j: Mapping[str, Any] | None) -> str:
     return f"{fmt(j['mean'])} mean per episode (weights [{weights}] on mpl, error, energy Wh, safety, novelty)"
 
 
+def selection_text(selection: Mapping[str, Any] | None) -> str | None:
+    """Which checkpoint the training run kept and why, and whether the priced episodes are fresh."""
+    if not selection:
+        return None
+    text = selection["why"]
+    first = selection.get("became_deployable")
+    if first:
+        text += (f"; deployable on held-out episodes after {first['env_steps']:,} env steps "
+                 f"({first['wall_s']:.0f} s)")
+    cost = selection.get("evaluation_cost") or {}
+    if cost:
+        text += f"; {cost['count']} held-out evaluations cost {cost['wall_s']:.0f} s"
+    seeds = selection["held_out_seeds"]
+    if selection.get("fresh_seeds") is True:
+        text += (f". The priced episodes (seeds {selection['priced_seeds'][0]}-{selection['priced_seeds'][1] - 1}) "
+                 f"are apart from the held-out ones it was chosen on ({seeds[0]}-{seeds[1] - 1})")
+    elif selection.get("fresh_seeds") is False:
+        text += ". WARNING: the priced episodes share seeds with the held-out ones the checkpoint was chosen on"
+    return text
+
+
 def _sections(doc: Mapping[str, Any]) -> dict[str, Any]:
     """Shared content of Markdown and HTML."""
     task, obj = doc["task"], doc["objective"]
@@ -196,6 +217,9 @@ def _sections(doc: Mapping[str, Any]) -> dict[str, Any]:
              ("objective J", _j_line(doc["objective"].get("J"))),
              ("training run", _run_line(doc["runs"]["train"])), ("evaluation run", _run_line(doc["runs"]["eval"])),
              ("registry", doc["registry"]["db_url"]), ("generated", doc["generated_at"])]
+    kept = selection_text(doc.get("selection"))
+    if kept:
+        facts.insert(facts.index(("training run", _run_line(doc["runs"]["train"]))) + 1, ("policy kept", kept))
     if doc.get("notes"):
         facts.insert(0, ("notes", doc["notes"]))
     inputs = [(r["name"], fmt(r["value"]), r["unit"], r["source"]) for r in doc["inputs"]]
