@@ -205,6 +205,17 @@ def selection_text(selection: Mapping[str, Any] | None) -> str | None:
     return text
 
 
+def imported_policy_text(eval_run: Mapping[str, Any] | None) -> str:
+    """How a sim-to-sim evaluation's figures were made (imported or not; speed achieved vs commanded), or ""."""
+    config = ((eval_run or {}).get("config") or {}).get("backend_config") or {}
+    if config.get("evaluator") != "sim2sim":
+        return ""
+    origin = f"imported policy {config['policy']} (trained elsewhere; nothing trained here)" if config.get("imported") \
+        else f"policy {config['policy']} trained here"
+    return (f"{origin}; figures from {config['figures_from']}; speed achieved {fmt(config['achieved_speed_m_per_s'])} "
+            f"m/s against {fmt(config['commanded_speed_m_per_s'])} m/s commanded, while walking")
+
+
 def _sections(doc: Mapping[str, Any]) -> dict[str, Any]:
     """Shared content of Markdown and HTML."""
     task, obj = doc["task"], doc["objective"]
@@ -217,6 +228,9 @@ def _sections(doc: Mapping[str, Any]) -> dict[str, Any]:
              ("objective J", _j_line(doc["objective"].get("J"))),
              ("training run", _run_line(doc["runs"]["train"])), ("evaluation run", _run_line(doc["runs"]["eval"])),
              ("registry", doc["registry"]["db_url"]), ("generated", doc["generated_at"])]
+    evaluated = imported_policy_text(doc["runs"]["eval"])
+    if evaluated:
+        facts.insert(facts.index(("evaluation run", _run_line(doc["runs"]["eval"]))) + 1, ("evaluated", evaluated))
     kept = selection_text(doc.get("selection"))
     if kept:
         facts.insert(facts.index(("training run", _run_line(doc["runs"]["train"]))) + 1, ("policy kept", kept))
