@@ -13,7 +13,6 @@ Every input is validated before any training starts (and before anything is writ
 
 from __future__ import annotations
 
-import inspect
 import os
 import re
 from pathlib import Path
@@ -21,12 +20,28 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from econmotor.cli._app import announce_device, app, console, err_console, progress_bars, set_cpu_threads
-from econmotor.cli.train import interrupted_note
+from econmotor.cli._app import (
+    announce_device,
+    announce_num_envs,
+    app,
+    console,
+    err_console,
+    make_backend,
+    progress_bars,
+    set_cpu_threads,
+)
+from econmotor.cli.train import (
+    SELECT_EPISODES_OPTION,
+    SELECT_EVERY_OPTION,
+    UNTIL_DEPLOYABLE_OPTION,
+    interrupted_note,
+    selection_options,
+)
 from econmotor.cli.validation import (
     check_db_url,
     check_flags,
     check_name,
+    check_num_envs,
     check_output_dir,
     check_output_file,
     note_abandoned,
@@ -34,29 +49,27 @@ from econmotor.cli.validation import (
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.economics.pricing import PricingPolicy
 from econmotor.errors import ConfigError, UnknownNameError, did_you_mean
+from econmotor.motor_backend.base import REPORT_EVAL_SEED_OFFSET
 from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_configs
-from econmotor.motor_backend.factory import known_backends, make_motor_backend
+from econmotor.motor_backend.factory import DEFAULT_BACKEND, backend_class, known_backends
 from econmotor.objectives import load_objective_spec, objective_from_vector
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.report.pipeline import (
     ReportOutcome,
     TrainRequest,
-    new_run_dir,
+    evaluate_and_record,
     pick_runs,
     report_after_training,
     report_from_registry,
     train_and_record,
     with_objective_name,
 )
-from econmotor.report.render import INTERVAL_COLUMN, headline, table_rows
+from econmotor.report.render import INTERVAL_COLUMN, headline, imported_policy_text, selection_text, table_rows
 from econmotor.store.registry import DB_URL_ENV, Registry, registry_exists
 from econmotor.tasks import load_catalog
 from econmotor.valuation import default_objective_vector
 
 NO_BACKEND = "none"
-#: backend -> (num_envs, max_steps) when the flags are not given; num_envs 0 = the task's catalog default.
-BACKEND_DEFAULTS: dict[str, tuple[int, int]] = {"dishwashing": (1, 5_000), "mujoco": (0, 100_000),
-                                                "holosoma": (0, 50_000), "mjx": (0, 10_000_000)}
 
 
 def split_datapack_values(values: list[str]) -> list[str]:
@@ -98,22 +111,6 @@ def resolve_objective(path: Path | None, name: str | None) -> EconomicObjectiveS
     return with_objective_name(objective, name)
 
 
-def _make_backend(name: str, tasks_files: list[Path]):
-    """Construct the backend, passing user task files under whichever name it accepts."""
-    kwargs = {}
-    if tasks_files:
-        from econmotor.motor_backend.factory import _REGISTRY
-
-        module, _, attr = _REGISTRY[name].partition(":")
-        import importlib
-
-        params = inspect.signature(getattr(importlib.import_module(module), attr)).parameters
-        for key in ("task_files", "catalog_files", "tasks_files"):
-            if key in params:
-                kwargs[key] = list(tasks_files)
-    return make_motor_backend(name, **kwargs)
-
-
 def describe_pick(train, priced, task_id: str, asked: list[int], objective: str | None) -> str:
     """Which run is priced and why, in words."""
     what = f"{priced.kind} run of objective '{priced.objective_name}'"
@@ -139,6 +136,8 @@ def show_outcome(outcome: ReportOutcome) -> None:
     console.print(f"[bold {'green' if verdict['deployable'] else 'red'}]{verdict['label'].upper()}[/]",
                   highlight=False)
     console.print(headline(doc), highlight=False)
+    if doc.get("selection"):
+        console.print(f"policy kept: {selection_text(doc['selection'])}", highlight=False)
     title = "diagnostics (not a price)" if not verdict["deployable"] else "pricing"
     table = Table(title=f"{doc['task']['task_id']} on {doc['backend']}: objective {doc['objective']['name']}, "
                         f"spread share {doc['pricing']['spread_share']:g}; {title}")
@@ -153,11 +152,34 @@ def show_outcome(outcome: ReportOutcome) -> None:
     console.print(f"HTML report: {outcome.files['html']}", style="bold green", highlight=False, soft_wrap=True)
 
 
+def report_imported(task, backend_name: str, policy_id: str, objective: EconomicObjectiveSpec,
+                    packs: list[DatapackConfig], eval_episodes: int, seed: int, notes: str, tasks_file: list[Path],
+                    url: str, out_dir: Path, output_json: Path | None, pricing: PricingPolicy) -> None:
+    """``report --policy``: evaluate an imported policy (nothing trained), record the run, write the report."""
+    if not backend_class(backend_name).capabilities.imported_policies:
+        raise ConfigError("--policy", policy_id, f"the '{backend_name}' backend evaluates its own run directories "
+                          "only", [n for n in known_backends() if backend_class(n).capabilities.imported_policies])
+    if eval_episodes < 1:
+        raise ConfigError("--eval-episodes", None, "--policy evaluates an imported policy: give --eval-episodes N")
+    backend = make_backend(backend_name, tasks_file)
+    backend.check_policy(policy_id)  # bad input records nothing
+    request = TrainRequest(task=task, backend_name=backend_name, objective=objective, datapacks=tuple(packs),
+                           seed=seed, eval_episodes=eval_episodes, notes=notes,
+                           output_dir=backend.run_dir(None, task.task_id, seed))
+    with progress_bars() as progress:
+        reg, eval_id = evaluate_and_record(request, backend, policy_id, lambda: Registry(url), progress)
+    with reg:
+        outcome = report_from_registry(reg, task, reg.run(eval_id), None, out_dir, output_json, pricing)
+    console.print(f"[bold]evaluated[/]: {imported_policy_text(outcome.document['runs']['eval'])}", highlight=False)
+    show_outcome(outcome)
+
+
 @app.command("report", context_settings={"allow_interspersed_args": True})
 def report_command(
     task_id: str = typer.Option(..., "--task-id", help="Task id from the catalog (`econmotor tasks`)."),
-    motor_backend: str = typer.Option("mujoco", "--motor-backend",
-                                      help="mujoco | mjx | dishwashing | holosoma | none (report from recorded runs)."),
+    motor_backend: str = typer.Option(DEFAULT_BACKEND, "--motor-backend",
+                                      help=f"{' | '.join(known_backends())} | {NO_BACKEND} (report from recorded "
+                                      "runs)."),
     objective_config: Path = typer.Option(None, "--objective-config", help="Objective YAML (3 forms)."),
     datapacks: list[str] = typer.Option([], "--datapacks", help="Datapack YAML paths or registered ids; "
                                         "comma separated, repeated, or space separated."),
@@ -167,10 +189,10 @@ def report_command(
     notes: str = typer.Option("", "--notes", help="Free text recorded with the runs and the report."),
     num_envs: int = typer.Option(None, "--num-envs", min=0, help="Environments (default: the backend's)."),
     max_steps: int = typer.Option(None, "--max-steps", min=1, help="Training environment steps "
-                                  "(default: dishwashing 5,000, mujoco 100,000, holosoma 50,000, mjx 10,000,000)."),
+                                  "(default: the backend's)."),
     eval_episodes: int = typer.Option(0, "--eval-episodes", min=0,
                                       help="Add an evaluation run of N episodes after training and price it."),
-    seed: int = typer.Option(0, "--seed", help="Seed of training (evaluation uses seed + 1000)."),
+    seed: int = typer.Option(0, "--seed", help=f"Seed of training (evaluation uses seed + {REPORT_EVAL_SEED_OFFSET})."),
     output_dir: Path = typer.Option(None, "--output-dir", help="Report directory (default reports/<task>)."),
     output_json: Path = typer.Option(None, "--output-json", help="Also choose where the JSON document goes."),
     db_url: str = typer.Option(None, "--db-url", help=f"Registry URL (default ${DB_URL_ENV} or "
@@ -179,6 +201,12 @@ def report_command(
     spread_share: float = typer.Option(0.5, "--spread-share", help="Seller's share of the spread, 0..1."),
     run_id: list[int] = typer.Option([], "--run-id", help="With --motor-backend none: a recorded run to price "
                                      "(repeatable; default: the latest completed run of the task and objective)."),
+    until_deployable: bool = UNTIL_DEPLOYABLE_OPTION,
+    select_every: int = SELECT_EVERY_OPTION,
+    select_episodes: int = SELECT_EPISODES_OPTION,
+    imported_policy: str = typer.Option(None, "--policy", help="Price a policy trained elsewhere: an ONNX file "
+                                        "or a shipped name (holosoma:g1_29dof/ppo); nothing is trained, "
+                                        "--eval-episodes N episodes are evaluated."),
 ) -> None:
     """Train (or reuse) a policy for a task, price its labour, write JSON, Markdown and HTML reports."""
     set_cpu_threads()
@@ -195,8 +223,11 @@ def report_command(
         raise UnknownNameError("motor backend", motor_backend, backends)
     if motor_backend != NO_BACKEND:
         task.backend_entry(motor_backend)
+        check_num_envs(motor_backend, num_envs)
     if run_id and motor_backend != NO_BACKEND:
         raise ConfigError("--run-id", None, "--run-id reports a recorded run: use it with --motor-backend none")
+    selecting = selection_options(motor_backend, until_deployable, select_every, select_episodes) \
+        if motor_backend != NO_BACKEND else {}
     objective = resolve_objective(objective_config, objective_name)
     packs = resolve_datapacks(split_datapack_values([*datapacks, *(more_datapacks or [])]), url)
     out_dir = check_output_dir("--output-dir", output_dir or Path("reports") / task_id)
@@ -204,7 +235,10 @@ def report_command(
     if motor_backend == NO_BACKEND:
         ignored = [flag for flag, value in (("--num-envs", num_envs), ("--max-steps", max_steps),
                                              ("--eval-episodes", eval_episodes or None),
-                                             ("--objective-config", objective_config)) if value is not None]
+                                             ("--objective-config", objective_config),
+                                             ("--until-deployable", until_deployable or None),
+                                             ("--select-every", select_every),
+                                             ("--select-episodes", select_episodes)) if value is not None]
         if ignored:
             err_console.print(f"[yellow]note[/]: {', '.join(ignored)} ignored: --motor-backend none prices a "
                               "recorded run without training or evaluating")
@@ -225,14 +259,19 @@ def report_command(
                                                   notes or None))
         return
 
-    default_envs, default_steps = BACKEND_DEFAULTS.get(motor_backend, (1, 10_000))
-    backend = _make_backend(motor_backend, tasks_file)
-    run_dir = new_run_dir(Path("runs"), task_id, seed)
+    if imported_policy is not None:
+        report_imported(task, motor_backend, imported_policy, objective, packs, eval_episodes, seed, notes,
+                        tasks_file, url, out_dir, output_json, policy)
+        return
+    defaults = backend_class(motor_backend).defaults
+    backend = make_backend(motor_backend, tasks_file)
+    run_dir = backend.run_dir(None, task_id, seed)
     announce_device(backend)
+    announce_num_envs(backend, task_id, num_envs)
     request = TrainRequest(task=task, backend_name=motor_backend, objective=objective, datapacks=tuple(packs),
-                           num_envs=default_envs if num_envs is None else num_envs,
-                           max_steps=max_steps or default_steps, seed=seed, eval_episodes=eval_episodes,
-                           notes=notes, train_eval_episodes=5, output_dir=run_dir)
+                           num_envs=defaults.num_envs if num_envs is None else num_envs,
+                           max_steps=max_steps or defaults.max_steps, seed=seed, eval_episodes=eval_episodes,
+                           notes=notes, train_eval_episodes=5, output_dir=run_dir, backend_options=selecting)
     try:
         with progress_bars() as progress:
             reg, train_id, eval_id = train_and_record(request, backend, lambda: Registry(url), progress)

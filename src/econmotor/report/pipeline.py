@@ -14,9 +14,7 @@ trained run stays in the registry and the error says how to report from it
 
 from __future__ import annotations
 
-import os
 import sys
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -25,7 +23,7 @@ from typing import Any
 from econmotor.config.loading import path_name
 from econmotor.economics.pricing import PricingPolicy, price_evaluation
 from econmotor.errors import BackendError, ConfigError, RegistryError, UnknownNameError
-from econmotor.motor_backend.base import ProgressFn, no_progress
+from econmotor.motor_backend.base import REPORT_EVAL_SEED_OFFSET, ProgressFn, new_run_dir, no_progress
 from econmotor.motor_backend.datapacks import DatapackConfig
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.report.document import ReportContext, build_document
@@ -82,11 +80,6 @@ class ReportOutcome:
     train_run: RunRecord | None
     eval_run: RunRecord | None
     extra: dict[str, Any] = field(default_factory=dict)
-
-
-def new_run_dir(runs_dir: Path, task_id: str, seed: int) -> Path:
-    """A run directory of its own: ``<runs_dir>/<task>-<UTC time>-s<seed>-<pid>`` (never reused)."""
-    return Path(runs_dir) / f"{task_id}-{time.strftime('%Y%m%d-%H%M%S', time.gmtime())}-s{seed}-{os.getpid()}"
 
 
 def how_to_report_from(run_id: int, task_id: str, registry: Registry) -> str:
@@ -173,7 +166,7 @@ def train_and_record(request: TrainRequest, backend: Any, open_registry: Callabl
     registry.finish_run(train_id, result, **({"num_envs": used_envs} if isinstance(used_envs, int) else {}))
     if request.eval_episodes <= 0:
         return registry, train_id, None
-    eval_seed = request.seed + 1_000
+    eval_seed = request.seed + REPORT_EVAL_SEED_OFFSET
     try:
         with registry.track_run("eval", task_id, request.backend_name, seed=eval_seed, parent_run_id=train_id,
                                 config={"num_episodes": request.eval_episodes}, policy_path=result.policy_id,
@@ -274,3 +267,34 @@ def report_after_training(registry: Registry, request: TrainRequest, train_id: i
 def with_objective_name(objective: EconomicObjectiveSpec, name: str | None) -> EconomicObjectiveSpec:
     """The objective renamed (``--objective-name``), or unchanged when ``name`` is empty."""
     return replace(objective, name=name) if name else objective
+
+
+def evaluate_and_record(request: TrainRequest, backend: Any, policy_id: str, open_registry: Callable[[], Registry],
+                        progress: ProgressFn = no_progress) -> tuple[Registry, int]:
+    """Evaluate a policy trained elsewhere (``policy_id``: a file or a shipped name the backend imports)
+    and record the evaluation run; nothing is trained. Returns ``(registry, eval run id)``.
+
+    The run's seed is ``request.seed + REPORT_EVAL_SEED_OFFSET`` (episode ``i``: that plus ``i``), so
+    policies evaluated with the same request share seeds, course and conditions. A failure marks the
+    run ``failed`` (``interrupted`` on Ctrl-C) and re-raises.
+    """
+    task_id, name = request.task.task_id, request.backend_name
+    registry = open_registry()
+    registry.record_task(request.task)
+    if request.datapacks:
+        registry.record_datapacks(request.datapacks)
+    entry = dict(request.task.backends.get(name) or {})
+    robot_id = f"{name}:{policy_id}"
+    registry.record_robot(robot_id, name, f"imported policy {policy_id} on {request.task.description}", entry)
+    run_dir = request.output_dir or new_run_dir(request.runs_dir, task_id, request.seed)
+    eval_seed = request.seed + REPORT_EVAL_SEED_OFFSET
+    config = {"num_episodes": request.eval_episodes, "imported_policy": policy_id, "run_dir": str(run_dir),
+              "datapacks": [p.to_dict() for p in request.datapacks], "task_backend_entry": entry}
+    with registry.track_run("eval", task_id, name, seed=eval_seed, config=config, policy_path=policy_id,
+                            objective=request.objective, datapack_ids=request.datapack_ids, notes=request.notes,
+                            robot_id=robot_id) as eval_id:
+        evaluation = backend.evaluate_policy(policy_id, task_id, request.objective, request.eval_episodes, eval_seed,
+                                             datapack_configs=list(request.datapacks), output_dir=run_dir,
+                                             progress=progress)
+        registry.finish_run(eval_id, evaluation)
+    return registry, eval_id
