@@ -35,6 +35,8 @@ import builtins
 import math
 import operator
 from collections.abc import Mapping
+from dataclasses import dataclass
+from functools import partial
 from types import SimpleNamespace
 from typing import Any, NamedTuple
 
@@ -60,9 +62,10 @@ def _sum(a: Any, axis: int | None = None) -> float:
 #: ``xp`` for one env's figures as Python floats and lists of floats (the ``mujoco`` backend's
 #: per-step metering): numpy's names bound to the builtins and :mod:`math`, which is what a few
 #: numbers a step call for (a NumPy call on a 3-vector costs more than the arithmetic). ``abs``
-#: takes a float; ``absolute``, ``multiply``, ``floor_divide`` and ``sum`` go elementwise over lists.
+#: takes a float; ``absolute``, ``multiply``, ``floor_divide`` and ``sum`` go elementwise over lists
+#: (``absolute`` and ``multiply`` as lazy ``map``s, which ``sum`` consumes).
 PY = SimpleNamespace(maximum=max, minimum=min, abs=abs, arccos=math.acos, where=_where, clip=_clip, sum=_sum,
-                     absolute=lambda a: map(abs, a), multiply=lambda a, b: map(operator.mul, a, b),
+                     absolute=partial(map, abs), multiply=partial(map, operator.mul),
                      floor_divide=lambda a, b: [x // b for x in a])
 
 
@@ -130,8 +133,13 @@ class StepReading(NamedTuple):
     pose_similarity: Any = 0.0  # pose tracking's similarity at this step (0 without motion clips)
 
 
-class MeterSums(NamedTuple):
-    """An episode's running sums (Python floats, or 0-d arrays of one env under ``vmap``)."""
+@dataclass
+class MeterSums:
+    """An episode's running sums (Python floats, or 0-d arrays of one env under ``vmap``).
+
+    Mutable: :func:`meter_step` adds a step to it in place (under ``jit`` the fields are rebound
+    to new traced arrays, so a fresh record per traced step is built from the episode's dict).
+    """
 
     steps: Any = 0
     units: Any = 0.0
@@ -143,20 +151,17 @@ class MeterSums(NamedTuple):
     pose_sum: Any = 0.0
 
 
-def meter_step(sums: MeterSums, reading: StepReading, c: MeterConstants, xp: Any) -> MeterSums:
-    """The episode's sums after one control step (the formulas in the module docstring)."""
+def meter_step(sums: MeterSums, reading: StepReading, c: MeterConstants, xp: Any) -> None:
+    """Add one control step to the episode's ``sums``, in place (the formulas in the module docstring)."""
     best_x, units_gained = forward_units(sums.best_x, reading.x_m, c.leg_distance_m, xp)
-    return MeterSums(
-        steps=sums.steps + 1,
-        units=sums.units + units_gained,
-        best_x=best_x,
-        errors=sums.errors + xp.where(reading.fell, 1.0, 0.0),
-        energy_wh=sums.energy_wh + electrical_energy_wh(reading.mechanical_w, c.drivetrain_efficiency,
-                                                        c.idle_power_w, c.dt_s),
-        risk_sum=sums.risk_sum + tilt_risk(reading.tilt_rad, c.tilt_margin_rad, c.fall_tilt_rad, xp),
-        novelty_sum=sums.novelty_sum + reading.novelty_bonus,
-        pose_sum=sums.pose_sum + reading.pose_similarity,
-    )
+    sums.steps += 1
+    sums.units += units_gained
+    sums.best_x = best_x
+    sums.errors += reading.fell * 1.0  # a fall is one error (``fell``: a bool)
+    sums.energy_wh += electrical_energy_wh(reading.mechanical_w, c.drivetrain_efficiency, c.idle_power_w, c.dt_s)
+    sums.risk_sum += tilt_risk(reading.tilt_rad, c.tilt_margin_rad, c.fall_tilt_rad, xp)
+    sums.novelty_sum += reading.novelty_bonus
+    sums.pose_sum += reading.pose_similarity
 
 
 # ---------------------------------------------------------------- running metrics and the overlay

@@ -93,12 +93,14 @@ class Stress:
 
     @classmethod
     def from_overrides(cls, randomization: Mapping[str, Mapping[str, Any]], evaluation: Mapping[str, Any],
-                       preset_terms: Mapping[str, Any]) -> Stress:
+                       preset_terms: Mapping[str, Any], start_joint_noise_rad: float = 0.0) -> Stress:
         """From a datapack's Holosoma overrides (:mod:`.datapack_mapping`) merged onto the preset's terms.
 
         Only the terms a datapack sets apply (a datapack without randomization is nominal);
         ``preset_terms``: randomization term -> its preset parameters (Holosoma's values for what a
-        datapack leaves out, e.g. the push interval when it only says ``pushes: true``).
+        datapack leaves out, e.g. the push interval when it only says ``pushes: true``);
+        ``start_joint_noise_rad``: the catalog's per-seed start-pose noise, used unless the datapack's
+        ``evaluation.initial_joint_noise_rad`` sets its own.
         """
         def params(term: str) -> dict[str, Any] | None:
             if term not in randomization:
@@ -119,7 +121,7 @@ class Stress:
             randomization.get("mass_randomizer", {}) else None,
             push_interval_s=pair(push["push_interval_s"]) if push else None,
             max_push_vel_m_per_s=pair(push["max_push_vel"]) if push else None,
-            initial_joint_noise_rad=float(evaluation.get("initial_joint_noise_rad", 0.0)),
+            initial_joint_noise_rad=float(evaluation.get("initial_joint_noise_rad", start_joint_noise_rad)),
             ignored=ignored)
 
 
@@ -389,7 +391,7 @@ def run_episode(robot: Robot, contract: PolicyContract, policy: Callable[[np.nda
             mujoco.mj_step(m, d)
             qfrc, qvel = d.qfrc_actuator[robot.dof_adr], d.qvel[robot.dof_adr]
             reading = step_reading(d.qpos, qfrc, qvel, meter.fall_tilt_rad, min_z)
-            sums = cf.meter_step(sums, reading, constants, cf.PY)
+            cf.meter_step(sums, reading, constants, cf.PY)
             fell = bool(reading.fell)
             if record is not None:
                 record.append({"qpos": d.qpos.copy(), "qfrc": qfrc.copy(), "qvel": qvel.copy()})
@@ -402,7 +404,8 @@ def run_episode(robot: Robot, contract: PolicyContract, policy: Callable[[np.nda
         max_lateral = max(max_lateral, abs(float(d.qpos[1])))
         if fell:
             break
-    n, units, best_x, errors, energy_wh, risk_sum = (float(v) for v in sums[:6])
+    n, units, best_x, errors, energy_wh, risk_sum = (
+        float(v) for v in (sums.steps, sums.units, sums.best_x, sums.errors, sums.energy_wh, sums.risk_sum))
     length_s = n * contract.physics_dt_s
     power_w = energy_wh * cf.SECONDS_PER_HOUR / length_s if length_s > 0 else 0.0
     return {

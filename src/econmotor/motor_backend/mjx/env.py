@@ -34,6 +34,7 @@ Float32 here (JAX's default) vs float64 in MuJoCo C: per-step figures agree to ~
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from typing import Any, NamedTuple
 
@@ -64,7 +65,7 @@ BASE_METRIC_KEYS = ("units_completed", "units_attempted", "errors", "episode_len
 SUPPORTED_DR_KEYS = ("friction_range", "mass_scale_range", "action_noise_std", "obs_noise_std")
 _HASH_PRIMES = (73856093, 19349663, 83492791, 2654435761, 40503, 2246822519, 3266489917, 668265263)
 #: the meter's running sums kept in ``EnvState.episode`` (the mjx env has no pose tracking: pose_sum stays 0).
-_METER_KEYS = tuple(k for k in cf.MeterSums._fields if k != "pose_sum")
+_METER_KEYS = tuple(f.name for f in dataclasses.fields(cf.MeterSums) if f.name != "pose_sum")
 #: overlay keys the mjx env can weight.
 MJX_TERMS = tuple(k for k in TERM_METRICS if k != "pose_tracking")
 
@@ -299,7 +300,8 @@ class MjxCourierEnv:
         reading = cf.StepReading(x_m=qpos[0],
                                  mechanical_w=cf.mechanical_power_w(data.qfrc_actuator[lo:hi], qvel[lo:hi], jnp),
                                  tilt_rad=root_tilt_rad(qpos, self._free_root, jnp), fell=fell, novelty_bonus=bonus)
-        sums = cf.meter_step(self._meter_sums(ep), reading, self._constants, jnp)
+        sums = self._meter_sums(ep)
+        cf.meter_step(sums, reading, self._constants, jnp)
         j = jnp.asarray(cf.overlay_potential(sums, self._coefficients, jnp), jnp.float32)
         new = {**ep, **{k: getattr(sums, k) for k in _METER_KEYS}, "task_return": ep["task_return"] + task_r,
                "overlay_j": j}

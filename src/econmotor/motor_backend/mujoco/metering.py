@@ -21,9 +21,10 @@ Per control step (duration ``dt = frame_skip * timestep`` s), from ``env.unwrapp
   running episode metrics ``m_k``, so each term's episode sum is the episode metric of its key.
 
 Each step reads the physics into a :class:`~econmotor.economics.courier_formulas.StepReading`
-and calls :func:`~econmotor.economics.courier_formulas.meter_step`, ``running_metrics`` and
-``overlay_potential`` with Python floats (``xp=PY``): the same functions the ``mjx`` backend's
-jitted step calls with ``jax.numpy``. The meter and the overlay are one wrapper.
+and calls :func:`~econmotor.economics.courier_formulas.meter_step` (which adds the step to the
+episode's :class:`~econmotor.economics.courier_formulas.MeterSums` in place), ``running_metrics``
+and ``overlay_potential`` with Python floats (``xp=PY``): the same functions the ``mjx``
+backend's jitted step calls with ``jax.numpy``. The meter and the overlay are one wrapper.
 
 Episode raw metrics (``info["econ_episode"]`` on the last step) use the keys
 :class:`~econmotor.economics.EconomicMeter` reads: ``units_completed``, ``units_attempted``
@@ -39,6 +40,7 @@ and ``overlay_return`` (``J(T)``).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from typing import Any, NamedTuple
@@ -79,11 +81,12 @@ class VisitNovelty:
         self.dims = int(dims)
 
     def visit(self, point: Any) -> float:
-        """Count a visit to the cell of ``point[:dims]``; its bonus ``novelty_bonus(n)``."""
-        cell = novelty_cell(point[: self.dims].tolist(), self.novelty_bin, PY)
-        key = tuple(cell) if math.isfinite(sum(cell)) else tuple(v if math.isfinite(v) else None for v in cell)
-        n = self.counts.get(key, 0) + 1
-        self.counts[key] = n
+        """Count a visit to the cell of ``point[:dims]`` (a 1-d array); its bonus ``novelty_bonus(n)``."""
+        cell = tuple(novelty_cell(point[: self.dims].tolist(), self.novelty_bin, PY))
+        if not math.isfinite(sum(cell)):  # NaN != NaN: such a key would never be found again
+            cell = tuple(v if math.isfinite(v) else None for v in cell)
+        n = self.counts.get(cell, 0) + 1
+        self.counts[cell] = n
         return novelty_bonus(n)
 
 
@@ -107,7 +110,7 @@ class EpisodeSums(NamedTuple):
 
     def running_metrics(self) -> RunningMetrics:
         """All six running metrics at once (:class:`~econmotor.economics.courier_formulas.RunningMetrics`)."""
-        return running_metrics(MeterSums(*self[: len(MeterSums._fields)]), self.dt_s, PY)
+        return running_metrics(MeterSums(*self[: len(dataclasses.fields(MeterSums))]), self.dt_s, PY)
 
     def mpl_per_hour(self) -> float:
         """Good units per hour so far: ``units / (steps * dt / 3600)``."""
@@ -169,9 +172,10 @@ class EconomicMeteringWrapper(gym.Wrapper):
         base = env.unwrapped
         if not hasattr(base, "data") or not hasattr(base, "model"):
             raise ConfigError(where, "env", f"{base!r} is not a MuJoCo env (no model/data)")
-        self._data = base.data
         lo, hi = actuated_dof_span(base.model)
-        # views into MjData's buffers (fixed for the env's life): the actuated dofs' forces and velocities
+        # views into MjData's buffers (fixed for the env's life): the positions, the actuated dofs'
+        # forces and velocities
+        self._qpos = base.data.qpos
         self._qfrc, self._qvel = base.data.qfrc_actuator[lo:hi], base.data.qvel[lo:hi]
         self._free_root = has_free_root(base.model)
         self.dt_s = float(base.dt)
@@ -196,7 +200,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
     @property
     def episode(self) -> EpisodeSums:
         """The current episode's running sums."""
-        return EpisodeSums(**self._sums._asdict(), task_return=self._task_return, dt_s=self.dt_s)
+        return EpisodeSums(**dataclasses.asdict(self._sums), task_return=self._task_return, dt_s=self.dt_s)
 
     @property
     def x0(self) -> float:
@@ -210,12 +214,12 @@ class EconomicMeteringWrapper(gym.Wrapper):
 
     def reset(self, **kwargs: Any):
         obs, info = self.env.reset(**kwargs)
-        self._start_episode(float(self._data.qpos[0]))
+        self._start_episode(float(self._qpos[0]))
         return obs, info
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
-        qpos = self._data.qpos.tolist()
+        qpos = self._qpos.tolist()
         reading = StepReading(
             x_m=qpos[0],
             mechanical_w=mechanical_power_w(self._qfrc.tolist(), self._qvel.tolist(), PY),
@@ -224,7 +228,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
             novelty_bonus=self._novelty.visit(obs),
             pose_similarity=(info.get("pose_tracking") or 0.0) if self._track_pose else 0.0,
         )
-        self._sums = meter_step(self._sums, reading, self.constants, PY)
+        meter_step(self._sums, reading, self.constants, PY)
         reward = float(reward)
         self._task_return += reward
         j = overlay_potential(self._sums, self._coefficients, PY) if self.overlay else 0.0
