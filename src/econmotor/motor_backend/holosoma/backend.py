@@ -418,12 +418,13 @@ class HolosomaBackend(MotorBackendBase):
         job = {"action": "sim2sim", "run_dir": str(run_dir), "policy": policy, "num_episodes": int(num_episodes),
                "episode_s": episode_s, "seed": int(seed), "course": course, "meter": meter,
                "overrides": overrides.to_dict(), "task_id": task_id,
+               "start_joint_noise_rad": float(settings["sim2sim_start_joint_noise_rad"]),
                "task_experiments": sorted(set(settings["experiment"].values()))}
         notes = list(overrides.messages)
         if not overrides.randomization and not overrides.evaluation:
-            notes.append("nominal conditions (no datapack randomization): every episode starts from the same state "
-                         "and repeats the first, so the intervals show no spread; a datapack such as "
-                         "configs/datapacks/humanoid_stress.yaml makes the conditions vary by seed")
+            notes.append("nominal conditions (no datapack randomization): episodes differ by seed only in their "
+                         f"start pose (joints within +-{float(settings['sim2sim_start_joint_noise_rad']):g} rad of "
+                         "the default); a datapack such as configs/datapacks/humanoid_stress.yaml adds stress")
         for text in notes:
             progress(f"holosoma: {text}", 1.0, 1.0)
         outcome = run_job(self.python, job, run_dir, progress, self.job_timeout_s)

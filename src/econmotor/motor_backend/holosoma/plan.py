@@ -56,7 +56,7 @@ HOLOSOMA_TASK_PRESETS: dict[str, dict[str, Any]] = {
 }
 #: the sim-to-sim evaluation's settings (no defaults: each is sourced in the task catalog, see holosoma.yaml)
 SIM2SIM_KEYS = ("idle_power_w", "tilt_margin_rad", "dwell_s", "course_speed_m_per_s", "sim2sim_legs",
-                "sim2sim_episode_s")
+                "sim2sim_episode_s", "sim2sim_start_joint_noise_rad")
 _SETTING_KEYS = ("experiment", "progress_mode", "unit_length_m", "unit_duration_s", "drivetrain_efficiency",
                  "max_tilt_rad", "novelty_rate", "overlay_gain", "uses_motion_clip", "algo", *SIM2SIM_KEYS)
 

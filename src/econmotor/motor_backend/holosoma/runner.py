@@ -259,7 +259,7 @@ def sim2sim(job: dict[str, Any]) -> dict[str, Any]:
     preset_terms = {name: dict(term.params) for name, term in
                     EXPERIMENT_REGISTRY[contract.experiment].randomization.setup_terms.items()}
     stress = s.Stress.from_overrides(job["overrides"]["randomization"], job["overrides"].get("evaluation", {}),
-                                     preset_terms)
+                                     preset_terms, float(job.get("start_joint_noise_rad", 0.0)))
     if stress.ignored:
         emit("message", text="not applied in the sim-to-sim evaluation: " + "; ".join(stress.ignored))
     course = s.CourseSettings(**job["course"])
