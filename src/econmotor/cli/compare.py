@@ -103,7 +103,7 @@ def write_comparison(ranked: list[dict[str, Any]], summary: str, out_dir: Path, 
     (out_dir / "compare.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
     fig = Figure(figsize=(12, 3.2))
     FigureCanvasAgg(fig)
-    names = [r["policy"].replace("holosoma:", "") for r in ranked]
+    names = [r["policy"].split(":", 1)[-1] for r in ranked]  # a shipped name without its backend prefix
     panels = (("price_usd_per_unit", "price per unit (USD)"), ("units_per_hour", "units per hour"),
               ("wh_per_unit", "Wh per unit"), ("fall_rate_bound", "fall-rate bound (95%)"))
     for i, (key, label) in enumerate(panels):
