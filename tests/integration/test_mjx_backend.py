@@ -46,7 +46,7 @@ def test_report_on_mjx_trains_evaluates_records_and_writes_reports(workdir: Path
     out = workdir / "out"
     result = econmotor(["report", "--task-id", "hopper_courier", "--motor-backend", "mjx",
                         "--num-envs", NUM_ENVS, "--max-steps", "1600", "--eval-episodes", "2",
-                        "--output-dir", str(out)], workdir)
+                        "--select-every", "800", "--select-episodes", "2", "--output-dir", str(out)], workdir)
     assert "mjx: training on CPU" in result.stderr  # the device line
     assert "/s" in result.stderr  # the progress bar's env steps/s
     assert "metric (unit)" in result.stdout
@@ -73,6 +73,11 @@ def test_report_on_mjx_trains_evaluates_records_and_writes_reports(workdir: Path
     (events,) = (run_dir.parent / "tb").rglob("events.*")
     tags = set(EventAccumulator(str(events)).Reload().Tags()["scalars"])
     assert {"rollout/ep_rew_mean", "overlay/return", "econ/energy_wh", "train/value_loss"} <= tags
+    # evaluation-driven training (selection.py): held-out evaluations at 800 and 1600 steps, the best kept
+    selection = config["selection"]
+    assert [e["env_steps"] for e in selection["evaluations"]] == [800, 1600] and selection["kept"]
+    assert {"held_out/fall_rate_upper95", "held_out/units_per_hour", "held_out/J"} <= tags
+    assert (run_dir.parent / "best" / "policy.npz").is_file() and doc["selection"]["fresh_seeds"] is True
     assert {f"overlay/{k}_{kind}" for k in config["overlay"] for kind in ("raw", "weighted")} <= tags
 
 

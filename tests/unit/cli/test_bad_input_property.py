@@ -27,9 +27,10 @@ COUNTS = {"cases": 0, "clean": 0, "hangs": 0}
 # command prefix -> its numeric flags (every numeric flag of every command)
 COMMANDS: dict[str, tuple[list[str], list[str]]] = {
     "report": (["report", "--task-id", "dishwashing", "--motor-backend", "dishwashing"],
-               ["--num-envs", "--max-steps", "--eval-episodes", "--seed", "--spread-share", "--run-id"]),
+               ["--num-envs", "--max-steps", "--eval-episodes", "--seed", "--spread-share", "--run-id",
+                "--select-every", "--select-episodes"]),
     "train": (["train", "--task", "dishwashing", "--backend", "dishwashing"],
-              ["--num-envs", "--max-steps", "--seed", "--eval-episodes"]),
+              ["--num-envs", "--max-steps", "--seed", "--eval-episodes", "--select-every", "--select-episodes"]),
     "evaluate": (["evaluate", "--policy", "p", "--task", "dishwashing", "--backend", "dishwashing"],
                  ["--episodes", "--seed"]),
     "sweep": (["sweep", "--task-id", "dishwashing"],
