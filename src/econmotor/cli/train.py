@@ -119,10 +119,10 @@ def selection_options(backend: str, until_deployable: bool, select_every: int | 
         options["select_episodes"] = select_episodes
     if until_deployable and select_every == 0:
         raise ConfigError("<command line>", "--until-deployable", "needs held-out evaluations: drop --select-every 0")
-    if options and not getattr(backend_class(backend), "evaluation_driven", False):
+    if options and not backend_class(backend).capabilities.evaluation_driven:
         raise ConfigError("<command line>", "--until-deployable/--select-every/--select-episodes",
                           f"backend '{backend}' does not select checkpoints by held-out evaluation",
-                          [b for b in known_backends() if getattr(backend_class(b), "evaluation_driven", False)])
+                          [b for b in known_backends() if backend_class(b).capabilities.evaluation_driven])
     return options
 
 

@@ -20,8 +20,9 @@ One meaning everywhere: ``output_dir`` *is* the run directory (default: a new
 ``policy_id`` names that directory (or, for a backend that imports policies, a policy file
 or shipped name), so any process can evaluate or deploy it. Evaluation seeds follow one
 rule: episode ``i`` of an evaluation seeded ``s`` is seeded ``s + i``; the evaluation right
-after training uses ``s = seed + TRAINING_EVAL_SEED_OFFSET`` and a report's evaluation run
-``s = seed + REPORT_EVAL_SEED_OFFSET``, so neither shares an episode with the other.
+after training uses ``s = seed + TRAINING_EVAL_SEED_OFFSET``, a report's evaluation run
+``s = seed + REPORT_EVAL_SEED_OFFSET`` and evaluation-driven training's held-out evaluations
+``s = seed + SELECTION_SEED_OFFSET``, so none shares an episode with another.
 
 Per-episode raw metrics use the meter's keys (``units_completed``, ``units_attempted``,
 ``errors``, ``episode_length_s``, ``energy_wh``, ``risk_score``, ``novelty_score``)
@@ -271,6 +272,9 @@ def evaluation_result(backend: str, policy_id: str, task_id: str, raw_episodes: 
 TRAINING_EVAL_SEED_OFFSET = 10_000
 #: a report's evaluation run seeds its episodes from ``seed + REPORT_EVAL_SEED_OFFSET`` (fresh episodes).
 REPORT_EVAL_SEED_OFFSET = 1_000
+#: held-out evaluations of evaluation-driven training (``selection.py``) seed episode i with
+#: ``seed + SELECTION_SEED_OFFSET + i``: the same episodes for every checkpoint, apart from the others.
+SELECTION_SEED_OFFSET = 50_000
 
 
 def new_run_dir(runs_dir: str | Path, task_id: str, seed: int) -> Path:
@@ -289,6 +293,8 @@ class BackendCapabilities:
         imported_policies: ``evaluate_policy`` also takes policies trained elsewhere (a file or a
             shipped name), not only this backend's run directories.
         records_clips: ``record_clip(policy_id, path, num_steps, seed)`` saves a motion clip.
+        evaluation_driven: held-out evaluations choose the checkpoint a run keeps, and training can
+            stop once deployable (``motor_backend/selection.py``; ``--until-deployable``).
     """
 
     resume: bool = False
@@ -296,6 +302,7 @@ class BackendCapabilities:
     vec_env_kinds: tuple[str, ...] = ()
     imported_policies: bool = False
     records_clips: bool = False
+    evaluation_driven: bool = False
 
 
 @dataclass(frozen=True)

@@ -38,13 +38,11 @@ from typing import Any
 from econmotor.economics.pricing import price_evaluation
 from econmotor.economics.uncertainty import judge
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.base import summarize_episodes
+from econmotor.motor_backend.base import SELECTION_SEED_OFFSET, summarize_episodes
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.objectives.loader import objective_weights_vector
 from econmotor.valuation.reward_builder import episode_j
 
-#: held-out episode i of a run with seed s is reset with s + SELECTION_SEED_OFFSET + i.
-SELECTION_SEED_OFFSET = 50_000
 #: a backend's defaults: a held-out evaluation every 25k env steps (a courier's PPO improves over
 #: ~10^5 steps), of 80 episodes (the demo report's evidence: 0 falls in ~80 legs bounds a fall rate at ~3.7%).
 DEFAULT_SELECT_EVERY = 25_000

@@ -89,13 +89,12 @@ class MjxBackend(MotorBackendBase):
     """
 
     name = "mjx"
-    capabilities = BackendCapabilities(resume=True, algorithms=("ppo",))
+    capabilities = BackendCapabilities(resume=True, algorithms=("ppo",), evaluation_driven=True)
     defaults = RunSize(num_envs=0, max_steps=10_000_000)
     # the integration tests' size: 8 envs x unroll 20, so XLA's cache serves every CPU test
     smoke_run = RunSize(num_envs=8, max_steps=320, task_id="hopper_courier")
     max_num_envs = 1 << 20  # one batch on one accelerator; a CPU caps far lower (num_envs_note)
     final_policy_file = "policy.npz"
-    evaluation_driven = True  # held-out evaluations choose the kept checkpoint (selection.py; --until-deployable)
     checkpoint_glob = "ckpt_*_steps.npz"
     environment_options: ClassVar[Mapping[str, str]] = {CACHE_ENV: "compilation_cache_dir"}
 

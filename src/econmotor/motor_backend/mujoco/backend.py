@@ -67,12 +67,11 @@ class MujocoBackend(MotorBackendBase):
 
     name = "mujoco"
     capabilities = BackendCapabilities(resume=True, algorithms=("ppo", "sac"), vec_env_kinds=("dummy", "subproc"),
-                                       records_clips=True)
+                                       records_clips=True, evaluation_driven=True)
     defaults = RunSize(num_envs=0, max_steps=100_000)
     smoke_run = RunSize(num_envs=1, max_steps=64, task_id="hopper_courier")
     max_num_envs = 256  # SB3 vector envs: one process (subproc) or one env object (dummy) each
     final_policy_file = "policy.zip"
-    evaluation_driven = True  # held-out evaluations choose the kept checkpoint (selection.py; --until-deployable)
     checkpoint_glob = "*.zip"
 
     def __init__(self, *, task_files: Sequence[str | Path] = (), runs_dir: str | Path = "runs",
