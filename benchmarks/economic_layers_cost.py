@@ -13,13 +13,15 @@ normalisation (``DummyVecEnv`` of ``Monitor(env)`` + ``VecNormalize`` + ``model.
   normalised (``env_factory.make_env``, what ``train`` runs). Its reward differs, so its policy
   and episodes drift from ``bare``'s (a falling hopper steps MuJoCo's contacts more), which the
   ratio includes; so the wrapper's own time is also measured *in situ* (the clock read when the
-  Gymnasium env inside returns and when the wrapper returns) as a share of ``learn``'s wall time.
+  Gymnasium env inside returns and when the wrapper returns) as a share of ``learn``'s wall time,
+  and the time spent inside the Gymnasium env is compared with a bare run's of the same seed.
 
 Rounds run bare, meter, overlay, overlay, meter, bare (each arm's mean position is the same, so
 load that drifts on a shared machine hits them alike) with the same seed per round. Reported:
 per round each arm's mean wall and CPU seconds of ``learn``; then per arm the median round
 ratio over ``bare`` (wall and process CPU time; the cost is ``ratio - 1``; goal: <= 1.02) and
-its episodes, and the overlay wrapper's in-situ share of the wall time.
+its episodes, the overlay wrapper's in-situ share of the wall time, and the seconds spent inside
+the Gymnasium env by an overlay run and a bare run of the same seed.
 
     .venv/bin/python benchmarks/economic_layers_cost.py [--steps 8192] [--rounds 3]
 """
@@ -42,6 +44,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.motor_backend.mujoco.backend import MujocoBackend
 from econmotor.motor_backend.mujoco.env_factory import EnvRecipe, make_env
+from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper
 from econmotor.motor_backend.mujoco.randomization import make_base_env
 from econmotor.motor_backend.mujoco.training import policy_kwargs_from
 from econmotor.objectives.loader import objective_from_vector
@@ -76,15 +79,32 @@ def time_inside(meter: gym.Env, own_s: list[float]) -> None:
     inner.step, meter.step = timed_inner, timed_meter  # instance attributes: the callers use them
 
 
-def train_seconds(recipe: EnvRecipe, arm: str, steps: int, seed: int,
-                  own_s: list[float] | None = None) -> tuple[float, float, int]:
+def time_env(env: gym.Env, env_s: list[float]) -> None:
+    """Add the seconds spent inside the Gymnasium env (``gymnasium.make``'s chain) to ``env_s[0]``."""
+    inner = env.env if isinstance(env, EconomicMeteringWrapper) else env
+    inner_step = inner.step
+
+    def timed(action):
+        start = time.perf_counter()
+        out = inner_step(action)
+        env_s[0] += time.perf_counter() - start
+        return out
+
+    inner.step = timed  # an instance attribute: the wrapper above (or Monitor) calls it
+
+
+def train_seconds(recipe: EnvRecipe, arm: str, steps: int, seed: int, own_s: list[float] | None = None,
+                  env_s: list[float] | None = None) -> tuple[float, float, int]:
     """(wall s, CPU s) of ``PPO.learn(steps)`` on ``arm``'s envs and the episodes it ran; env and
-    model construction are not timed. ``own_s``: time the metering wrapper in situ into it."""
+    model construction are not timed. ``own_s``: time the metering wrapper in situ into it;
+    ``env_s``: time the Gymnasium env inside into it."""
     s = recipe.settings
 
     def build(i: int):
         def thunk():
             env = build_env(recipe, arm, seed + i)
+            if env_s is not None:
+                time_env(env, env_s)
             if own_s is not None:
                 time_inside(env, own_s)
             return Monitor(env)
@@ -131,8 +151,9 @@ def main() -> None:
         print(f"round {r}: " + " | ".join(f"{arm} {mean[arm][0]:5.2f} s wall {mean[arm][1]:5.2f} s cpu" for arm in ARMS)
               + " | ratio wall/cpu " + " ".join(f"{arm} {ratios[arm][-1][0]:.3f}/{ratios[arm][-1][1]:.3f}"
                                                 for arm in ratios), flush=True)
-    own_s = [0.0]
-    wall, _, _ = train_seconds(recipe, "overlay", args.steps, seed=0, own_s=own_s)
+    own_s, env_s, bare_env_s = [0.0], [0.0], [0.0]
+    wall, _, _ = train_seconds(recipe, "overlay", args.steps, seed=0, own_s=own_s, env_s=env_s)
+    bare_wall, _, _ = train_seconds(recipe, "bare", args.steps, seed=0, env_s=bare_env_s)
     print(f"{TASK}: PPO, {s.num_envs} envs, {args.steps} steps x {args.rounds} rounds x 2 runs per arm; "
           f"episodes bare {episodes['bare']}, meter {episodes['meter']}, overlay {episodes['overlay']}")
     for arm, rs in ratios.items():
@@ -141,6 +162,9 @@ def main() -> None:
               f"cpu {c:.3f} ({(c - 1) * 100:+.1f}%)  (goal: <= 1.02)")
     print(f"overlay wrapper in situ: {own_s[0]:.3f} s of {wall:.2f} s learn wall time = {own_s[0] / wall * 100:.2f}% "
           f"({own_s[0] / args.steps * 1e6:.1f} us per env step)")
+    print(f"inside the Gymnasium env (seed 0): bare {bare_env_s[0]:.2f} s of {bare_wall:.2f} s, "
+          f"overlay {env_s[0]:.2f} s of {wall:.2f} s: the overlay-trained policy's physics differ by "
+          f"{(env_s[0] - bare_env_s[0]) / bare_wall * 100:+.1f}% of bare's learn time")
 
 
 if __name__ == "__main__":
