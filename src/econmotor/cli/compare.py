@@ -29,7 +29,8 @@ from econmotor.report.render import fmt
 from econmotor.store.registry import Registry
 from econmotor.tasks import load_catalog
 
-#: an interval narrower than this fraction of its value has no width (repeated episodes, not evidence)
+#: intervals narrower than this fraction of the price cannot tell policies apart: the episodes barely
+#: differ (nominal conditions vary only the start pose), which is not evidence of how a difference holds
 NO_WIDTH_REL = 1e-3
 COLUMNS = ("policy", "price USD/unit", "90% interval", "units/h", "Wh/unit", "falls", "fall-rate bound",
            "speed m/s", "mech / elec W", "verdict")
@@ -64,8 +65,9 @@ def rank(rows: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], str]:
     best, second = ranked[0], ranked[1]
     if all(r["price_low"] is not None and r["price_high"] - r["price_low"] <= NO_WIDTH_REL * abs(r["price_high"])
            for r in (best, second)):
-        clear = ("the intervals have no width: every episode repeated the first (nominal conditions), so they "
-                 "cannot tell whether the difference would hold; compare under a datapack that varies the conditions")
+        clear = (f"both intervals are narrower than {NO_WIDTH_REL:.1%} of the price: the episodes barely differ "
+                 "(nominal conditions vary only the start pose), so they cannot tell whether the difference would "
+                 "hold; compare under a datapack that varies the conditions")
     elif (best["price_high"] is not None and second["price_low"] is not None
           and best["price_high"] < second["price_low"]):
         clear = (f"the difference is larger than the intervals ({best['policy']}'s 90% interval ends at "

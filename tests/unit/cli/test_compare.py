@@ -23,7 +23,7 @@ def test_overlapping_intervals_are_not_a_clear_win() -> None:
 
 def test_intervals_without_width_cannot_separate_policies() -> None:
     _, summary = rank([_row("a", 0.11, 0.11, 0.110001), _row("b", 0.12, 0.12, 0.12)])
-    assert "no width" in summary
+    assert "narrower than 0.1% of the price" in summary and "datapack" in summary
 
 
 def test_a_policy_without_a_finite_price_ranks_last() -> None:
