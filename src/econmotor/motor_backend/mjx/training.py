@@ -116,6 +116,31 @@ def episode_scalars(metrics: dict[str, Any], factors: dict[str, float]) -> dict[
 
 
 @dataclass
+class ScalarWriter:
+    """TensorBoard scalars through tensorboard's own event writer (no torch: the JAX backend imports none).
+
+    Args:
+        logdir: the folder the ``events.out.tfevents.*`` file goes to (created if missing).
+    """
+
+    def __init__(self, logdir: str | Path) -> None:
+        from tensorboard.summary.writer.event_file_writer import EventFileWriter
+
+        Path(logdir).mkdir(parents=True, exist_ok=True)
+        self._writer = EventFileWriter(str(logdir))
+
+    def add_scalar(self, tag: str, value: float, step: int) -> None:
+        """Record ``value`` under ``tag`` at env step ``step``."""
+        from tensorboard.compat.proto.event_pb2 import Event
+        from tensorboard.compat.proto.summary_pb2 import Summary
+
+        self._writer.add_event(Event(wall_time=time.time(), step=int(step),
+                                     summary=Summary(value=[Summary.Value(tag=tag, simple_value=float(value))])))
+
+    def close(self) -> None:
+        self._writer.close()
+
+
 class MjxTrainingRun:
     """One training run (fields are the run's configuration; ``config`` is filled by ``train``)."""
 
@@ -182,9 +207,7 @@ class MjxTrainingRun:
         state = ppo.init_train_state(env, cfg, self.num_envs, self.seed, learner=learner, key=key)
         iteration = ppo.make_train_iteration(env, cfg, self.num_envs)
         per_iteration = self.num_envs * cfg.unroll_length
-        from torch.utils.tensorboard import SummaryWriter
-
-        writer = SummaryWriter(str(self.run_dir / "tb" / "run"))
+        writer = ScalarWriter(self.run_dir / "tb" / "run")
         curve: list[dict[str, float]] = []
         every_curve = max(per_iteration, self.max_steps // 50)
         next_curve = (steps // every_curve + 1) * every_curve
