@@ -122,43 +122,6 @@ class StepAlias:
         return self.act(obs, *args, **kwargs)  # type: ignore[attr-defined]
 
 
-@runtime_checkable
-class MotorBackend(Protocol):
-    """The three operations every backend provides (spec: motor_backends.md)."""
-
-    name: str
-
-    def train_policy(
-        self,
-        task_id: str,
-        objective: EconomicObjectiveSpec,
-        datapack_ids: Sequence[str],
-        num_envs: int,
-        max_steps: int,
-        seed: int,
-        *,
-        datapack_configs: Sequence[Any] | None = None,
-        output_dir: str | Path | None = None,
-        eval_episodes: int = 5,
-        progress: ProgressFn = no_progress,
-    ) -> MotorTrainingResult: ...
-
-    def evaluate_policy(
-        self,
-        policy_id: str,
-        task_id: str,
-        objective: EconomicObjectiveSpec,
-        num_episodes: int,
-        seed: int,
-        *,
-        datapack_configs: Sequence[Any] | None = None,
-        output_dir: str | Path | None = None,
-        progress: ProgressFn = no_progress,
-    ) -> MotorEvalResult: ...
-
-    def deploy_policy_handle(self, policy_id: str) -> PolicyHandle: ...
-
-
 #: the file every trained run directory (mujoco, mjx) starts with: its task, settings and hyperparameters
 RUN_CONFIG_FILE = "run_config.json"
 
@@ -413,14 +376,26 @@ class MotorBackendBase:
         """The rule every backend follows: episode ``i`` of an evaluation seeded ``seed`` is ``seed + i``."""
         return [int(seed) + i for i in range(int(num_episodes))]
 
-    # --- the three operations ----------------------------------------------------------------------
+    # --- the three operations (spec: motor_backends.md); a subclass implements each ---------------
     def train_policy(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str],
-                     num_envs: int, max_steps: int, seed: int, **kwargs: Any) -> MotorTrainingResult:
+                     num_envs: int, max_steps: int, seed: int, *, datapack_configs: Sequence[Any] | None = None,
+                     output_dir: str | Path | None = None, eval_episodes: int = 5,
+                     progress: ProgressFn = no_progress, **options: Any) -> MotorTrainingResult:
+        """Train into ``output_dir`` (the run directory; :meth:`run_dir`), evaluate ``eval_episodes``
+        episodes seeded from ``seed + TRAINING_EVAL_SEED_OFFSET``; ``options``: the backend's own."""
         raise NotImplementedError
 
     def evaluate_policy(self, policy_id: str, task_id: str, objective: EconomicObjectiveSpec, num_episodes: int,
-                        seed: int, **kwargs: Any) -> MotorEvalResult:
+                        seed: int, *, datapack_configs: Sequence[Any] | None = None,
+                        output_dir: str | Path | None = None, progress: ProgressFn = no_progress,
+                        **options: Any) -> MotorEvalResult:
+        """``num_episodes`` deterministic episodes of ``policy_id`` (episode i seeded ``seed + i``)."""
         raise NotImplementedError
 
     def deploy_policy_handle(self, policy_id: str) -> PolicyHandle:
+        """A handle answering ``act(obs)`` and ``step(obs)`` for ``policy_id``."""
         raise NotImplementedError
+
+
+#: the contract's name in the spec (motor_backends.md): every backend is a :class:`MotorBackendBase`.
+MotorBackend = MotorBackendBase

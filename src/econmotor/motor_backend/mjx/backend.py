@@ -198,7 +198,7 @@ class MjxBackend(MotorBackendBase):
         cfg = ppo.PPOConfig.from_mapping({"normalize_obs": settings.normalize_obs, **settings.ppo}, source)
         return ppo.PPOConfig.from_mapping({**cfg.to_dict(), **overrides}, "<hyperparameters>") if overrides else cfg
 
-    # --- the MotorBackend protocol ---------------------------------------------------------
+    # --- the MotorBackendBase contract ------------------------------------------------------
     def train_policy(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str],
                      num_envs: int, max_steps: int, seed: int, *,
                      datapack_configs: Sequence[DatapackConfig] | None = None,

@@ -123,7 +123,7 @@ class MujocoBackend(MotorBackendBase):
         }
         return recipe, described
 
-    # --- the MotorBackend protocol ---------------------------------------------------------
+    # --- the MotorBackendBase contract ------------------------------------------------------
     def train_policy(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str],
                      num_envs: int, max_steps: int, seed: int, *,
                      datapack_configs: Sequence[DatapackConfig] | None = None,
