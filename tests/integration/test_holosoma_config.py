@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 
 from econmotor.errors import BackendError, ConfigError
-from econmotor.motor_backend.holosoma import backend as holosoma_backend
 from econmotor.motor_backend.datapacks import (
     DatapackProvider,
     load_datapack_configs,
     parse_datapack,
 )
+from econmotor.motor_backend.holosoma import backend as holosoma_backend
 from econmotor.motor_backend.holosoma.datapack_mapping import map_datapacks, validate_motion_npz
 from econmotor.motor_backend.holosoma.econ_formulas import (
     commanded_progress_m_per_s,

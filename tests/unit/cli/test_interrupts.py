@@ -6,8 +6,7 @@ import time
 
 import pytest
 
-from econmotor.cli import main
-from econmotor.cli import _interrupts
+from econmotor.cli import _interrupts, main
 from econmotor.cli._interrupts import InterruptGuard, was_interrupted
 
 

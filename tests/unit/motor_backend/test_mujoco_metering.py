@@ -7,9 +7,9 @@ import pytest
 from econmotor.economics.courier_formulas import episode_metric
 from econmotor.errors import ConfigError, UnknownNameError
 from econmotor.motor_backend.couriers.overlay import TERM_METRICS
+from econmotor.motor_backend.mujoco.backend import MujocoBackend
 from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper, VisitNovelty
 from econmotor.motor_backend.mujoco.settings import parse_mujoco_settings
-from econmotor.motor_backend.mujoco.backend import MujocoBackend
 from econmotor.objectives import EconomicObjectiveSpec
 from econmotor.tasks import load_catalog
 

@@ -6,13 +6,13 @@ import pytest
 
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.datapacks import parse_datapack
+from econmotor.motor_backend.mujoco.backend import MujocoBackend
 from econmotor.motor_backend.mujoco.randomization import (
     Curriculum,
     DomainRandomizationWrapper,
     make_base_env,
     parse_randomization,
 )
-from econmotor.motor_backend.mujoco.backend import MujocoBackend
 from econmotor.objectives import EconomicObjectiveSpec
 
 

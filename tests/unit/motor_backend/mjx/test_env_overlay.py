@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from econmotor.economics.courier_formulas import episode_metric
+from econmotor.motor_backend.mujoco.backend import MujocoBackend
 from econmotor.motor_backend.mujoco.env_factory import make_env
 from econmotor.motor_backend.mujoco.evaluation import flatten_episode
-from econmotor.motor_backend.mujoco.backend import MujocoBackend
 
 from .conftest import NUM_ENVS, every_term_objective
 
