@@ -115,7 +115,6 @@ def episode_scalars(metrics: dict[str, Any], factors: dict[str, float]) -> dict[
     return out
 
 
-@dataclass
 class ScalarWriter:
     """TensorBoard scalars through tensorboard's own event writer (no torch: the JAX backend imports none).
 
@@ -141,6 +140,7 @@ class ScalarWriter:
         self._writer.close()
 
 
+@dataclass
 class MjxTrainingRun:
     """One training run (fields are the run's configuration; ``config`` is filled by ``train``)."""
 
