@@ -161,6 +161,15 @@ def test_dof_name_mismatch_names_both_sides() -> None:
     assert "['knee']" in text and "robot.xml" in text and "['a', 'b']" in text
 
 
+def evaluation_error(backend: HolosomaBackend, python: Path, script: str, onnx_file: Path) -> str:
+    """Write ``onnx_file`` with ``script`` in Holosoma's interpreter, evaluate it, return the error's text."""
+    subprocess.run([str(python), "-c", script, str(onnx_file)], check=True, env=job_environment(), timeout=120)
+    with pytest.raises(Exception) as info:
+        backend.evaluate_policy(str(onnx_file), "humanoid_locomotion_g1", EconomicObjectiveSpec(), 1, 0,
+                                output_dir=onnx_file.parent / "eval")
+    return str(info.value)
+
+
 def test_onnx_whose_joints_fit_no_robot_is_a_clear_error(backend: HolosomaBackend, python: Path,
                                                           tmp_path: Path) -> None:
     """Joint names renamed in a shipped policy's metadata: the error names the policy's joints and the presets'."""
@@ -170,11 +179,7 @@ def test_onnx_whose_joints_fit_no_robot_is_a_clear_error(backend: HolosomaBacken
               "for p in m.metadata_props:\n"
               "    if p.key == 'dof_names': p.value = json.dumps(['knee_x'] + json.loads(p.value)[1:])\n"
               "onnx.save(m, sys.argv[1])\n")
-    subprocess.run([str(python), "-c", script, str(onnx_file)], check=True, env=job_environment(), timeout=120)
-    with pytest.raises(Exception) as info:
-        backend.evaluate_policy(str(onnx_file), "humanoid_locomotion_g1", EconomicObjectiveSpec(), 1, 0,
-                                output_dir=tmp_path / "eval")
-    text = str(info.value)
+    text = evaluation_error(backend, python, script, onnx_file)
     assert "knee_x" in text and "g1-29dof-loco" in text
 
 
@@ -229,9 +234,5 @@ def test_onnx_with_the_wrong_observation_width_is_a_clear_error(backend: Holosom
               "model.ir_version = shipped.ir_version\n"
               "model.metadata_props.extend(shipped.metadata_props)\n"
               "onnx.save(model, sys.argv[1])\n")
-    subprocess.run([str(python), "-c", script, str(onnx_file)], check=True, env=job_environment(), timeout=120)
-    with pytest.raises(Exception) as info:
-        backend.evaluate_policy(str(onnx_file), "humanoid_locomotion_g1", EconomicObjectiveSpec(), 1, 0,
-                                output_dir=tmp_path / "eval")
-    text = str(info.value)
+    text = evaluation_error(backend, python, script, onnx_file)
     assert "takes 50 observations" in text and "'g1-29dof-loco' builds 100" in text

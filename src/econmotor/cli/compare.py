@@ -17,16 +17,19 @@ from typing import Any
 import typer
 from rich.table import Table
 
-from econmotor.cli._app import app, console, make_backend, progress_bars, set_cpu_threads
-from econmotor.cli.report import resolve_datapacks, resolve_objective, split_datapack_values
+from econmotor.cli._app import app, console, make_backend, set_cpu_threads
+from econmotor.cli.report import (
+    check_imports_policies,
+    price_imported,
+    resolve_datapacks,
+    resolve_objective,
+    split_datapack_values,
+)
 from econmotor.cli.validation import check_db_url, check_flags, check_output_dir
 from econmotor.economics.pricing import PricingPolicy
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import REPORT_EVAL_SEED_OFFSET
-from econmotor.motor_backend.factory import backend_class, known_backends
-from econmotor.report.pipeline import TrainRequest, evaluate_and_record, report_from_registry
 from econmotor.report.render import fmt
-from econmotor.store.registry import Registry
 from econmotor.tasks import load_catalog
 
 #: intervals narrower than this fraction of the price cannot tell policies apart: the episodes barely
@@ -150,9 +153,7 @@ def compare_command(
         raise ConfigError("--policy", None, f"compare needs at least two policies, got {len(policies)}")
     if len(set(policies)) != len(policies):
         raise ConfigError("--policy", None, f"a policy is named twice: {policies}")
-    if motor_backend not in known_backends() or not backend_class(motor_backend).capabilities.imported_policies:
-        raise ConfigError("--motor-backend", motor_backend, "does not import policies",
-                          [n for n in known_backends() if backend_class(n).capabilities.imported_policies])
+    check_imports_policies(motor_backend, "--motor-backend")
     url = check_db_url(db_url, create=True)
     task = load_catalog(tasks_file).get(task_id)
     task.backend_entry(motor_backend)
@@ -166,13 +167,8 @@ def compare_command(
     pricing = PricingPolicy(spread_share)
     rows = []
     for policy_id in policies:
-        request = TrainRequest(task=task, backend_name=motor_backend, objective=objective, datapacks=tuple(packs),
-                               seed=seed, eval_episodes=eval_episodes, notes=f"econmotor compare: {policy_id}",
-                               output_dir=backend.run_dir(None, task_id, seed))
-        with progress_bars() as progress:
-            reg, eval_id = evaluate_and_record(request, backend, policy_id, lambda: Registry(url), progress)
-        with reg:
-            outcome = report_from_registry(reg, task, reg.run(eval_id), None, out_dir, None, pricing)
+        outcome = price_imported(task, backend, policy_id, objective, packs, eval_episodes, seed,
+                                 f"econmotor compare: {policy_id}", url, out_dir, None, pricing)
         rows.append(comparison_row(policy_id, outcome.document))
     ranked, summary = rank(rows)
     first = seed + REPORT_EVAL_SEED_OFFSET

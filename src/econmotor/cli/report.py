@@ -152,24 +152,37 @@ def show_outcome(outcome: ReportOutcome) -> None:
     console.print(f"HTML report: {outcome.files['html']}", style="bold green", highlight=False, soft_wrap=True)
 
 
-def report_imported(task, backend_name: str, policy_id: str, objective: EconomicObjectiveSpec,
-                    packs: list[DatapackConfig], eval_episodes: int, seed: int, notes: str, tasks_file: list[Path],
-                    url: str, out_dir: Path, output_json: Path | None, pricing: PricingPolicy) -> None:
-    """``report --policy``: evaluate an imported policy (nothing trained), record the run, write the report."""
+def check_imports_policies(backend_name: str, flag: str) -> None:
+    """``backend_name`` must evaluate policies trained elsewhere (its ``capabilities.imported_policies``)."""
     if not backend_class(backend_name).capabilities.imported_policies:
-        raise ConfigError("--policy", policy_id, f"the '{backend_name}' backend evaluates its own run directories "
-                          "only", [n for n in known_backends() if backend_class(n).capabilities.imported_policies])
-    if eval_episodes < 1:
-        raise ConfigError("--eval-episodes", None, "--policy evaluates an imported policy: give --eval-episodes N")
-    backend = make_backend(backend_name, tasks_file)
-    backend.check_policy(policy_id)  # bad input records nothing
-    request = TrainRequest(task=task, backend_name=backend_name, objective=objective, datapacks=tuple(packs),
+        raise ConfigError(flag, backend_name, "this backend evaluates its own run directories only, not imported "
+                          "policies", [n for n in known_backends() if backend_class(n).capabilities.imported_policies])
+
+
+def price_imported(task, backend, policy_id: str, objective: EconomicObjectiveSpec, packs: list[DatapackConfig],
+                   eval_episodes: int, seed: int, notes: str, url: str, out_dir: Path, output_json: Path | None,
+                   pricing: PricingPolicy) -> ReportOutcome:
+    """Evaluate an imported policy (nothing trained), record the evaluation run, write its report."""
+    request = TrainRequest(task=task, backend_name=backend.name, objective=objective, datapacks=tuple(packs),
                            seed=seed, eval_episodes=eval_episodes, notes=notes,
                            output_dir=backend.run_dir(None, task.task_id, seed))
     with progress_bars() as progress:
         reg, eval_id = evaluate_and_record(request, backend, policy_id, lambda: Registry(url), progress)
     with reg:
-        outcome = report_from_registry(reg, task, reg.run(eval_id), None, out_dir, output_json, pricing)
+        return report_from_registry(reg, task, reg.run(eval_id), None, out_dir, output_json, pricing)
+
+
+def report_imported(task, backend_name: str, policy_id: str, objective: EconomicObjectiveSpec,
+                    packs: list[DatapackConfig], eval_episodes: int, seed: int, notes: str, tasks_file: list[Path],
+                    url: str, out_dir: Path, output_json: Path | None, pricing: PricingPolicy) -> None:
+    """``report --policy``: evaluate an imported policy (nothing trained), record the run, write the report."""
+    check_imports_policies(backend_name, "--motor-backend")
+    if eval_episodes < 1:
+        raise ConfigError("--eval-episodes", None, "--policy evaluates an imported policy: give --eval-episodes N")
+    backend = make_backend(backend_name, tasks_file)
+    backend.check_policy(policy_id)  # bad input records nothing
+    outcome = price_imported(task, backend, policy_id, objective, packs, eval_episodes, seed, notes, url, out_dir,
+                             output_json, pricing)
     console.print(f"[bold]evaluated[/]: {imported_policy_text(outcome.document['runs']['eval'])}", highlight=False)
     show_outcome(outcome)
 

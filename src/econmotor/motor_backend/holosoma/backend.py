@@ -126,6 +126,7 @@ class HolosomaPolicyHandle(StepAlias):
         self.onnx_path = str(onnx_path)
         options = ort.SessionOptions()
         options.intra_op_num_threads = 1
+        options.inter_op_num_threads = 1
         self.session = ort.InferenceSession(self.onnx_path, options, providers=["CPUExecutionProvider"])
         raw = self.session.get_modelmeta().custom_metadata_map
         decoded = {k: _json_or_text(v) for k, v in raw.items()}

@@ -423,15 +423,10 @@ def run_episode(robot: Robot, contract: PolicyContract, policy: Callable[[np.nda
 
 
 def onnx_policy(contract: PolicyContract) -> Callable[[np.ndarray], np.ndarray]:
-    """The ONNX policy as ``f(obs [1, obs_dim] float32) -> action [1, n]`` (one CPU thread)."""
-    import onnxruntime as ort
+    """The ONNX policy as ``f(obs [1, obs_dim] float32) -> action [1, n]``: the deployed handle's ``act``."""
+    from econmotor.motor_backend.holosoma.backend import HolosomaPolicyHandle
 
-    options = ort.SessionOptions()
-    options.intra_op_num_threads = 1
-    options.inter_op_num_threads = 1
-    session = ort.InferenceSession(contract.onnx_path, options, providers=["CPUExecutionProvider"])
-    name = contract.input_name
-    return lambda row: session.run(None, {name: row})[0]
+    return HolosomaPolicyHandle(contract.onnx_path).act
 
 
 def evaluate(contract: PolicyContract, course: CourseSettings, meter: MeterSettings, stress: Stress,
