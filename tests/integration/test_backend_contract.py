@@ -90,4 +90,3 @@ def test_default_run_directories_are_new_and_under_runs_dir(tmp_path: Path) -> N
     first = backend.run_dir(None, "some_task", 7)
     assert first.parent == tmp_path and first.name.startswith("some_task-") and first.name.endswith(f"-{os.getpid()}")
     assert backend.run_dir(tmp_path / "mine", "some_task", 7) == tmp_path / "mine"
-    assert MotorBackendBase.evaluation_seeds(5, 3) == [5, 6, 7]

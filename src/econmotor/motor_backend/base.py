@@ -371,11 +371,6 @@ class MotorBackendBase:
         """Raise a ConfigError when ``policy_id`` cannot be evaluated by this backend, before any run is
         recorded (the base checks nothing; a backend with ``imported_policies`` checks files and names)."""
 
-    @staticmethod
-    def evaluation_seeds(seed: int, num_episodes: int) -> list[int]:
-        """The rule every backend follows: episode ``i`` of an evaluation seeded ``seed`` is ``seed + i``."""
-        return [int(seed) + i for i in range(int(num_episodes))]
-
     # --- the three operations (spec: motor_backends.md); a subclass implements each ---------------
     def train_policy(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str],
                      num_envs: int, max_steps: int, seed: int, *, datapack_configs: Sequence[Any] | None = None,
