@@ -25,9 +25,9 @@ import torch
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
+from econmotor.motor_backend.mujoco.backend import MujocoBackend
 from econmotor.motor_backend.mujoco.settings import merge_hyperparameters
 from econmotor.motor_backend.mujoco.training import algorithm_class, policy_kwargs_from
-from econmotor.motor_backend.mujoco.backend import MujocoBackend
 from econmotor.objectives import EconomicObjectiveSpec
 
 TASK = "hopper_courier"

@@ -62,11 +62,10 @@ def _sum(a: Any, axis: int | None = None) -> float:
 #: ``xp`` for one env's figures as Python floats and lists of floats (the ``mujoco`` backend's
 #: per-step metering): numpy's names bound to the builtins and :mod:`math`, which is what a few
 #: numbers a step call for (a NumPy call on a 3-vector costs more than the arithmetic). ``abs``
-#: takes a float; ``absolute``, ``multiply``, ``floor_divide`` and ``sum`` go elementwise over lists
+#: takes a float; ``absolute``, ``multiply`` and ``sum`` go elementwise over lists
 #: (``absolute`` and ``multiply`` as lazy ``map``s, which ``sum`` consumes).
 PY = SimpleNamespace(maximum=max, minimum=min, abs=abs, arccos=math.acos, where=_where, clip=_clip, sum=_sum,
-                     absolute=partial(map, abs), multiply=partial(map, operator.mul),
-                     floor_divide=lambda a, b: [x // b for x in a])
+                     absolute=partial(map, abs), multiply=partial(map, operator.mul))
 
 
 def safe_div(num: Any, den: Any, xp: Any) -> Any:
@@ -101,8 +100,8 @@ def tilt_risk(tilt_rad: Any, tilt_margin_rad: float, fall_tilt_rad: float, xp: A
 
 
 def novelty_cell(point: Any, novelty_bin: float, xp: Any) -> Any:
-    """The cell of a point: ``floor(point / novelty_bin)`` per coordinate (``xp=PY``: a list of floats)."""
-    return xp.floor_divide(point, novelty_bin)
+    """The cell of a point (an array): ``floor(point / novelty_bin)`` per coordinate."""
+    return xp.floor(point / novelty_bin)
 
 
 def novelty_bonus(visits: Any) -> Any:

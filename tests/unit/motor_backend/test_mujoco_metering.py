@@ -135,6 +135,25 @@ def test_every_courier_builds_its_metered_env(task_id):
     assert described["overlay_references"] == {"mpl_per_hour": 468.0, "error_rate": 0.002}
 
 
+@pytest.mark.parametrize("novelty_weight", [0.0, 0.5])
+def test_training_envs_meter_novelty_only_where_the_overlay_rewards_it(novelty_weight):
+    """An evaluation's env always meters novelty; a training env only when the overlay has a novelty
+    term, and then with the same reward as the evaluation's env on the same episode."""
+    from econmotor.motor_backend.mujoco.env_factory import make_env
+
+    spec = EconomicObjectiveSpec(mpl_weight=1.0, error_weight=1.0, novelty_weight=novelty_weight)
+    recipe, _ = MujocoBackend().recipe("hopper_courier", spec)
+    eval_rewards, eval_infos, _ = run_episode(make_env(recipe, seed=0), 3)
+    train_env = make_env(recipe, seed=0, training=True)
+    train_rewards, train_infos, _ = run_episode(train_env, 3)
+    assert eval_infos[-1]["econ_episode"]["novelty_score"] > 0
+    rewarded = "novelty_score" in recipe.scales
+    assert rewarded == (novelty_weight > 0)
+    assert ("novelty_score" in train_infos[-1]["econ_episode"]) == rewarded
+    assert bool(train_env.visit_counts) == rewarded
+    assert train_rewards == eval_rewards
+
+
 def reference_episode(env, seed, counts, tilt_margin, fall_tilt, novelty_bin=0.25, dims=5):
     """One episode through ``env`` (a bare meter) with energy, risk and novelty recomputed per step
     from MjData the plain way: power over *all* dofs, tilt via acos, visit counts in ``counts``."""
@@ -239,15 +258,17 @@ def test_visits_score_the_inverse_square_root_of_their_count():
         counts[cell] = counts.get(cell, 0) + 1
         expected += counts[cell] ** -0.5
         got += novelty.visit(p)
-    assert novelty.counts == counts
+    assert novelty.cells == counts
     assert max(counts.values()) >= 12
     assert got == pytest.approx(expected, rel=1e-12)
 
 
-def test_a_non_finite_coordinate_falls_in_the_cell_index_none():
-    """NaN and infinite coordinates count, in cells with index None."""
+def test_a_non_finite_coordinate_counts_in_a_cell_of_its_own_read_back_as_index_none():
+    """NaN and infinite coordinates count (NaN, -inf and +inf each in cells of their own); ``cells``
+    reads their index back as None and adds up the cells that then look alike."""
     novelty = VisitNovelty(0.25, dims=2)
     points = [(np.nan, 0.3), (np.nan, 0.3, 9.0), (-np.inf, 0.3), (np.inf, 0.0), (0.1, 0.3)]
     total = sum(novelty.visit(np.asarray(p)) for p in points)
-    assert novelty.counts == {(None, 1): 3, (None, 0): 1, (0, 1): 1}
-    assert total == pytest.approx(1 + 2 ** -0.5 + 3 ** -0.5 + 1 + 1, rel=1e-12)
+    assert sorted(novelty.counts.values()) == [1, 1, 1, 2]  # the two NaN points share a cell
+    assert novelty.cells == {(None, 1): 3, (None, 0): 1, (0, 1): 1}
+    assert total == pytest.approx(1 + 2 ** -0.5 + 1 + 1 + 1, rel=1e-12)

@@ -50,8 +50,10 @@ class EnvRecipe:
         return self.curriculum.difficulty(0) if self.difficulty is None else self.difficulty
 
 
-def make_env(recipe: EnvRecipe, seed: int | None = None, overlay: bool = True) -> gym.Env:
-    """One wrapped env (order in the module docstring); ``overlay=False``: the meter alone (the task's reward)."""
+def make_env(recipe: EnvRecipe, seed: int | None = None, overlay: bool = True, training: bool = False) -> gym.Env:
+    """One wrapped env (order in the module docstring); ``overlay=False``: the meter alone (the task's
+    reward). ``training``: an env to train on, metering novelty only where the overlay rewards it
+    (an evaluation's env meters every term)."""
     s = recipe.settings
     env = make_base_env(s.env_id, s.env_kwargs, recipe.randomization)
     if recipe.clips:
@@ -61,16 +63,17 @@ def make_env(recipe: EnvRecipe, seed: int | None = None, overlay: bool = True) -
     return EconomicMeteringWrapper(env, s.leg_distance_m, s.drivetrain_efficiency, s.idle_power_w,
                                    s.tilt_margin_rad, s.fall_tilt_rad, s.novelty_dims, s.novelty_bin,
                                    scales=recipe.scales if overlay else None,
-                                   keep_task_reward=recipe.keep_task_reward, references=recipe.references)
+                                   keep_task_reward=recipe.keep_task_reward, references=recipe.references,
+                                   meter_novelty=not training)
 
 
 def env_builder(recipe: EnvRecipe, seed: int) -> Callable[[], gym.Env]:
-    """A thunk building one monitored env (for DummyVecEnv / SubprocVecEnv)."""
+    """A thunk building one monitored env to train on (for DummyVecEnv / SubprocVecEnv)."""
 
     def build() -> gym.Env:
         from stable_baselines3.common.monitor import Monitor
 
-        return Monitor(make_env(recipe, seed), info_keywords=())
+        return Monitor(make_env(recipe, seed, training=True), info_keywords=())
 
     return build
 

@@ -30,7 +30,8 @@ Episode raw metrics (``info["econ_episode"]`` on the last step) use the keys
 :class:`~econmotor.economics.EconomicMeter` reads: ``units_completed``, ``units_attempted``
 (``= units_completed + errors``: the leg during which the robot fell counts as attempted and
 failed), ``errors``, ``episode_length_s``, ``energy_wh``, ``risk_score`` and ``novelty_score``
-(means over steps), plus ``return`` (the env's own reward), ``length_steps``,
+(means over steps; novelty only where it is metered: always, except in training envs whose
+overlay does not reward it), plus ``return`` (the env's own reward), ``length_steps``,
 ``forward_distance_m``, ``control_dt_s`` and ``termination_reason`` (``"fall"`` or
 ``"max_steps"``), and ``pose_tracking`` (sum of per-step pose similarity) when a
 pose-tracking wrapper inside reports ``info["pose_tracking"]``. With the overlay, the last step's
@@ -72,22 +73,32 @@ __all__ = ["EconomicMeteringWrapper", "EpisodeSums", "VisitNovelty", "actuated_d
 class VisitNovelty:
     """Visit counts over coarse cells: the n-th visit to cell ``floor(x / novelty_bin)`` scores ``1 / sqrt(n)``.
 
-    A cell is keyed by its indices (the floored coordinates); a NaN or infinite coordinate's index is None.
+    A cell is keyed by the bytes of its array of floored coordinates (one compact object per key,
+    so a lookup compares one buffer); :attr:`cells` reads the keys back as tuples of indices, with
+    None for a non-finite one (``floor`` keeps NaN and infinities, so such a coordinate still counts).
     """
 
     def __init__(self, novelty_bin: float, dims: int = 5) -> None:
-        self.counts: dict[tuple[float | None, ...], int] = {}  # cell -> visits, kept across episodes
+        self.counts: dict[bytes, int] = {}  # cell's bytes -> visits, kept across episodes
         self.novelty_bin = float(novelty_bin)
         self.dims = int(dims)
 
-    def visit(self, point: Any) -> float:
+    def visit(self, point: np.ndarray) -> float:
         """Count a visit to the cell of ``point[:dims]`` (a 1-d array); its bonus ``novelty_bonus(n)``."""
-        cell = tuple(novelty_cell(point[: self.dims].tolist(), self.novelty_bin, PY))
-        if not math.isfinite(sum(cell)):  # NaN != NaN: such a key would never be found again
-            cell = tuple(v if math.isfinite(v) else None for v in cell)
+        cell = novelty_cell(point[: self.dims], self.novelty_bin, np).tobytes()
         n = self.counts.get(cell, 0) + 1
         self.counts[cell] = n
         return novelty_bonus(n)
+
+    @property
+    def cells(self) -> dict[tuple[float | None, ...], int]:
+        """Visits per cell, keyed by the cell's indices (None: a non-finite index; such cells add up)."""
+        out: dict[tuple[float | None, ...], int] = {}
+        for key, n in self.counts.items():
+            floats = np.frombuffer(key, dtype=f"f{len(key) // self.dims}").tolist()
+            cell = tuple(v if math.isfinite(v) else None for v in floats)
+            out[cell] = out.get(cell, 0) + n
+        return out
 
 
 class EpisodeSums(NamedTuple):
@@ -151,12 +162,16 @@ class EconomicMeteringWrapper(gym.Wrapper):
             reward is the env's own and the info has no overlay keys.
         keep_task_reward: with an overlay, keep the env's own reward (True) or use the overlay alone.
         references: overlay key -> positive divisor of its term (missing keys: 1).
+        meter_novelty: count visits and report ``novelty_score`` (True), or only when the overlay
+            rewards novelty (False: what training builds, as nothing else reads a training
+            episode's novelty; it is the wrapper's costliest term, a dict of visited cells).
     """
 
     def __init__(self, env: gym.Env, leg_distance_m: float = 10.0, drivetrain_efficiency: float = 0.6,
                  idle_power_w: float = 20.0, tilt_margin_rad: float = 0.2, fall_tilt_rad: float = 1.0,
                  novelty_dims: int = 5, novelty_bin: float = 0.25, scales: Mapping[str, float] | None = None,
-                 keep_task_reward: bool = True, references: Mapping[str, float] | None = None) -> None:
+                 keep_task_reward: bool = True, references: Mapping[str, float] | None = None,
+                 meter_novelty: bool = True) -> None:
         super().__init__(env)
         where = "EconomicMeteringWrapper"
         if not leg_distance_m > 0:
@@ -182,10 +197,11 @@ class EconomicMeteringWrapper(gym.Wrapper):
         self.leg_distance_m = float(leg_distance_m)
         self.constants = MeterConstants(float(leg_distance_m), float(drivetrain_efficiency), float(idle_power_w),
                                         self.dt_s, float(tilt_margin_rad), float(fall_tilt_rad))
-        obs_size = int(np.prod(env.observation_space.shape)) if env.observation_space.shape else int(novelty_dims)
-        self._novelty = VisitNovelty(novelty_bin, min(int(novelty_dims), obs_size))
         self.overlay = scales is not None
         self.scales = {k: float(v) for k, v in (scales or {}).items()}
+        obs_size = int(np.prod(env.observation_space.shape)) if env.observation_space.shape else int(novelty_dims)
+        self._novelty = (VisitNovelty(novelty_bin, min(int(novelty_dims), obs_size))
+                         if meter_novelty or "novelty_score" in self.scales else None)
         self.factors = overlay_term_factors(self.scales, references) if self.overlay else {}
         self.keep_task_reward = bool(keep_task_reward) or not self.overlay
         self._coefficients = overlay_coefficients(self.factors, self.dt_s)
@@ -210,7 +226,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
     @property
     def visit_counts(self) -> dict[tuple[float | None, ...], int]:
         """Visits per novelty cell ``floor(obs[:novelty_dims] / novelty_bin)``, across episodes (a copy)."""
-        return dict(self._novelty.counts)
+        return self._novelty.cells if self._novelty is not None else {}
 
     def reset(self, **kwargs: Any):
         obs, info = self.env.reset(**kwargs)
@@ -225,7 +241,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
             mechanical_w=mechanical_power_w(self._qfrc.tolist(), self._qvel.tolist(), PY),
             tilt_rad=root_tilt_rad(qpos, self._free_root, PY),
             fell=terminated,
-            novelty_bonus=self._novelty.visit(obs),
+            novelty_bonus=self._novelty.visit(obs) if self._novelty is not None else 0.0,
             pose_similarity=(info.get("pose_tracking") or 0.0) if self._track_pose else 0.0,
         )
         meter_step(self._sums, reading, self.constants, PY)
@@ -251,11 +267,12 @@ class EconomicMeteringWrapper(gym.Wrapper):
             "control_dt_s": dt_s,
             "energy_wh": sums.energy_wh,
             "risk_score": metrics.risk_score,
-            "novelty_score": metrics.novelty_score,
             "return": self._task_return,
             "forward_distance_m": sums.best_x - self._x0,
             "termination_reason": "fall" if fell else "max_steps",
         }
+        if self._novelty is not None:
+            raw["novelty_score"] = metrics.novelty_score
         if self._track_pose:
             raw["pose_tracking"] = sums.pose_sum
         info["econ_episode"] = raw
