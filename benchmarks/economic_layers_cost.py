@@ -1,35 +1,35 @@
-"""Wall time of a PPO training run with and without the economic layers, side by side in one run.
+"""Wall time of PPO training runs with and without the economic layers, side by side in one process.
 
 What a user feels: the cost of the economic layers inside a whole Stable-Baselines3 PPO run, not
 per env step. The layers are the metering + overlay wrapper (``EconomicMeteringWrapper``, what
 the mujoco backend trains on) and the callback that logs their episode figures
-(``EconEpisodeLogCallback``). Every arm trains PPO on the hopper_courier catalog entry's env,
+(``EconEpisodeLogCallback``). Every arm is one PPO run on the hopper_courier catalog entry's env,
 envs, hyperparameters and observation normalisation (``DummyVecEnv`` of ``Monitor(env)`` +
-``VecNormalize`` + ``model.learn(steps)``), the demo's training:
+``VecNormalize``), the demo's training, all seeded alike:
 
 - ``bare``: the Gymnasium env alone (``make_base_env``: what ``gymnasium.make`` builds), no callback;
-- ``layers``: the layers as ``train`` runs them (``env_factory.make_env`` with the default
-  objective vector's overlay keys, human-baseline normalised, and the log callback), every term
-  metered and its overlay term computed, with the overlay's scales set to 0: the reward is the
-  env's own (``r + J(t) - J(t-1)`` with ``J = 0``), so with the same seed PPO trains the very
-  same policy through the same episodes as ``bare`` (checked: equal episode counts and equal
-  final weights) and the difference is the layers' own cost;
+- ``layers``: the layers as ``train`` builds them (``env_factory.make_env(..., training=True)``
+  with the default objective vector's overlay keys, human-baseline normalised, and the log
+  callback), every term metered and its overlay term computed, with the overlay's scales set to
+  0: the reward is the env's own (``r + J(t) - J(t-1)`` with ``J = 0``), so PPO trains the very
+  same policy through the same episodes as ``bare`` (checked at the end: equal episode counts
+  and equal weights) and the difference is the layers' own cost;
 - ``overlay``: the same with the overlay's real scales, what ``train`` runs. Its reward differs,
-  so its policy and episodes drift from ``bare``'s (a falling hopper steps MuJoCo's contacts
-  more), which its ratio includes.
+  so its policy and episodes drift from ``bare``'s, which its ratio includes.
 
-Rounds run bare, layers, overlay, overlay, layers, bare (each arm's mean position is the same, so
-load that drifts on a shared machine hits them alike), with the round's seed. Reported per round:
-each arm's mean wall and process CPU seconds of ``learn`` and the ratios over ``bare``; then per
-arm the median round ratio (wall and CPU; the cost is ``ratio - 1``; goal for ``layers``: <=
-1.02). Last, the layers' own time *in situ* in one overlay run (the clock read when the Gymnasium
-env inside returns and when the wrapper returns, plus the callback's ``_on_step``) as a share of
-``learn``'s wall time: a figure that moves less from run to run, to compare code changes by.
+The three runs advance in turns of one PPO iteration each (a rollout of ``n_steps x num_envs``
+env steps and its update: ``learn(..., reset_num_timesteps=False)`` goes on where the last call
+stopped), timed one by one, in rounds of bare, layers, overlay, overlay, layers, bare: load that
+drifts on the shared machine hits the arms alike within a round of a few seconds. A round's
+ratio is an arm's two iterations' time over bare's two; reported: the median round ratio (wall
+and process CPU time; the cost is ``ratio - 1``; goal for ``layers``: <= 1.02) with its
+quartiles, over the whole run (from the first step, as ``train`` runs it) and over its second
+half (longer episodes). Last, the layers' own time *in situ* in a separate overlay run (the
+clock read when the Gymnasium env inside returns and when the wrapper returns, plus the
+callback's ``_on_step``) as a share of ``learn``'s wall time: a figure that moves less, to
+compare code changes by.
 
-``--pretrain N`` measures later in a run: a bare run trains N steps first and every arm goes on
-from its weights and observation statistics (longer episodes, so the per-episode work weighs less).
-
-    .venv/bin/python benchmarks/economic_layers_cost.py [--steps 16384] [--rounds 5] [--pretrain 0]
+    .venv/bin/python benchmarks/economic_layers_cost.py [--rounds 30] [--insitu-steps 16384]
 """
 
 from __future__ import annotations
@@ -37,15 +37,14 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
-import shutil
+import random
 import statistics
-import tempfile
 import time
-from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import gymnasium as gym
+import numpy as np
 import torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.monitor import Monitor
@@ -105,104 +104,111 @@ class TimedEconEpisodeLogCallback(EconEpisodeLogCallback):
         return out
 
 
-def train_seconds(recipe: EnvRecipe, arm: str, steps: int, seed: int, own_s: list[float] | None = None,
-                  start: Path | None = None, save_to: Path | None = None) -> tuple[float, float, int, float]:
-    """(wall s, CPU s) of ``PPO.learn(steps)`` on ``arm``'s envs, the episodes it ran and a checksum
-    of the final weights; env and model construction are not timed. ``own_s``: time the layers
-    in situ into it. ``start``: a folder with ``model.zip`` and ``vecnormalize.pkl`` to go on from;
-    ``save_to``: a folder to write them to."""
-    s = recipe.settings
+def rng_state() -> tuple:
+    return random.getstate(), np.random.get_state(), torch.get_rng_state()
 
-    def build(i: int):
-        def thunk():
-            env = build_env(recipe, arm, seed + i)
-            if own_s is not None:
-                time_inside(env, own_s)
-            return Monitor(env)
 
-        return thunk
+def set_rng_state(state: tuple) -> None:
+    random.setstate(state[0])
+    np.random.set_state(state[1])
+    torch.set_rng_state(state[2])
 
-    venv = DummyVecEnv([build(i) for i in range(s.num_envs)])
-    venv.seed(seed)
-    if start is not None:
-        venv = VecNormalize.load(str(start / "vecnormalize.pkl"), venv) if s.normalize_obs else venv
-        model = PPO.load(start / "model.zip", env=venv, device="cpu")
-        model.set_random_seed(seed)
-    else:
+
+class Run:
+    """One arm's PPO run, advanced one iteration at a time. ``own_s``: time the layers in situ into it."""
+
+    def __init__(self, recipe: EnvRecipe, arm: str, seed: int, own_s: list[float] | None = None) -> None:
+        s = recipe.settings
+
+        def build(i: int):
+            def thunk():
+                env = build_env(recipe, arm, seed + i)
+                if own_s is not None:
+                    time_inside(env, own_s)
+                return Monitor(env)
+
+            return thunk
+
+        venv = DummyVecEnv([build(i) for i in range(s.num_envs)])
+        venv.seed(seed)
         if s.normalize_obs:
             venv = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0)
-        model = PPO("MlpPolicy", venv, seed=seed, device="cpu", verbose=0,
-                    **policy_kwargs_from(s.algo_hyperparameters("ppo")))
-    callback = None
-    if arm != "bare":
-        callback = TimedEconEpisodeLogCallback(own_s) if own_s is not None else EconEpisodeLogCallback()
-    start, start_cpu = time.perf_counter(), time.process_time()
-    model.learn(steps, callback=callback)
-    wall, cpu = time.perf_counter() - start, time.process_time() - start_cpu
-    episodes = sum(len(lengths) for lengths in venv.env_method("get_episode_lengths"))  # Monitor's
-    weights = float(sum(p.detach().double().sum() for p in model.policy.parameters()))
-    if save_to is not None:
-        model.save(save_to / "model.zip")
-        if isinstance(venv, VecNormalize):
-            venv.save(str(save_to / "vecnormalize.pkl"))
-    venv.close()
-    return wall, cpu, episodes, weights
+        self.venv = venv
+        self.model = PPO("MlpPolicy", venv, seed=seed, device="cpu", verbose=0,
+                         **policy_kwargs_from(s.algo_hyperparameters("ppo")))
+        self.iteration_steps = self.model.n_steps * s.num_envs
+        self.rng_state = rng_state()  # PPO draws from the global generators the model's seed set
+        self.callback = None
+        if arm != "bare":
+            self.callback = TimedEconEpisodeLogCallback(own_s) if own_s is not None else EconEpisodeLogCallback()
+
+    def advance(self, steps: int | None = None) -> tuple[float, float]:
+        """(wall s, CPU s) of ``steps`` more env steps (default: one PPO iteration)."""
+        set_rng_state(self.rng_state)  # the runs take turns: each draws its own random stream
+        start, start_cpu = time.perf_counter(), time.process_time()
+        self.model.learn(steps or self.iteration_steps, callback=self.callback, reset_num_timesteps=False)
+        wall, cpu = time.perf_counter() - start, time.process_time() - start_cpu
+        self.rng_state = rng_state()
+        return wall, cpu
+
+    def finish(self) -> tuple[int, float]:
+        """Close the envs; (episodes run, a checksum of the policy's weights)."""
+        episodes = sum(len(lengths) for lengths in self.venv.env_method("get_episode_lengths"))  # Monitor's
+        weights = float(sum(p.detach().double().sum() for p in self.model.policy.parameters()))
+        self.venv.close()
+        return episodes, weights
+
+
+def summary(rounds: list[tuple[float, float]]) -> str:
+    """Median (quartiles) of the rounds' wall ratios, and the median CPU ratio."""
+    wall = sorted(r[0] for r in rounds)
+    q1, med, q3 = statistics.quantiles(wall, n=4) if len(wall) > 1 else (wall[0],) * 3
+    return (f"wall {med:.3f} ({(med - 1) * 100:+.1f}%, quartiles {q1:.3f}-{q3:.3f}), "
+            f"cpu {statistics.median(r[1] for r in rounds):.3f}")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=16384, help="env steps per training run")
-    parser.add_argument("--rounds", type=int, default=5, help="A B C C B A rounds")
-    parser.add_argument("--pretrain", type=int, default=0,
-                        help="train a bare run this many steps first; every arm goes on from its weights "
-                             "(later in a run: longer episodes)")
+    parser.add_argument("--rounds", type=int, default=30, help="rounds of two PPO iterations per arm")
+    parser.add_argument("--insitu-steps", type=int, default=16384, help="env steps of the in-situ run")
     args = parser.parse_args()
     torch.set_num_threads(1)
     objective = objective_from_vector(ObjectiveVector.from_list(default_objective_vector()), "default")
     recipe, _ = MujocoBackend().recipe(TASK, objective)
     s = recipe.settings
-    print(f"{TASK}: PPO, {s.num_envs} envs, {args.steps} steps per run, overlay keys {sorted(recipe.scales)}")
-    start = None
-    if args.pretrain:
-        start = Path(tempfile.mkdtemp(prefix="econmotor-layers-"))
-        _, _, n, _ = train_seconds(recipe, "bare", args.pretrain, seed=1000, save_to=start)
-        print(f"pretrained {args.pretrain} steps (bare, seed 1000, {args.pretrain / n:.0f} steps per episode); "
-              "every run goes on from there")
-    for arm in ARMS:  # warm up (imports, first allocations)
-        train_seconds(recipe, arm, 2048, 99, start=start)
+    runs = {arm: Run(recipe, arm, seed=0) for arm in ARMS}
+    steps = runs["bare"].iteration_steps
+    print(f"{TASK}: PPO, {s.num_envs} envs, {steps} env steps per iteration, {args.rounds} rounds of 2 iterations "
+          f"per arm ({2 * args.rounds * steps:,} steps per run), overlay keys {sorted(recipe.scales)}")
     ratios: dict[str, list[tuple[float, float]]] = {"layers": [], "overlay": []}
-    episodes = dict.fromkeys(ARMS, 0)
     for r in range(args.rounds):
-        runs: dict[str, list[tuple[float, float]]] = {arm: [] for arm in ARMS}
-        same: dict[str, set[tuple[int, float]]] = {arm: set() for arm in ARMS}
+        times = {arm: [0.0, 0.0] for arm in ARMS}
         for arm in (*ARMS, *reversed(ARMS)):
-            wall, cpu, n, weights = train_seconds(recipe, arm, args.steps, seed=r, start=start)
-            runs[arm].append((wall, cpu))
-            episodes[arm] += n
-            same[arm].add((n, weights))
-        if same["layers"] != same["bare"] or len(same["bare"]) != 1:
-            raise SystemExit(f"round {r}: layers and bare trained different policies: {same}")
-        mean = {arm: [sum(x) / len(x) for x in zip(*runs[arm], strict=True)] for arm in ARMS}
+            wall, cpu = runs[arm].advance()
+            times[arm][0] += wall
+            times[arm][1] += cpu
         for arm in ratios:
-            ratios[arm].append((mean[arm][0] / mean["bare"][0], mean[arm][1] / mean["bare"][1]))
-        print(f"round {r}: " + " | ".join(f"{arm} {mean[arm][0]:5.2f} s" for arm in ARMS)
-              + " | wall/cpu ratio " + " ".join(f"{arm} {ratios[arm][-1][0]:.3f}/{ratios[arm][-1][1]:.3f}"
-                                               for arm in ratios), flush=True)
-    runs = 2 * args.rounds
-    print(f"{args.rounds} rounds x 2 runs per arm; steps per episode: bare {runs * args.steps / episodes['bare']:.0f}, "
-          f"layers {runs * args.steps / episodes['layers']:.0f} (same policies, checked), "
-          f"overlay {runs * args.steps / episodes['overlay']:.0f}")
+            ratios[arm].append((times[arm][0] / times["bare"][0], times[arm][1] / times["bare"][1]))
+        if r % 5 == 4 or r == args.rounds - 1:
+            print(f"round {r + 1:3d}: bare {times['bare'][0]:5.2f} s | wall ratio "
+                  + " ".join(f"{arm} {ratios[arm][-1][0]:.3f}" for arm in ratios), flush=True)
+    finished = {arm: run.finish() for arm, run in runs.items()}
+    if finished["layers"] != finished["bare"]:
+        raise SystemExit(f"layers and bare trained different policies: {finished}")
+    total = 2 * args.rounds * steps
+    print("steps per episode: " + ", ".join(f"{arm} {total / finished[arm][0]:.0f}" for arm in ARMS)
+          + " (bare and layers: the same episodes and weights, checked)")
+    half = args.rounds // 2
     for arm, rs in ratios.items():
-        w, c = statistics.median(x[0] for x in rs), statistics.median(x[1] for x in rs)
-        print(f"{arm:8s}/ bare training time, median round: wall {w:.3f} ({(w - 1) * 100:+.1f}%), "
-              f"cpu {c:.3f} ({(c - 1) * 100:+.1f}%)" + ("  (goal: <= 1.02)" if arm == "layers" else
-                                                        "  (includes the overlay's policy drift)"))
+        note = "  (goal: <= 1.02)" if arm == "layers" else "  (includes the overlay's policy drift)"
+        print(f"{arm:8s}/ bare, median round: whole run {summary(rs)}{note}")
+        print(f"{'':10s}second half: {summary(rs[half:])}")
     own_s = [0.0]
-    wall, _, _, _ = train_seconds(recipe, "overlay", args.steps, seed=0, own_s=own_s, start=start)
-    print(f"layers in situ (overlay run, seed 0): {own_s[0]:.3f} s of {wall:.2f} s learn wall time = "
-          f"{own_s[0] / wall * 100:.2f}% ({own_s[0] / args.steps * 1e6:.1f} us per env step)")
-    if start is not None:
-        shutil.rmtree(start)
+    timed = Run(recipe, "overlay", seed=0, own_s=own_s)
+    wall, _ = timed.advance(args.insitu_steps)
+    timed.finish()
+    print(f"layers in situ (a separate overlay run, {args.insitu_steps} steps): {own_s[0]:.3f} s of {wall:.2f} s "
+          f"learn wall time = {own_s[0] / wall * 100:.2f}% ({own_s[0] / args.insitu_steps * 1e6:.1f} us per env step)")
 
 
 if __name__ == "__main__":
