@@ -272,3 +272,11 @@ def test_a_non_finite_coordinate_counts_in_a_cell_of_its_own_read_back_as_index_
     assert sorted(novelty.counts.values()) == [1, 1, 1, 2]  # the two NaN points share a cell
     assert novelty.cells == {(None, 1): 3, (None, 0): 1, (0, 1): 1}
     assert total == pytest.approx(1 + 2 ** -0.5 + 1 + 1 + 1, rel=1e-12)
+
+
+def test_points_shorter_than_dims_and_of_any_float_width_read_back_as_their_cells():
+    """A 2-entry point with dims = 5 and the same point in float32 and float64: one cell, (1, -2)."""
+    novelty = VisitNovelty(0.25, dims=5)
+    for dtype in (np.float32, np.float64, np.float32):
+        novelty.visit(np.array([0.3, -0.3], dtype=dtype))
+    assert novelty.cells == {(1, -2): 3}

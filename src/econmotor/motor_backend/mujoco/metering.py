@@ -73,7 +73,7 @@ __all__ = ["EconomicMeteringWrapper", "EpisodeSums", "VisitNovelty", "actuated_d
 class VisitNovelty:
     """Visit counts over coarse cells: the n-th visit to cell ``floor(x / novelty_bin)`` scores ``1 / sqrt(n)``.
 
-    A cell is keyed by the bytes of its array of floored coordinates (one compact object per key,
+    A cell is keyed by the bytes of its floored coordinates as float64 (one compact object per key,
     so a lookup compares one buffer); :attr:`cells` reads the keys back as tuples of indices, with
     None for a non-finite one (``floor`` keeps NaN and infinities, so such a coordinate still counts).
     """
@@ -85,7 +85,7 @@ class VisitNovelty:
 
     def visit(self, point: np.ndarray) -> float:
         """Count a visit to the cell of ``point[:dims]`` (a 1-d array); its bonus ``novelty_bonus(n)``."""
-        cell = novelty_cell(point[: self.dims], self.novelty_bin, np).tobytes()
+        cell = novelty_cell(point[: self.dims], self.novelty_bin, np).astype(np.float64, copy=False).tobytes()
         n = self.counts.get(cell, 0) + 1
         self.counts[cell] = n
         return novelty_bonus(n)
@@ -95,8 +95,7 @@ class VisitNovelty:
         """Visits per cell, keyed by the cell's indices (None: a non-finite index; such cells add up)."""
         out: dict[tuple[float | None, ...], int] = {}
         for key, n in self.counts.items():
-            floats = np.frombuffer(key, dtype=f"f{len(key) // self.dims}").tolist()
-            cell = tuple(v if math.isfinite(v) else None for v in floats)
+            cell = tuple(v if math.isfinite(v) else None for v in np.frombuffer(key).tolist())
             out[cell] = out.get(cell, 0) + n
         return out
 
