@@ -41,22 +41,31 @@ def env_step_throughput(task_id: str = TASK, num_envs: int = 0, steps_per_block:
     ``steps_per_block=0``: 1,000 on a GPU, 20 on a CPU. Returns and prints the per-arm median
     steps/s, the median round ratio (with economics / without) and its range.
     """
-    import jax
-    import numpy as np
-
     from econmotor.config.objective_profile import ObjectiveVector
     from econmotor.motor_backend.mjx.env import MjxCourierEnv
     from econmotor.objectives.loader import objective_from_vector
     from econmotor.valuation import default_objective_vector
 
     objective = objective_from_vector(ObjectiveVector.from_list(default_objective_vector()), "default")
-    on_gpu = jax.default_backend() == "gpu"
     econ = MjxCourierEnv(task_id, objective=objective)
     bare = MjxCourierEnv(task_id, objective=objective, economics=False)
+    return side_by_side(task_id, econ, bare, ("with economics", "without"), num_envs, steps_per_block, rounds,
+                        seed, print_fn, goal="goal >= 0.98")
+
+
+def side_by_side(task_id: str, env_a, env_b, names: tuple[str, str], num_envs: int = 0, steps_per_block: int = 0,
+                 rounds: int = 5, seed: int = 0, print_fn=print, goal: str = "") -> dict[str, float]:
+    """Env steps/s of two envs' jitted batched steps (one ``lax.scan`` of random actions per block),
+    in A B B A rounds; the ratio is A's rate over B's (median of the rounds, with the range)."""
+    import jax
+    import numpy as np
+
+    on_gpu = jax.default_backend() == "gpu"
     if num_envs <= 0:
-        num_envs = econ.settings.num_envs if on_gpu else min(econ.settings.num_envs, econ.settings.cpu_num_envs_cap)
+        s = env_a.settings
+        num_envs = s.num_envs if on_gpu else min(s.num_envs, s.cpu_num_envs_cap)
     steps = steps_per_block or (1000 if on_gpu else 20)
-    low, high = jax.numpy.asarray(econ.action_low), jax.numpy.asarray(econ.action_high)
+    low, high = jax.numpy.asarray(env_a.action_low), jax.numpy.asarray(env_a.action_high)
 
     def runner(env):
         def run(state):
@@ -75,10 +84,10 @@ def env_step_throughput(task_id: str = TASK, num_envs: int = 0, steps_per_block:
         return run, state, time.perf_counter() - start
 
     arms = {}
-    for name, env in (("with", econ), ("without", bare)):
+    for name, env in zip(names, (env_a, env_b), strict=True):
         arms[name] = list(runner(env))
-        print_fn(f"{task_id}, {num_envs} envs on {jax.devices()[0].platform}: compiled the {name}-economics "
-                 f"step in {arms[name][2]:.0f} s", flush=True)
+        print_fn(f"{task_id}, {num_envs} envs on {jax.devices()[0].platform}: compiled the step ({name}) "
+                 f"in {arms[name][2]:.0f} s", flush=True)
 
     def block(name: str) -> float:
         run, state, _ = arms[name]
@@ -86,20 +95,20 @@ def env_step_throughput(task_id: str = TASK, num_envs: int = 0, steps_per_block:
         arms[name][1] = jax.block_until_ready(run(state))
         return time.perf_counter() - start
 
-    times: dict[str, list[float]] = {"with": [], "without": []}
+    a, b = names
+    times: dict[str, list[float]] = {a: [], b: []}
     ratios = []
     for _ in range(rounds):
-        w1, e1, e2, w2 = block("without"), block("with"), block("with"), block("without")
-        times["with"] += [e1, e2]
-        times["without"] += [w1, w2]
-        ratios.append((w1 + w2) / (e1 + e2))
+        b1, a1, a2, b2 = block(b), block(a), block(a), block(b)
+        times[a] += [a1, a2]
+        times[b] += [b1, b2]
+        ratios.append((b1 + b2) / (a1 + a2))
     rate = {k: num_envs * steps / float(np.median(v)) for k, v in times.items()}
-    out = {"with_steps_per_s": rate["with"], "without_steps_per_s": rate["without"],
-           "ratio": float(np.median(ratios)), "ratio_min": min(ratios), "ratio_max": max(ratios),
-           "num_envs": float(num_envs)}
+    out = {"a_steps_per_s": rate[a], "b_steps_per_s": rate[b], "ratio": float(np.median(ratios)),
+           "ratio_min": min(ratios), "ratio_max": max(ratios), "num_envs": float(num_envs)}
     print_fn(f"env steps/s, {task_id}, {num_envs} envs x {steps} steps per block, {rounds} A B B A rounds: "
-             f"with economics {rate['with']:,.0f}, without {rate['without']:,.0f}; ratio {out['ratio']:.3f} "
-             f"(rounds {out['ratio_min']:.3f}-{out['ratio_max']:.3f}; goal >= 0.98)", flush=True)
+             f"{a} {rate[a]:,.0f}, {b} {rate[b]:,.0f}; ratio {out['ratio']:.3f} "
+             f"(rounds {out['ratio_min']:.3f}-{out['ratio_max']:.3f}{'; ' + goal if goal else ''})", flush=True)
     return out
 
 

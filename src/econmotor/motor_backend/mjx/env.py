@@ -149,8 +149,9 @@ class MjxCourierEnv:
         self.task_id, self.seed = task_id, int(seed)
         self.settings: MjxTaskSettings = parse_mjx_settings(spec)
         s = self.settings
-        self.robot: RobotSpec = robot_spec(s.env_id, s.env_kwargs, f"{s.source}: backend_entries.mjx.{task_id}")
-        self.mj_model: mujoco.MjModel = load_model(self.robot)
+        where = f"{s.source}: backend_entries.mjx.{task_id}"
+        self.robot: RobotSpec = robot_spec(s.env_id, s.env_kwargs, where)
+        self.mj_model: mujoco.MjModel = load_model(self.robot, s.model_options, where)
         self.model = mjx.put_model(self.mj_model)
         self.randomization = parse_mjx_randomization(datapacks)
         p = self.robot.params

@@ -9,6 +9,12 @@ Schema::
         normalize_obs: true
         checkpoint_every_steps: 5000000
         ppo: {unroll_length: 20, ...}   # the JAX PPO trainer's hyperparameters, passed through
+        model_options:               # MJX-speed physics options applied at load (mjx/assets.py)
+          integrator: euler          # euler | implicitfast | rk4 (Gymnasium's MJCF: rk4)
+          iterations: 4              # constraint solver iterations (Gymnasium's MJCF: 50-100)
+          ls_iterations: 8           # line-search iterations (MuJoCo's default: 50)
+          eulerdamp: false           # implicit joint damping in the Euler integrator (default true)
+          contact_geoms: [foot_geom] # the only robot geoms that collide (default: all of them)
 
 The metering keys (:data:`INHERITED_KEYS`) are the couriers' (``couriers/settings.py``): with
 ``inherit: mujoco`` they are read from the task's ``backends.mujoco`` entry, so the two backends
@@ -29,7 +35,10 @@ from econmotor.tasks.catalog import TaskSpec
 #: keys shared with the mujoco backend's entry (the economics of the physics).
 INHERITED_KEYS = METERING_KEYS
 OWN_KEYS = ("inherit", "num_envs", "cpu_num_envs_cap", "normalize_obs", "checkpoint_every_steps", "ppo",
-            "novelty_table_size")
+            "novelty_table_size", "model_options")
+#: ``model_options`` keys; values are validated by :func:`parse_model_options`.
+MODEL_OPTION_KEYS = ("integrator", "iterations", "ls_iterations", "eulerdamp", "contact_geoms")
+INTEGRATORS = ("euler", "implicitfast", "rk4")
 
 
 @dataclass(frozen=True)
@@ -44,6 +53,7 @@ class MjxTaskSettings:
     checkpoint_every_steps: int = 5_000_000
     novelty_table_size: int = 4096
     ppo: dict[str, Any] = field(default_factory=dict)
+    model_options: dict[str, Any] = field(default_factory=dict)
     source: str = "<catalog>"
 
     def __getattr__(self, name: str) -> Any:
@@ -83,4 +93,26 @@ def parse_mjx_settings(spec: TaskSpec) -> MjxTaskSettings:
         kw["normalize_obs"] = entry["normalize_obs"]
     if entry.get("ppo"):
         kw["ppo"] = dict(require_mapping(entry["ppo"], src, key("ppo")))
+    if entry.get("model_options"):
+        kw["model_options"] = parse_model_options(entry["model_options"], src, key("model_options"))
     return MjxTaskSettings(**kw)
+
+
+def parse_model_options(data: Any, src: str, prefix: str) -> dict[str, Any]:
+    """A ``model_options`` mapping, validated; geom names are checked against the model at load."""
+    options = dict(require_mapping(data, src, prefix))
+    check_keys(options, MODEL_OPTION_KEYS, src, prefix)
+    key = lambda name: f"{prefix}.{name}"
+    if "integrator" in options:
+        options["integrator"] = as_str(options["integrator"], src, key("integrator"), INTEGRATORS)
+    for name in ("iterations", "ls_iterations"):
+        if name in options:
+            options[name] = as_int(options[name], src, key(name), min_value=1)
+    if "eulerdamp" in options and not isinstance(options["eulerdamp"], bool):
+        raise ConfigError(src, key("eulerdamp"), "expected true or false")
+    if "contact_geoms" in options:
+        geoms = options["contact_geoms"]
+        if not isinstance(geoms, list) or not geoms or not all(isinstance(g, str) and g for g in geoms):
+            raise ConfigError(src, key("contact_geoms"), "expected a non-empty list of the model's geom names")
+        options["contact_geoms"] = list(geoms)
+    return options

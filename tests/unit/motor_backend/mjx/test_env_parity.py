@@ -3,7 +3,8 @@
 Every step, the C env's state (qpos, qvel, warm start, time) is copied into the MJX env with the
 episode's running sums at zero, both step the same action, and the step's units, energy, fall,
 risk, task reward and observation are compared. The MJX side runs in float32, the C side in
-float64, with the same constraint solver (humanoid: Newton on both sides, see mjx/assets.py).
+float64, on the same model: the MJX adjustments and the task's ``model_options`` (Euler, few
+solver iterations, feet-only contacts; see mjx/assets.py) are applied to the C side too.
 
 Stated tolerances (measured worst cases are several times smaller):
 
@@ -23,7 +24,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from econmotor.motor_backend.mjx.assets import load_model
+from econmotor.motor_backend.mjx.assets import apply_model_options
 from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper
 
 from .conftest import NUM_ENVS
@@ -33,7 +34,7 @@ def c_metered_env(env):
     """The mujoco backend's meter on the same Gymnasium env and model options as ``env`` (an MjxCourierEnv)."""
     s = env.settings
     base = gym.make(s.env_id, **s.env_kwargs)
-    base.unwrapped.model.opt.solver = load_model(env.robot).opt.solver  # the MJX adjustment, on the C side too
+    apply_model_options(base.unwrapped.model, s.model_options)  # the model MJX runs, on the C side too
     return EconomicMeteringWrapper(base, s.leg_distance_m, s.drivetrain_efficiency, s.idle_power_w, s.tilt_margin_rad,
                                    s.fall_tilt_rad, s.novelty_dims, s.novelty_bin)
 
