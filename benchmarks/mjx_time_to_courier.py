@@ -45,7 +45,7 @@ def main() -> None:
     parser.add_argument("--hidden-sizes", type=int, nargs="*", default=None, help="override the catalog's")
     args = parser.parse_args()
 
-    backend = MjxBackend(eval_batch=args.eval_episodes)
+    backend = MjxBackend(eval_batch=args.eval_episodes, compilation_cache_dir=None)  # cold: every compile counts
     settings = backend.settings(args.task_id)
     human_legs_per_hour = backend.catalog.get(args.task_id).economics.mp_human_units_per_hour
     env, _ = backend.env(args.task_id, EconomicObjectiveSpec())
