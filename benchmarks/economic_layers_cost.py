@@ -55,6 +55,7 @@ from econmotor.motor_backend.mujoco.backend import MujocoBackend
 from econmotor.motor_backend.mujoco.env_factory import EnvRecipe, make_env
 from econmotor.motor_backend.mujoco.randomization import make_base_env
 from econmotor.motor_backend.mujoco.training import EconEpisodeLogCallback, policy_kwargs_from
+from econmotor.motor_backend.sb3_callbacks import quiet_logger
 from econmotor.objectives.loader import objective_from_vector
 from econmotor.valuation import default_objective_vector
 
@@ -136,6 +137,7 @@ class Run:
         self.venv = venv
         self.model = PPO("MlpPolicy", venv, seed=seed, device="cpu", verbose=0,
                          **policy_kwargs_from(s.algo_hyperparameters("ppo")))
+        self.model.set_logger(quiet_logger())  # (SB3's default makes a temp folder at every learn)
         self.iteration_steps = self.model.n_steps * s.num_envs
         self.rng_state = rng_state()  # PPO draws from the global generators the model's seed set
         self.callback = None

@@ -28,6 +28,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 from econmotor.motor_backend.mujoco.backend import MujocoBackend
 from econmotor.motor_backend.mujoco.settings import merge_hyperparameters
 from econmotor.motor_backend.mujoco.training import algorithm_class, policy_kwargs_from
+from econmotor.motor_backend.sb3_callbacks import quiet_logger
 from econmotor.objectives import EconomicObjectiveSpec
 
 TASK = "hopper_courier"
@@ -40,6 +41,7 @@ def plain_sb3(algorithm: str, hp: dict, num_envs: int, steps: int, seed: int, no
         venv = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0)
     model = algorithm_class(algorithm)("MlpPolicy", venv, seed=seed, device="cpu", verbose=0,
                                        **policy_kwargs_from(hp))
+    model.set_logger(quiet_logger())  # (SB3's default makes a temp folder at every learn)
     start = time.perf_counter()
     model.learn(steps)
     return model.num_timesteps / (time.perf_counter() - start)

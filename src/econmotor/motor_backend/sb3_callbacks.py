@@ -13,9 +13,17 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.logger import Logger
 
 from econmotor.motor_backend.base import ProgressFn
 from econmotor.motor_backend.selection import Selection
+
+
+def quiet_logger() -> Logger:
+    """An SB3 logger that writes nothing, for a model trained without TensorBoard. SB3's default
+    (``verbose=0``, no ``tensorboard_log``) makes an empty ``$TMPDIR/SB3-<time>`` folder at every
+    ``learn``; ``model.set_logger(quiet_logger())`` keeps the records in memory only."""
+    return Logger(folder=None, output_formats=[])
 
 
 class ProgressFnCallback(BaseCallback):

@@ -40,7 +40,7 @@ from stable_baselines3.common.monitor import Monitor
 from econmotor.config.objective_profile import OBJECTIVE_PRESETS, ObjectiveVector, check_energy_term
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import ProgressFn, no_progress
-from econmotor.motor_backend.sb3_callbacks import ProgressFnCallback
+from econmotor.motor_backend.sb3_callbacks import ProgressFnCallback, quiet_logger
 from econmotor.networks.econ_objective_net import (
     EconFeatures,
     EconObjectiveNet,
@@ -211,6 +211,7 @@ def train_sac_objective(config: ShadowConfig, progress: ProgressFn = no_progress
                 train_freq=config.train_freq, gradient_steps=config.gradient_steps, ent_coef=config.ent_coef,
                 policy_kwargs={"net_arch": list(config.net_arch)}, seed=config.seed, verbose=0, device="cpu",
                 **buffer)
+    model.set_logger(quiet_logger())
     callbacks = [ProgressFnCallback(progress, config.total_steps, label="shadow SAC")]
     if config.shadow:
         callbacks.insert(0, ShadowCallback())

@@ -252,7 +252,7 @@ class DishwashingBackend(MotorBackendBase):
         from stable_baselines3.common.monitor import Monitor
         from stable_baselines3.common.vec_env import DummyVecEnv
 
-        from econmotor.motor_backend.sb3_callbacks import ProgressFnCallback, TrainingCurveCallback
+        from econmotor.motor_backend.sb3_callbacks import ProgressFnCallback, TrainingCurveCallback, quiet_logger
 
         if num_envs < 1 or max_steps < 1:
             raise ConfigError("<train>", "num_envs" if num_envs < 1 else "max_steps", "must be >= 1")
@@ -281,6 +281,7 @@ class DishwashingBackend(MotorBackendBase):
             gamma=hp.gamma, train_freq=hp.train_freq, gradient_steps=hp.gradient_steps, ent_coef=hp.ent_coef,
             policy_kwargs={"net_arch": list(hp.net_arch)},
         )
+        model.set_logger(quiet_logger())
         curve = TrainingCurveCallback(hp.curve_every_steps)
         started = time.perf_counter()
         try:
