@@ -4,6 +4,7 @@ empty ``$TMPDIR/SB3-<time>`` folder at every ``learn``; they use ``quiet_logger`
 from __future__ import annotations
 
 import tempfile
+from pathlib import Path
 
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.motor_backend.factory import make_motor_backend
@@ -19,7 +20,7 @@ def test_sac_trainings_make_no_sb3_folders_in_the_temp_dir(tmp_path, monkeypatch
     objective = objective_from_vector(ObjectiveVector.from_preset("throughput"), "throughput")
     result = make_motor_backend("dishwashing").train_policy("dishwashing", objective, [], 1, 200, 0,
                                                             output_dir=tmp_path / "run", eval_episodes=1)
-    assert result.training_curve is not None
+    assert (Path(result.policy_id) / "run_config.json").is_file()  # trained and recorded
     shadow = train_sac_objective(ShadowConfig(env="dishwashing", total_steps=60, max_episode_steps=20,
                                               eval_episodes=0, net_arch=(8, 8), batch_size=16, learning_starts=30))
     assert shadow.model.num_timesteps == 60

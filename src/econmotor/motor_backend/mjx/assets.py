@@ -58,14 +58,14 @@ def apply_model_options(model: mujoco.MjModel, options: Mapping[str, Any], sourc
         model.opt.disableflags = model.opt.disableflags & ~flag if options["eulerdamp"] \
             else model.opt.disableflags | flag
     if "contact_geoms" in options:
-        robot_geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] != 0]
-        names = {g: mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) for g in robot_geoms}
-        unknown = [name for name in options["contact_geoms"] if name not in names.values()]
+        robot_geoms = {g: mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g)
+                       for g in range(model.ngeom) if model.geom_bodyid[g] != 0}  # id -> name (or None)
+        unknown = set(options["contact_geoms"]) - set(robot_geoms.values())
         if unknown:
-            raise ConfigError(source, "model_options.contact_geoms", f"unknown geom '{unknown[0]}'",
-                              sorted(n for n in names.values() if n))
-        for g in robot_geoms:
-            if names[g] not in options["contact_geoms"]:
+            raise ConfigError(source, "model_options.contact_geoms", f"unknown geom '{min(unknown)}'",
+                              sorted(n for n in robot_geoms.values() if n))
+        for g, name in robot_geoms.items():
+            if name not in options["contact_geoms"]:
                 model.geom_contype[g] = model.geom_conaffinity[g] = 0
 
 

@@ -114,5 +114,4 @@ def parse_model_options(data: Any, src: str, prefix: str) -> dict[str, Any]:
         geoms = options["contact_geoms"]
         if not isinstance(geoms, list) or not geoms or not all(isinstance(g, str) and g for g in geoms):
             raise ConfigError(src, key("contact_geoms"), "expected a non-empty list of the model's geom names")
-        options["contact_geoms"] = list(geoms)
     return options

@@ -42,22 +42,30 @@ def every_term_objective():
                                  risk_weight=0.4, name="every_term")
 
 
+def catalog_with_mjx_entry(task_id: str, source: str = "<test>", **changes):
+    """A catalog of ``task_id`` alone, its ``backends.mjx`` entry with ``changes`` (from ``source``)."""
+    from dataclasses import replace
+
+    from econmotor.tasks.catalog import TaskCatalog, load_catalog
+
+    spec = load_catalog().get(task_id)
+    entry = {**spec.backends["mjx"], **changes}
+    return TaskCatalog({task_id: replace(spec, backends={**spec.backends, "mjx": entry},
+                                         backend_sources={**spec.backend_sources, "mjx": source})})
+
+
 def jitted_env(task_id: str, **model_options) -> JittedEnv:
     """The session's env of ``task_id`` (every overlay term weighted), built and jitted once;
     ``model_options`` override the catalog entry's."""
     key = (task_id, *sorted(model_options.items()))
     if key not in _ENVS:
-        from dataclasses import replace
-
         from econmotor.motor_backend.mjx.env import MjxCourierEnv
-        from econmotor.tasks.catalog import TaskCatalog, load_catalog
+        from econmotor.tasks.catalog import load_catalog
 
         catalog = None
         if model_options:
-            spec = load_catalog().get(task_id)
-            entry = dict(spec.backends["mjx"])
-            entry["model_options"] = {**entry.get("model_options", {}), **model_options}
-            catalog = TaskCatalog({task_id: replace(spec, backends={**spec.backends, "mjx": entry})})
+            shipped = load_catalog().get(task_id).backends["mjx"].get("model_options", {})
+            catalog = catalog_with_mjx_entry(task_id, model_options={**shipped, **model_options})
         _ENVS[key] = JittedEnv(MjxCourierEnv(task_id, objective=every_term_objective(), catalog=catalog))
     return _ENVS[key]
 

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import mujoco
 import pytest
 
@@ -12,14 +10,12 @@ from econmotor.motor_backend.mjx.assets import load_model, robot_spec
 from econmotor.motor_backend.mjx.env import MjxCourierEnv
 from econmotor.motor_backend.mjx.settings import parse_mjx_settings
 from econmotor.tasks import load_catalog
-from econmotor.tasks.catalog import TaskCatalog
+
+from .conftest import catalog_with_mjx_entry
 
 
-def with_options(task_id: str, options) -> TaskCatalog:
-    spec = load_catalog().get(task_id)
-    entry = {**spec.backends["mjx"], "model_options": options}
-    return TaskCatalog({task_id: replace(spec, backends={**spec.backends, "mjx": entry},
-                                         backend_sources={"mjx": "my_mjx.yaml"})})
+def with_options(task_id: str, options):
+    return catalog_with_mjx_entry(task_id, "my_mjx.yaml", model_options=options)
 
 
 def geoms_that_collide(model: mujoco.MjModel) -> set[str]:
