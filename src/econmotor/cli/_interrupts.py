@@ -10,18 +10,27 @@ at once, whatever the main thread is doing). If the command has not ended
 ends the process with status 130. While it does, an ``alarm`` of :data:`LAST_RESORT_S` seconds
 stands behind it: SIGALRM's default action ends the process even if the watcher is stuck too.
 
+A KeyboardInterrupt raised where Python swallows exceptions is delivered again. The handler runs
+at whatever bytecode the main thread is at, and that can be inside a garbage-collector callback
+(JAX registers one that frees XLA buffers at every collection), a ``__del__`` or a weakref
+callback: Python prints "Exception ignored in ..." and goes on as if no signal had come. The
+guard's ``sys.unraisablehook`` sees such a KeyboardInterrupt and the watcher raises it again in the
+main thread (``_thread.interrupt_main``) a moment later, outside the callback.
+
 An interrupted command that did stop in time ends the process at once
 (:func:`end_interrupted_process`), without the interpreter's teardown.
 """
 
 from __future__ import annotations
 
+import _thread
 import atexit
 import os
 import signal
 import socket
 import sys
 import threading
+import time
 from typing import NoReturn
 
 from econmotor.store.registry import interrupt_own_runs
@@ -30,6 +39,8 @@ from econmotor.store.registry import interrupt_own_runs
 INTERRUPT_GRACE_S = 6.0
 #: seconds the watcher has to record the runs and exit before the kernel ends the process
 LAST_RESORT_S = 3
+#: seconds between the watcher's checks for an interrupt that was swallowed (module docstring)
+REDELIVER_POLL_S = 0.05
 _INTERRUPTS = (signal.SIGINT, signal.SIGTERM)
 #: the interrupts this process has received (in order)
 _received: list[int] = []
@@ -79,6 +90,8 @@ class InterruptGuard:
     def __init__(self, grace_s: float = INTERRUPT_GRACE_S) -> None:
         self.previous: dict[int, object] = {}
         self._done = threading.Event()
+        self._swallowed = threading.Event()
+        self._old_unraisablehook = sys.unraisablehook
         self._sockets: tuple[socket.socket, socket.socket] | None = None
         self._old_wakeup_fd = -1
         self._old_alarm: object = None
@@ -90,6 +103,7 @@ class InterruptGuard:
         writer.setblocking(False)
         self._sockets = (reader, writer)
         self._old_wakeup_fd = signal.set_wakeup_fd(writer.fileno(), warn_on_full_buffer=False)
+        sys.unraisablehook = self._unraisable
         threading.Thread(target=self._watch, args=(reader, grace_s), name="econmotor-interrupt-deadline",
                          daemon=True).start()
 
@@ -105,7 +119,14 @@ class InterruptGuard:
             if received:
                 break
         _received.extend(received)
-        if self._done.wait(grace_s):
+        deadline = time.monotonic() + grace_s
+        while not self._done.wait(REDELIVER_POLL_S):
+            if self._swallowed.is_set():
+                self._swallowed.clear()
+                _thread.interrupt_main(received[0])
+            if time.monotonic() >= deadline:
+                break
+        if self._done.is_set():
             return
         name = signal.Signals(received[0]).name
         signal.alarm(LAST_RESORT_S)
@@ -121,11 +142,20 @@ class InterruptGuard:
         sys.stderr.flush()
         os._exit(130)
 
+    def _unraisable(self, unraisable: sys.UnraisableHookArgs) -> None:
+        """A KeyboardInterrupt that Python swallowed (module docstring): the watcher raises it
+        again. It must not be raised here: an exception in this hook is swallowed too."""
+        if isinstance(unraisable.exc_value, KeyboardInterrupt) and _received and not self._done.is_set():
+            self._swallowed.set()
+            return
+        self._old_unraisablehook(unraisable)
+
     def close(self) -> None:
         """The command has ended: stop the watcher and put the previous handlers back."""
         self._done.set()
         if self._sockets is None:
             return
+        sys.unraisablehook = self._old_unraisablehook
         signal.set_wakeup_fd(self._old_wakeup_fd)
         for sock in self._sockets:
             sock.close()

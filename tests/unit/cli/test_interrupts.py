@@ -1,7 +1,10 @@
 """The interrupt guard every command runs under: SIGTERM raises KeyboardInterrupt, and when the command
 returns everything is as before (handlers, wakeup fd, SIGALRM), so an in-process caller goes on."""
 
+import re
 import signal
+import subprocess
+import sys
 import time
 
 import pytest
@@ -31,3 +34,37 @@ def test_a_command_leaves_the_process_as_it_found_it():
     assert main(["tasks"]) == 0
     assert {s: signal.getsignal(s) for s in before} == before
     assert signal.set_wakeup_fd(-1) == -1
+
+
+SWALLOWED = """
+import gc, signal, sys, time
+from econmotor.cli._interrupts import InterruptGuard
+
+sent = []
+def raise_inside_a_gc_callback(phase, info):  # as JAX's XLA collector: the handler runs in here
+    if phase == "start" and not sent:
+        sent.append(time.monotonic())
+        signal.raise_signal(signal.SIGTERM)
+
+guard = InterruptGuard(grace_s=5.0)
+gc.callbacks.append(raise_inside_a_gc_callback)
+try:
+    while True:
+        gc.collect()
+        sum(range(20_000))
+except KeyboardInterrupt as exc:
+    print(f"caught {exc} after {time.monotonic() - sent[0]:.2f} s")
+finally:
+    guard.close()
+"""
+
+
+def test_an_interrupt_swallowed_in_a_gc_callback_is_raised_again():
+    """Python swallows an exception raised in a gc callback ("Exception ignored in ..."); JAX runs
+    one at every collection, and an MJX sweep's SIGTERM was lost there until the 6 s deadline."""
+    proc = subprocess.run([sys.executable, "-c", SWALLOWED], capture_output=True, text=True, timeout=30)
+    assert proc.returncode == 0, proc.stderr
+    caught = re.fullmatch(r"caught signal SIGTERM after (\d+\.\d+) s\n", proc.stdout)
+    assert caught, proc.stdout + proc.stderr
+    assert float(caught[1]) < 1.0  # raised again at once, not ended by the watcher's deadline
+    assert "Exception ignored" not in proc.stderr
