@@ -198,4 +198,5 @@ def test_sigterm_ends_a_sweep_stuck_in_a_call_that_cannot_be_interrupted(tmp_pat
     assert proc.returncode == 130, err
     assert took < 10
     assert "still busy 6 s later in a call that cannot be interrupted" in err
+    assert "Resume by running the same command again" in err  # the sweep's own note, said by the watcher
     print(f"SIGTERM to exit, stuck in SQLite: {took:.2f} s")

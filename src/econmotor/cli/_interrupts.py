@@ -6,8 +6,9 @@ registry's 120 s busy timeout), a long C routine. So the signal also wakes a wat
 (``signal.set_wakeup_fd``: the interpreter's C-level handler writes the signal number to a socket
 at once, whatever the main thread is doing). If the command has not ended
 :data:`INTERRUPT_GRACE_S` seconds later, the watcher records this process's running runs as
-``interrupted`` (:func:`econmotor.store.registry.interrupt_own_runs`), says so in one line and
-ends the process with status 130. While it does, an ``alarm`` of :data:`LAST_RESORT_S` seconds
+``interrupted`` (:func:`econmotor.store.registry.interrupt_own_runs`), says so in one line (with
+the command's note of what it kept and how to resume, :func:`set_deadline_note`) and ends the
+process with status 130. While it does, an ``alarm`` of :data:`LAST_RESORT_S` seconds
 stands behind it: SIGALRM's default action ends the process even if the watcher is stuck too.
 
 A KeyboardInterrupt raised where Python swallows exceptions is delivered again. The handler runs
@@ -31,6 +32,7 @@ import socket
 import sys
 import threading
 import time
+from collections.abc import Callable
 from typing import NoReturn
 
 from econmotor.store.registry import interrupt_own_runs
@@ -44,6 +46,8 @@ REDELIVER_POLL_S = 0.05
 _INTERRUPTS = (signal.SIGINT, signal.SIGTERM)
 #: the interrupts this process has received (in order)
 _received: list[int] = []
+#: what the running command kept and how to resume it, said when the watcher ends the command
+_deadline_note: list[Callable[[], str]] = []
 
 
 def _raise_interrupt(signum: int, frame: object) -> None:
@@ -54,6 +58,13 @@ def _raise_interrupt(signum: int, frame: object) -> None:
 def was_interrupted() -> bool:
     """Whether this process has received SIGINT or SIGTERM while a guard was installed."""
     return bool(_received)
+
+
+def set_deadline_note(note: Callable[[], str]) -> None:
+    """What the watcher says after recording the runs, if it has to end this command: the note the
+    command prints when it stops by itself (what it kept, how to resume). Called in the watcher
+    thread while the main thread is stuck, so it reads files, not the command's open registry."""
+    _deadline_note[:] = [note]
 
 
 def end_interrupted_process(exit_code: int) -> NoReturn:
@@ -137,8 +148,12 @@ class InterruptGuard:
             marked = []
         runs = f"run(s) {', '.join(f'#{i}' for i in marked)} recorded as interrupted" if marked \
             else "no running run of this process to record"
+        try:
+            note = "".join(f" {note()}" for note in _deadline_note)
+        except Exception:  # the note is a courtesy: the process ends all the same
+            note = ""
         sys.stderr.write(f"interrupted ({name}): still busy {grace_s:.0f} s later in a call that cannot be "
-                         f"interrupted; {runs}; exiting now\n")
+                         f"interrupted; {runs}; exiting now.{note}\n")
         sys.stderr.flush()
         os._exit(130)
 
@@ -153,6 +168,7 @@ class InterruptGuard:
     def close(self) -> None:
         """The command has ended: stop the watcher and put the previous handlers back."""
         self._done.set()
+        _deadline_note.clear()
         if self._sockets is None:
             return
         sys.unraisablehook = self._old_unraisablehook

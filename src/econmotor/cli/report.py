@@ -30,6 +30,7 @@ from econmotor.cli._app import (
     progress_bars,
     set_cpu_threads,
 )
+from econmotor.cli._interrupts import set_deadline_note
 from econmotor.cli.train import (
     SELECT_EPISODES_OPTION,
     SELECT_EVERY_OPTION,
@@ -285,14 +286,18 @@ def report_command(
                            num_envs=defaults.num_envs if num_envs is None else num_envs,
                            max_steps=max_steps or defaults.max_steps, seed=seed, eval_episodes=eval_episodes,
                            notes=notes, train_eval_episodes=5, output_dir=run_dir, backend_options=selecting)
+
+    def note() -> str:
+        return (f"{interrupted_note(motor_backend, task_id, run_dir, request.max_steps, 'The training run')}. "
+                f"Registry: {url}; runs completed before are kept (price one with: econmotor report "
+                f"--motor-backend none --task-id {task_id} --run-id N)")
+
+    set_deadline_note(note)
     try:
         with progress_bars() as progress:
             reg, train_id, eval_id = train_and_record(request, backend, lambda: Registry(url), progress)
     except KeyboardInterrupt:
-        note = interrupted_note(motor_backend, task_id, run_dir, request.max_steps, "The training run")
-        err_console.print(f"[yellow]interrupted[/]: {note}. Registry: {url}; runs completed before are kept "
-                          "(price one with: econmotor report --motor-backend none --task-id "
-                          f"{task_id} --run-id N)", highlight=False)
+        err_console.print(f"[yellow]interrupted[/]: {note()}", highlight=False)
         raise typer.Abort from None
     with reg:
         show_outcome(report_after_training(reg, request, train_id, eval_id, out_dir, output_json, policy))

@@ -9,6 +9,7 @@ import typer
 from rich.table import Table
 
 from econmotor.cli._app import app, console, err_console, progress_bars, set_cpu_threads
+from econmotor.cli._interrupts import set_deadline_note
 from econmotor.cli.validation import (
     FLAG_RULES,
     check_choice,
@@ -118,6 +119,12 @@ def shadow_command(
                 seed=seed, max_steps=total_steps, policy_path=str(run_dir))
         return recorded["id"]
 
+    def kept_note() -> str:
+        kept = ", ".join(sorted(p.name for p in run_dir.iterdir())) if run_dir.is_dir() else ""
+        return (f"Kept in {run_dir}: {kept or 'nothing'} (the episode log up to the interrupt; no model). Shadow "
+                "runs do not resume: run the command again (it writes a new directory).")
+
+    set_deadline_note(kept_note)
     try:
         with progress_bars() as bars:
             def progress(label_: str, done: float, total: float) -> None:
@@ -133,10 +140,7 @@ def shadow_command(
         if "id" in recorded:
             recorded["registry"].mark_run(recorded["id"], "interrupted", f"KeyboardInterrupt: {exc}")
             where = f"shadow run #{recorded['id']} is recorded as interrupted in {recorded['registry'].display_url}"
-        kept = ", ".join(sorted(p.name for p in run_dir.iterdir())) if run_dir.is_dir() else ""
-        err_console.print(f"[yellow]interrupted[/]: {where}. Kept in {run_dir}: {kept or 'nothing'} (the episode "
-                          "log up to the interrupt; no model). Shadow runs do not resume: run the command again "
-                          "(it writes a new directory).", highlight=False)
+        err_console.print(f"[yellow]interrupted[/]: {where}. {kept_note()}", highlight=False)
         raise typer.Abort from None
     except BaseException as exc:
         if "id" in recorded:

@@ -19,6 +19,7 @@ from econmotor.cli._app import (
     progress_bars,
     set_cpu_threads,
 )
+from econmotor.cli._interrupts import set_deadline_note
 from econmotor.cli.validation import (
     check_choice,
     check_db_url,
@@ -222,12 +223,16 @@ def train_command(
                            max_steps=max_steps,
                            seed=seed, train_eval_episodes=eval_episodes, output_dir=run_dir, backend_options=extra)
     registry = None
+
+    def note() -> str:
+        return f"{interrupted_note(backend, task, run_dir, max_steps, 'the run')} (registry {url})"
+
+    set_deadline_note(note)
     try:
         with progress_bars() as progress:
             registry, run_id, _ = train_and_record(request, motor, lambda: Registry(url), progress)
     except KeyboardInterrupt:
-        err_console.print(f"[yellow]interrupted[/]: {interrupted_note(backend, task, run_dir, max_steps, 'the run')}"
-                          f" (registry {url})", highlight=False)
+        err_console.print(f"[yellow]interrupted[/]: {note()}", highlight=False)
         raise typer.Abort from None
     with registry:
         record = registry.run(run_id)

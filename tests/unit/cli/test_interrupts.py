@@ -68,3 +68,33 @@ def test_an_interrupt_swallowed_in_a_gc_callback_is_raised_again():
     assert caught, proc.stdout + proc.stderr
     assert float(caught[1]) < 1.0  # raised again at once, not ended by the watcher's deadline
     assert "Exception ignored" not in proc.stderr
+
+
+IGNORES_INTERRUPTS = """
+import time
+from econmotor.cli._interrupts import InterruptGuard, set_deadline_note
+
+guard = InterruptGuard(grace_s=1.0)
+set_deadline_note(lambda: "Resume with: econmotor train --resume")
+print("ready", flush=True)
+while True:  # a command that never stops by itself
+    try:
+        time.sleep(0.05)
+    except KeyboardInterrupt:
+        pass
+"""
+
+
+def test_the_deadline_ends_a_command_that_does_not_stop_and_says_its_note():
+    proc = subprocess.Popen([sys.executable, "-c", IGNORES_INTERRUPTS], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline() == "ready\n"
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=20)
+    finally:
+        proc.kill()
+        proc.wait()
+    assert proc.returncode == 130
+    assert "interrupted (SIGTERM): still busy 1 s later" in err
+    assert err.rstrip().endswith("exiting now. Resume with: econmotor train --resume"), err
