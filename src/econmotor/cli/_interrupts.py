@@ -149,7 +149,7 @@ class InterruptGuard:
         runs = f"run(s) {', '.join(f'#{i}' for i in marked)} recorded as interrupted" if marked \
             else "no running run of this process to record"
         try:
-            note = "".join(f" {note()}" for note in _deadline_note)
+            note = "".join(f" {say()}" for say in _deadline_note)
         except Exception:  # the note is a courtesy: the process ends all the same
             note = ""
         sys.stderr.write(f"interrupted ({name}): still busy {grace_s:.0f} s later in a call that cannot be "
