@@ -31,6 +31,7 @@ from econmotor.cli.validation import (
     simplex_size,
 )
 from econmotor.errors import ConfigError
+from econmotor.rl.shadow_log import EPISODES_FILE
 from econmotor.valuation import ConstraintSet, load_constraint_sets
 
 REFERENCE_KEYS = {"mpl": "mpl_units_per_hour", "energy": "energy_wh_per_unit", "error": "error_rate",
@@ -65,10 +66,25 @@ def parse_reference(values: list[str]) -> dict[str, float]:
     return out
 
 
+def episode_files(paths: list[Path]) -> list[Path]:
+    """``--episodes-jsonl``'s files: a file as given, a folder as every shadow run's
+    ``shadow_episodes.jsonl`` below it (sorted); a folder without one is an error."""
+    files: list[Path] = []
+    for path in paths:
+        found = sorted(path.rglob(EPISODES_FILE)) if path.is_dir() else [path]
+        if not found:
+            raise ConfigError("--episodes-jsonl", None, f"{path} is a folder with no {EPISODES_FILE} below it "
+                                                        "(a shadow run writes one into its run directory)")
+        files += found
+    check_input_files("--episodes-jsonl", files)
+    return files
+
+
 @app.command("solve")
 def solve_command(
     episodes_jsonl: list[Path] = typer.Option([], "--episodes-jsonl", help="Read episodes from JSONL exports "
-                                              "instead of the registry (repeatable)."),
+                                              "instead of the registry (repeatable); a folder reads every "
+                                              f"{EPISODES_FILE} below it (e.g. runs/shadow: all shadow runs)."),
     db_url: str = typer.Option(None, "--db-url", help="Registry URL (default $ECONMOTOR_DB_URL or "
                                "./.econmotor/registry.sqlite)."),
     task_id: str = typer.Option(None, "--task-id", help="Only runs of this task."),
@@ -94,7 +110,7 @@ def solve_command(
     check_flags(grid=grid)
     check_size("--grid", "objectives", simplex_size(grid, include_novelty), MAX_SOLVE_OBJECTIVES)
     check_choice("--run-kind", run_kind, ("train", "eval"))
-    check_input_files("--episodes-jsonl", episodes_jsonl)
+    episodes_jsonl = episode_files(episodes_jsonl)
     if constraints:
         check_input_files("--constraints", [constraints])
     check_output_dir("--output-dir", output_dir)
@@ -127,6 +143,10 @@ def solve_command(
     _print_summary(surface, files)
 
 
+def plural(count: int, noun: str) -> str:
+    return f"{count} {noun}{'' if count == 1 else 's'}"
+
+
 def _print_summary(surface, files) -> None:
     """Objectives x constraint sets, each cell 'best valid run (J)'; grid objectives only in the files."""
     import json
@@ -134,8 +154,8 @@ def _print_summary(surface, files) -> None:
     document = json.loads(files["json"].read_text())
     shown = [o.name for o in surface.objectives if o.kind != "grid"][:12]
     # one row per (objective, constraint set): three columns fit 80 columns however many sets there are
-    table = Table(title=f"best valid run (utility J): {surface.table.num_episodes} episodes, "
-                        f"{surface.table.num_runs} runs")
+    table = Table(title=f"best valid run (utility J): {plural(surface.table.num_episodes, 'episode')}, "
+                        f"{plural(surface.table.num_runs, 'run')}")
     table.add_column("objective", overflow="fold")
     table.add_column("constraint set", overflow="fold")
     table.add_column("best valid run (J)", overflow="fold")
@@ -144,10 +164,16 @@ def _print_summary(surface, files) -> None:
             table.add_row(cell.objective, cell.constraint_set,
                           f"{cell.best_run_id} ({cell.utility:.4g})" if cell.valid else "[red]none[/]")
     console.print(table)
+    hidden = len(surface.objectives) - len(shown)
+    if hidden:
+        console.print(f"{plural(hidden, 'more objective')} (grid vectors, or past the first 12): see "
+                      f"{files['markdown'].name} and the JSON", highlight=False)
     for name in document["constraint_sets_no_run_meets"]:
         console.print(f"[yellow]no run meets constraint set '{name}'[/]")
     front = document["pareto_front"]
-    console.print(f"Pareto front: {len(front['run_ids'])} run(s) {', '.join(front['run_ids'])}; hypervolume "
-                  f"{front['hypervolume']:.6g} (reference {front['reference_point']})")
+    bound = ", ".join(f"{key} {value:.4g}" for key, value in front["reference_point"].items())
+    runs = ", ".join(front["run_ids"])
+    console.print(f"Pareto front: {plural(len(front['run_ids']), 'run')}: {runs}", highlight=False)
+    console.print(f"hypervolume {front['hypervolume']:.6g} (reference point: {bound})", highlight=False)
     for kind, path in files.items():
         console.print(f"{kind}: {path}")

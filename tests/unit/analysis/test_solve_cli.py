@@ -4,7 +4,7 @@ import json
 
 import numpy as np
 
-from econmotor.analysis.episode_table import EpisodeTable, RunInfo, write_episodes_jsonl
+from econmotor.analysis.episode_table import EpisodeTable, RunInfo, read_episodes_jsonl, write_episodes_jsonl
 from econmotor.cli import main
 
 
@@ -45,3 +45,24 @@ def test_solve_errors_are_one_line_and_exit_2(tmp_path, capsys):
     assert "no registry" in capsys.readouterr().err
     assert main(["solve", "--episodes-jsonl", str(path), "--vector", "1,2"]) == 2
     assert "expected 5 numbers" in capsys.readouterr().err
+
+
+def test_a_folder_reads_every_shadow_runs_episodes_below_it(tmp_path, capsys):
+    """The README's `solve --episodes-jsonl runs/shadow`: each shadow run writes its own
+    runs/shadow/<run>/shadow_episodes.jsonl, so a folder stands for all of them."""
+    table = read_episodes_jsonl(small_export(tmp_path))
+    shadow = tmp_path / "runs" / "shadow"
+    for run_id in ("a", "b"):
+        one = EpisodeTable.from_records([r for r in table.records() if r["run_id"] == run_id], run_id)
+        (shadow / f"run-{run_id}").mkdir(parents=True)
+        write_episodes_jsonl(one, shadow / f"run-{run_id}" / "shadow_episodes.jsonl")
+    (shadow / "run-a" / "other.jsonl").write_text("not episodes\n")  # only the shadow runs' files are read
+    out = tmp_path / "out"
+    assert main(["solve", "--episodes-jsonl", str(shadow), "--output-dir", str(out)]) == 0
+    doc = json.loads((out / "objective_surface.json").read_text())
+    assert sorted(run["run_id"] for run in doc["runs"]) == ["a", "b"]
+    capsys.readouterr()
+    (tmp_path / "empty").mkdir()
+    assert main(["solve", "--episodes-jsonl", str(tmp_path / "empty")]) == 2
+    err = capsys.readouterr().err
+    assert "--episodes-jsonl" in err and "no shadow_episodes.jsonl below it" in err
