@@ -4,8 +4,10 @@ Every policy is evaluated by the same backend with the same request: the same se
 (episode ``i`` seeded ``seed + REPORT_EVAL_SEED_OFFSET + i``), course, commanded speed and
 datapack conditions. Each evaluation run is recorded and gets its usual report; then a
 table and a plot (``compare.md``, ``compare.json``, ``compare.png`` in ``--output-dir``)
-rank them by price per unit (lowest first), with units per hour, Wh per unit and the
-fall-rate bound, and say whether the winner's price interval clears the runner-up's.
+rank them by price per unit (lowest first, deployable policies ahead of the rest), with units per
+hour, Wh per unit and the fall-rate bound, and say whether the winner's price interval clears the
+runner-up's. Only a deployable policy can win: one that is not gets no recommended price, so when
+none is deployable there is no winner.
 """
 
 from __future__ import annotations
@@ -15,6 +17,8 @@ from pathlib import Path
 from typing import Any
 
 import typer
+from rich.console import Console
+from rich.measure import Measurement
 from rich.table import Table
 
 from econmotor.cli._app import app, console, make_backend, set_cpu_threads
@@ -37,6 +41,7 @@ from econmotor.tasks import load_catalog
 NO_WIDTH_REL = 1e-3
 COLUMNS = ("policy", "price USD/unit", "90% interval", "units/h", "Wh/unit", "falls", "fall-rate bound",
            "speed m/s", "mech / elec W", "verdict")
+UNBOUNDED = 10_000  # columns: room to measure a table's width without wrapping
 
 
 def comparison_row(policy_id: str, doc: dict[str, Any]) -> dict[str, Any]:
@@ -59,13 +64,26 @@ def comparison_row(policy_id: str, doc: dict[str, Any]) -> dict[str, Any]:
 
 
 def rank(rows: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], str]:
-    """Rows by price per unit (lowest first; a policy without a finite price last) and the verdict in words."""
-    def key(r: dict[str, Any]) -> tuple[float, float]:
+    """Rows in rank order and the verdict in words.
+
+    Deployable policies rank first, each group by price per unit (lowest first; a policy without a
+    finite price last). Only a deployable policy can win: a not-deployable one gets no recommended
+    price (its figures are diagnostics), so with none deployable there is no winner."""
+    def key(r: dict[str, Any]) -> tuple[bool, float, float]:
         price = r["price_usd_per_unit"]
-        return (price if price is not None else float("inf"), -(r["units_per_hour"] or 0.0))
+        return (not r["deployable"], price if price is not None else float("inf"), -(r["units_per_hour"] or 0.0))
 
     ranked = sorted(rows, key=key)
-    best, second = ranked[0], ranked[1]
+    eligible = [r for r in ranked if r["deployable"]]
+    if not eligible:
+        return ranked, (f"no winner: none of the {len(ranked)} policies is deployable (see the verdicts); "
+                        "a not-deployable policy gets no recommended price")
+    best = eligible[0]
+    winner = f"winner: {best['policy']} at {fmt(best['price_usd_per_unit'])} USD/unit"
+    if len(eligible) == 1:
+        return ranked, (f"{winner}; the only deployable one of the {len(ranked)} policies (the others get no "
+                        "recommended price)")
+    second = eligible[1]
     if all(r["price_low"] is not None and r["price_high"] - r["price_low"] <= NO_WIDTH_REL * abs(r["price_high"])
            for r in (best, second)):
         clear = (f"both intervals are narrower than {NO_WIDTH_REL:.1%} of the price: the episodes barely differ "
@@ -80,7 +98,10 @@ def rank(rows: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], str]:
         clear = (f"the difference is NOT larger than the intervals ({best['policy']}: "
                  f"{fmt(best['price_low'])} - {fmt(best['price_high'])}; {second['policy']}: "
                  f"{fmt(second['price_low'])} - {fmt(second['price_high'])} USD/unit)")
-    return ranked, f"winner: {best['policy']} at {fmt(best['price_usd_per_unit'])} USD/unit; {clear}"
+    excluded = [r["policy"] for r in ranked if not r["deployable"]]
+    if excluded:
+        clear += f"; not deployable, so not in the running: {', '.join(excluded)}"
+    return ranked, f"{winner}; {clear}"
 
 
 def _cells(r: dict[str, Any]) -> tuple[str, ...]:
@@ -89,6 +110,26 @@ def _cells(r: dict[str, Any]) -> tuple[str, ...]:
     return (r["policy"], fmt(r["price_usd_per_unit"]), f"{fmt(r['price_low'])} - {fmt(r['price_high'])}",
             fmt(r["units_per_hour"]), fmt(r["wh_per_unit"]), fmt(r["falls"]), fmt(r["fall_rate_bound"]), speed, power,
             r["verdict"])
+
+
+def comparison_table(ranked: list[dict[str, Any]], title: str, out: Console) -> Table:
+    """The console table: one row per policy where that fits ``out``'s width uncut and unwrapped,
+    else one row per figure with a column per policy (in rank order). Cells fold, never cut: ids are copied."""
+    cells = [_cells(r) for r in ranked]
+    table = Table(title=title)
+    for column in COLUMNS:
+        table.add_column(column, justify="left" if column in ("policy", "verdict") else "right", overflow="fold")
+    for row in cells:
+        table.add_row(*row)
+    if Measurement.get(out, out.options.update_width(UNBOUNDED), table).maximum <= out.width:  # its natural width
+        return table
+    table = Table(title=title)
+    table.add_column(COLUMNS[0], overflow="fold")
+    for row in cells:
+        table.add_column(row[0], justify="right", overflow="fold")
+    for i, figure in enumerate(COLUMNS[1:], start=1):
+        table.add_row(figure, *(row[i] for row in cells))
+    return table
 
 
 def write_comparison(ranked: list[dict[str, Any]], summary: str, out_dir: Path, context: dict[str, Any]) -> list[Path]:
@@ -176,12 +217,8 @@ def compare_command(
     files = write_comparison(ranked, summary, out_dir, {"task_id": task_id, "seeds": seeds,
                                                          "datapacks": [p.id for p in packs],
                                                          "command_speed_m_per_s": command_speed})
-    table = Table(title=f"{task_id}: {len(ranked)} policies, {eval_episodes} episodes each, seeds {seeds}")
-    for column in COLUMNS:
-        table.add_column(column, justify="left" if column in ("policy", "verdict") else "right")
-    for r in ranked:
-        table.add_row(*_cells(r))
-    console.print(table)
+    title = f"{task_id}: {len(ranked)} policies, {eval_episodes} episodes each, seeds {seeds}"
+    console.print(comparison_table(ranked, title, console))
     console.print(summary, highlight=False, soft_wrap=True)
     for path in files:
         console.print(f"{path.suffix[1:]:>8}: {path}", highlight=False, soft_wrap=True)

@@ -11,6 +11,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
+from rich.console import Console
+from rich.measure import Measurement
 from rich.table import Table
 
 from econmotor.cli._app import console, datapacks_app
@@ -18,6 +20,9 @@ from econmotor.cli.validation import check_choice
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_configs
 from econmotor.motor_backend.factory import backend_class, known_backends
+
+COLUMNS = ("id", "clips", "domain_randomization", "curriculum", "backends", "file")
+UNBOUNDED = 10_000  # columns: room to measure a table's width without wrapping
 
 
 def check_for_backends(pack: DatapackConfig, backend: str | None = None) -> list[str]:
@@ -44,11 +49,28 @@ def validate_command(
 ) -> None:
     """Validate datapacks and show what each one sets."""
     check_choice("--motor-backend", motor_backend, known_backends())
-    table = Table(title="datapacks")
-    for col in ("id", "clips", "domain_randomization", "curriculum", "backends", "file"):
-        table.add_column(col)
+    rows = []
     for pack in load_datapack_configs(paths):
         backends = check_for_backends(pack, motor_backend)
-        table.add_row(pack.id, str(len(pack.motion_clips)), ", ".join(pack.domain_randomization) or "-",
-                      ", ".join(pack.curriculum) or "-", ", ".join(backends), pack.source)
-    console.print(table)
+        rows.append((pack.id, str(len(pack.motion_clips)), ", ".join(pack.domain_randomization) or "-",
+                     ", ".join(pack.curriculum) or "-", ", ".join(backends), str(pack.source)))
+    console.print(datapacks_table(rows, console))
+
+
+def datapacks_table(rows: list[tuple[str, ...]], out: Console) -> Table:
+    """One row per pack where that fits ``out``'s width unwrapped, else a field / value section per pack.
+    Cells fold, never cut: ids, keys and paths are copied by users."""
+    table = Table(title="datapacks")
+    for col in COLUMNS:
+        table.add_column(col, overflow="fold")
+    for row in rows:
+        table.add_row(*row)
+    if Measurement.get(out, out.options.update_width(UNBOUNDED), table).maximum <= out.width:
+        return table
+    table = Table(title="datapacks")
+    table.add_column("field", width=max(map(len, COLUMNS)), overflow="fold")  # kept whole while it can be
+    table.add_column("value", overflow="fold")
+    for row in rows:
+        for i, (field, value) in enumerate(zip(COLUMNS, row, strict=True)):
+            table.add_row(field, value, style="bold" if i == 0 else None, end_section=i == len(COLUMNS) - 1)
+    return table

@@ -22,11 +22,14 @@ def tasks_command(
     if show:
         spec = catalog.get(show)
         table = Table(title=f"{spec.task_id}: {spec.description}")
-        table.add_column("parameter", overflow="fold")
+        rows = spec.economics.parameters()
+        # names whole while the terminal allows (a fixed width is not shrunk first), folded past that
+        table.add_column("parameter", width=max([len("parameter"), *(len(row["name"]) for row in rows)]),
+                         overflow="fold")
         table.add_column("value", justify="right", no_wrap=True)
         table.add_column("unit", overflow="fold")
         table.add_column("source", overflow="fold", ratio=1)
-        for row in spec.economics.parameters():
+        for row in rows:
             table.add_row(row["name"], f"{row['value']:g}", row["unit"], row["source"])
         console.print(table)
         console.print(f"unit of work: {spec.unit}; errors: {spec.error_definition}", highlight=False)
@@ -37,12 +40,14 @@ def tasks_command(
                       highlight=False)
         return
     table = Table(title="econmotor task catalog")
-    table.add_column("task id", no_wrap=True)  # ids are typed by users: never cut
-    table.add_column("unit of work", ratio=1)
-    table.add_column("backends", no_wrap=True)
-    for col in ("human USD/h", "human units/h"):
-        table.add_column(col, justify="right")
-    for task_id in catalog.ids(backend):
+    ids = catalog.ids(backend)
+    # ids are typed by users: whole while the terminal allows (a fixed width is not shrunk first), never cut
+    table.add_column("task id", width=max([len("task id"), *map(len, ids)]), overflow="fold")
+    table.add_column("unit of work", overflow="fold")
+    table.add_column("backends", overflow="fold")
+    for col in ("human\nUSD/h", "human\nunits/h"):  # two lines: the room goes to the unit of work
+        table.add_column(col, justify="right", overflow="fold")
+    for task_id in ids:
         spec = catalog.get(task_id)
         table.add_row(task_id, spec.unit, ", ".join(spec.backends),
                       f"{spec.economics.wage_human_usd_per_hour:g}", f"{spec.economics.mp_human_units_per_hour:g}")
