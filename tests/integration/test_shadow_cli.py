@@ -29,7 +29,7 @@ def test_shadow_run_writes_logs_plot_model_and_agrees_on_the_recorded_steps(tmp_
     assert (out / "sac_model.zip").is_file() and (out / "shadow_plot.png").is_file()
 
 
-def test_flipped_lagrangian_net_run_logs_multipliers_and_saves_the_net(tmp_path):
+def test_flipped_lagrangian_net_run_logs_multipliers_and_saves_the_net(tmp_path, capsys):
     out = tmp_path / "flip"
     cfg = tmp_path / "cap.yaml"
     cfg.write_text("max_error_rate: 0.01\n")
@@ -45,6 +45,12 @@ def test_flipped_lagrangian_net_run_logs_multipliers_and_saves_the_net(tmp_path)
     assert max(r["constraints"]["multipliers"]["max_error_rate"] for r in lines) > 0
     run = json.loads((out / "run.json").read_text())
     assert run["multipliers"] and set(run["evaluation"]) == {"default", "throughput", "energy_saver", "safety"}
+    assert all(set(m) == {"max_error_rate"} for m in run["multipliers"])  # multipliers only, no episode count
+    printed = capsys.readouterr().out
+    assert "objective default" not in printed and "sampled per episode from Dirichlet" in printed
+    assert f"Lagrange multipliers at the end ({len(run['multipliers'])} dual updates, one per episode):" in printed
+    # the net-mode run lists the net it saved among its files
+    assert "econ_objective_net.pt" in printed
     net = EconObjectiveNet.load(out / "econ_objective_net.pt")
     assert net.reward_weights([1, 1, 1, 1, 0], *_features()).alpha_mpl > 0
     again = tmp_path / "again"

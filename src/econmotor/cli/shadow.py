@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from econmotor.cli._app import app, console, err_console, progress_bars, set_cpu_threads
@@ -18,7 +20,7 @@ from econmotor.cli.validation import (
     check_input_files,
     check_output_dir,
 )
-from econmotor.config.objective_profile import ObjectiveVector
+from econmotor.config.objective_profile import OBJECTIVE_TERMS, ObjectiveVector
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import new_run_dir
 from econmotor.store.registry import Registry
@@ -149,26 +151,102 @@ def shadow_command(
     finally:
         if "registry" in recorded:
             recorded["registry"].close()
-    s = result.summary
-    console.print(f"[bold]shadow run[/] {env}, objective {label} {vector.normalize().to_list()}, "
-                  f"learner reward: {'objective' if use_objective_reward else 'legacy'}, "
-                  f"{result.steps_per_s:.0f} steps/s")
-    console.print(f"correlation legacy vs objective: step Pearson {_fmt(s.get('step_pearson'))}, "
-                  f"Spearman {_fmt(s.get('step_spearman'))}; episode Pearson {_fmt(s.get('episode_pearson'))}, "
-                  f"Spearman {_fmt(s.get('episode_spearman'))}; legacy sum vs episode J Pearson "
-                  f"{_fmt(s.get('legacy_vs_J_pearson'))}, Spearman {_fmt(s.get('legacy_vs_J_spearman'))} "
-                  f"over {s.get('episodes')} episodes")
+    for line in header_lines(env, label, vector, objective_sampling, use_objective_reward, result.steps_per_s,
+                             list(result.evaluation)):
+        console.print(line, highlight=False)
+    for line in correlation_lines(result.summary):
+        console.print(line, highlight=False)
     table = Table(title="evaluation (deterministic)")
     for col in ("objective", "J", "MPL units/h", "error rate", "Wh/unit", "wage parity"):
-        table.add_column(col)
+        table.add_column(col, overflow="fold")
     for name, row in result.evaluation.items():
         table.add_row(name, _fmt(row["J"]), _fmt(row["mpl_units_per_hour"]), _fmt(row["error_rate"], 4),
                       _fmt(row["energy_Wh_per_unit"], 4), _fmt(row["wage_parity"]))
     console.print(table)
-    if result.multipliers:
-        console.print(f"Lagrange multipliers (last): {result.multipliers[-1]}")
-    console.print(f"shadow run #{run_id} saved under {result.save_dir}: shadow_episodes.jsonl, "
-                  "shadow_summary.json, shadow_plot.png, run.json, sac_model.zip", highlight=False)
+    for line in multiplier_lines(result.multipliers, config.lagrange_update_every):
+        console.print(line, highlight=False)
+    for line in saved_lines(run_id, result.save_dir):
+        console.print(line, highlight=False)
+
+
+#: the console lines of ``econmotor shadow`` are built to fit this many columns (a path may not).
+CONSOLE_WIDTH = 80
+
+
+def weights_text(vector: ObjectiveVector) -> str:
+    """The weights normalised to sum 1, by name, 3 significant digits (JSON and registry keep them exact)."""
+    return ", ".join(f"{name} {_fmt(weight)}"
+                     for name, weight in zip(OBJECTIVE_TERMS, vector.normalize().to_list(), strict=True))
+
+
+def _wrapped(text: str, first: str = "", indent: str = "  ") -> list[str]:
+    """``text`` in lines of at most :data:`CONSOLE_WIDTH` columns (a word longer than that, such as
+    a path, stays whole): the first starts with ``first``, the later ones with ``indent``."""
+    return textwrap.wrap(text, CONSOLE_WIDTH, initial_indent=first, subsequent_indent=indent,
+                         break_long_words=False, break_on_hyphens=False) or [first]
+
+
+def header_lines(env: str, label: str, vector: ObjectiveVector, sampling: str, use_objective_reward: bool,
+                 steps_per_s: float, evaluated: list[str]) -> list[str]:
+    """What was trained on, and (dirichlet) what was evaluated on.
+
+    ``fixed`` trains on the one normalised vector. ``dirichlet`` draws a new vector every
+    episode (the first one included) from ``Dirichlet(DEFAULT_CONCENTRATION)``, so the given
+    preset or vector is never trained on: it is only the first evaluation target.
+    """
+    from econmotor.rl.conditioning import DEFAULT_CONCENTRATION  # what build_env samples from
+
+    lines = [f"[bold]shadow run[/] {escape(env)}: learner reward "
+             f"{'objective' if use_objective_reward else 'legacy'}, {steps_per_s:.0f} steps/s"]
+    if sampling != "dirichlet":
+        return [*lines, f"trained on objective {escape(label)}, weights normalised to sum 1:",
+                f"  {weights_text(vector)}"]
+    conc = dict(zip(OBJECTIVE_TERMS, DEFAULT_CONCENTRATION, strict=True))
+    active = [name for name, c in conc.items() if c > 0]
+    pinned = [name for name, c in conc.items() if c <= 0]
+    over = f"  over the weights of {', '.join(active)}"
+    if pinned:
+        over += f"; {', '.join(pinned)} {'stays' if len(pinned) == 1 else 'stay'} 0"
+    lines += [f"trained on objectives sampled per episode from "
+              f"Dirichlet({', '.join(_fmt(c) for c in DEFAULT_CONCENTRATION)})", over]
+    if not evaluated:
+        return [*lines, "not evaluated (--eval-episodes 0)"]
+    lines += [escape(line) for line in _wrapped(f"evaluated (table below) on: {', '.join(evaluated)}")]
+    return [*lines, f"weights of {escape(label)}, normalised to sum 1:", f"  {weights_text(vector)}"]
+
+
+def correlation_lines(summary: dict[str, Any]) -> list[str]:
+    """The shadow summary's correlations of the legacy and the objective reward, one kind a line."""
+    def pair(key: str) -> str:
+        return f"Pearson {_fmt(summary.get(key + '_pearson'))}, Spearman {_fmt(summary.get(key + '_spearman'))}"
+
+    return [f"correlation of legacy and objective reward over {summary.get('episodes')} episodes:",
+            f"  per step: {pair('step')}",
+            f"  episode sums: {pair('episode')}",
+            f"  legacy episode sum vs episode J: {pair('legacy_vs_J')}"]
+
+
+def multiplier_lines(history: list[dict[str, float]], update_every: int) -> list[str]:
+    """The last Lagrange multipliers (3 significant digits) and, in words, how many updates led there."""
+    if not history:
+        return []
+    every = "one per episode" if update_every == 1 else f"one per {update_every} episodes"
+    values = ", ".join(f"{name} {_fmt(value)}" for name, value in history[-1].items())
+    return [f"Lagrange multipliers at the end ({len(history)} dual updates, {every}):",
+            *_wrapped(values, first="  ")]
+
+
+def saved_lines(run_id: int, save_dir: str | None) -> list[str]:
+    """Where the run went, and its files (those written; the plot needs an episode, the net ``net`` mode)."""
+    from econmotor.rl.shadow_log import EPISODES_FILE, PLOT_FILE, SUMMARY_FILE
+    from econmotor.rl.train_sac_objective import NET_FILE
+
+    if not save_dir:
+        return [f"shadow run #{run_id}: nothing saved"]
+    files = [name for name in (EPISODES_FILE, SUMMARY_FILE, PLOT_FILE, "run.json", "sac_model.zip", NET_FILE)
+             if (Path(save_dir) / name).is_file()]
+    return [escape(f"shadow run #{run_id} saved under {save_dir}:"),
+            *(escape(line) for line in _wrapped(", ".join(files) or "no files", first="  "))]
 
 
 def _fmt(value: float | None, digits: int = 3) -> str:
