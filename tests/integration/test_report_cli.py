@@ -146,7 +146,8 @@ def test_report_from_recorded_runs_matches_the_worked_example(workdir: Path) -> 
 BAD_INPUTS = [
     (["--task-id", "no_such_task", "--motor-backend", "dishwashing"], "unknown task id 'no_such_task'"),
     (["--task-id", "dishwashing", "--motor-backend", "warp9"], "unknown motor backend 'warp9'"),
-    (["--task-id", "dishwashing", "--motor-backend", "mujoco"], "has no entry for backend 'mujoco'"),
+    (["--task-id", "dishwashing", "--motor-backend", "mujoco"],
+     "--motor-backend: task 'dishwashing' does not run on 'mujoco' (allowed: dishwashing)"),
     (["--task-id", "dishwashing", "--motor-backend", "dishwashing", "--datapacks", "configs/datapacks/nope.yaml"],
      "nope.yaml: file not found"),
     (["--task-id", "dishwashing", "--motor-backend", "dishwashing",
@@ -202,6 +203,12 @@ def test_failure_after_training_keeps_the_run_and_says_how_to_report(workdir: Pa
     assert main(["report", "--motor-backend", "none", "--task-id", "dishwashing", "--run-id", "1",
                  "--output-dir", "out"]) == 0
     assert (workdir / "out" / "dishwashing_run1.html").is_file()
+    capsys.readouterr()
+    # the same run asked for twice (or a training run and its evaluation run) is priced once
+    assert main(["report", "--motor-backend", "none", "--task-id", "dishwashing", "--run-id", "1", "--run-id", "1",
+                 "--output-dir", "twice"]) == 0
+    out, err = capsys.readouterr()
+    assert out.count("pricing run #1") == 1 and "each is priced once" in " ".join(err.split())
 
 
 #: runs argv[1:] with SIGINT ignored (the disposition a non-interactive shell hands to background
@@ -243,7 +250,7 @@ def test_an_interrupted_training_run_is_recorded_as_interrupted(workdir: Path, s
         proc.communicate(timeout=30)  # reap it and close its pipes, whatever happened above
     assert proc.returncode == 130, err[-2000:]
     err = " ".join(err.split())
-    assert "interrupted" in err and "Kept:" in err and "start again: econmotor train --task-id dishwashing" in err
+    assert "interrupted" in err and "Kept:" in err and "start again: econmotor report --task-id dishwashing" in err
     run = Registry(create=False).run(1)
     assert run.status == "interrupted" and "KeyboardInterrupt" in run.error and run.finished_at is not None
 

@@ -34,9 +34,11 @@ from econmotor.cli._interrupts import set_deadline_note
 from econmotor.cli.train import (
     SELECT_EPISODES_OPTION,
     SELECT_EVERY_OPTION,
+    TRAINING_EVAL_EPISODES,
     UNTIL_DEPLOYABLE_OPTION,
     interrupted_note,
     selection_options,
+    training_eval_episodes,
 )
 from econmotor.cli.validation import (
     check_db_url,
@@ -45,6 +47,7 @@ from econmotor.cli.validation import (
     check_num_envs,
     check_output_dir,
     check_output_file,
+    check_task_backend,
     note_abandoned,
 )
 from econmotor.config.objective_profile import ObjectiveVector
@@ -205,7 +208,9 @@ def report_command(
     max_steps: int = typer.Option(None, "--max-steps", min=1, help="Training environment steps "
                                   "(default: the backend's)."),
     eval_episodes: int = typer.Option(0, "--eval-episodes", min=0,
-                                      help="Add an evaluation run of N episodes after training and price it."),
+                                      help="Add an evaluation run of N fresh episodes after training and price "
+                                      f"it (0: price the {TRAINING_EVAL_EPISODES} episodes evaluated right after "
+                                      "training, or with --until-deployable as many as a held-out evaluation)."),
     seed: int = typer.Option(0, "--seed", help=f"Seed of training (evaluation uses seed + {REPORT_EVAL_SEED_OFFSET})."),
     output_dir: Path = typer.Option(None, "--output-dir", help="Report directory (default reports/<task>)."),
     output_json: Path = typer.Option(None, "--output-json", help="Also choose where the JSON document goes."),
@@ -236,7 +241,7 @@ def report_command(
     if motor_backend not in backends:
         raise UnknownNameError("motor backend", motor_backend, backends)
     if motor_backend != NO_BACKEND:
-        task.backend_entry(motor_backend)
+        check_task_backend(task, motor_backend)
         check_num_envs(motor_backend, num_envs)
     if run_id and motor_backend != NO_BACKEND:
         raise ConfigError("--run-id", None, "--run-id reports a recorded run: use it with --motor-backend none")
@@ -263,6 +268,12 @@ def report_command(
             note_abandoned(reg)
             chosen = [pick_runs(reg, task_id, rid) for rid in run_id] if run_id else \
                 [pick_runs(reg, task_id, None, wanted_objective, [p.id for p in packs] or None)]
+            once = {priced.id: (train, priced) for train, priced in chosen}  # a run and its evaluation: once
+            if len(once) < len(chosen):
+                err_console.print(f"[yellow]note[/]: the --run-id values name {len(once)} distinct run(s) to "
+                                  "price (a training run is priced by its evaluation run); each is priced once",
+                                  highlight=False)
+            chosen = list(once.values())
             for train, priced in chosen:
                 why = describe_pick(train, priced, task_id, run_id, wanted_objective)
                 console.print(f"[bold]pricing run #{priced.id}[/]: {why}", highlight=False)
@@ -285,10 +296,13 @@ def report_command(
     request = TrainRequest(task=task, backend_name=motor_backend, objective=objective, datapacks=tuple(packs),
                            num_envs=defaults.num_envs if num_envs is None else num_envs,
                            max_steps=max_steps or defaults.max_steps, seed=seed, eval_episodes=eval_episodes,
-                           notes=notes, train_eval_episodes=5, output_dir=run_dir, backend_options=selecting)
+                           notes=notes, output_dir=run_dir, backend_options=selecting,
+                           # the episodes priced when no evaluation run follows (--eval-episodes 0)
+                           train_eval_episodes=TRAINING_EVAL_EPISODES if eval_episodes else
+                           training_eval_episodes(None, until_deployable, select_episodes))
 
     def note() -> str:
-        return (f"{interrupted_note(motor_backend, task_id, run_dir, request.max_steps, 'The training run')}. "
+        return (f"{interrupted_note(motor_backend, task_id, run_dir, request.max_steps, 'report')}. "
                 f"Registry: {url}; runs completed before are kept (price one with: econmotor report "
                 f"--motor-backend none --task-id {task_id} --run-id N)")
 

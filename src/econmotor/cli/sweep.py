@@ -20,6 +20,7 @@ from econmotor.cli.validation import (
     check_num_envs,
     check_output_dir,
     check_size,
+    check_task_backend,
     note_abandoned,
     parse_seed_list,
     simplex_size,
@@ -84,7 +85,7 @@ def sweep_command(
     check_output_dir("--output-dir", output_dir)
     url = check_db_url(db_url)
     set_cpu_threads()
-    load_catalog().get(task_id).backend_entry(motor_backend)
+    check_task_backend(load_catalog().get(task_id), motor_backend)
     check_num_envs(motor_backend, num_envs)
     objectives = objectives_from_options(preset, vector, grid)
     check_size("--seeds", "sweep cells (objectives x seeds)", len(objectives) * len(seed_list), MAX_SWEEP_CELLS)

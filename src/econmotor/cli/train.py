@@ -27,6 +27,7 @@ from econmotor.cli.validation import (
     check_num_envs,
     check_output_dir,
     check_output_file,
+    check_task_backend,
 )
 from econmotor.config.objective_profile import OBJECTIVE_PRESETS, ObjectiveVector
 from econmotor.errors import ConfigError
@@ -107,6 +108,23 @@ SELECT_EPISODES_OPTION = typer.Option(None, "--select-episodes", help="Episodes 
                                       "(default 80).")
 
 
+#: episodes the backend evaluates right after training, unless asked otherwise
+TRAINING_EVAL_EPISODES = 5
+
+
+def training_eval_episodes(requested: int | None, until_deployable: bool, select_episodes: int | None) -> int:
+    """The episodes to evaluate right after training: ``requested``, else enough for a verdict
+    after ``--until-deployable`` (the held-out evaluations' count), else :data:`TRAINING_EVAL_EPISODES`.
+
+    A run trained until deployable is priced on these episodes; five cannot show a fall rate
+    under the acceptance rule's bound, so its report would say NOT DEPLOYABLE for lack of evidence."""
+    from econmotor.motor_backend.selection import DEFAULT_SELECT_EPISODES
+
+    if requested is not None:
+        return requested
+    return (select_episodes or DEFAULT_SELECT_EPISODES) if until_deployable else TRAINING_EVAL_EPISODES
+
+
 def selection_options(backend: str, until_deployable: bool, select_every: int | None,
                       select_episodes: int | None) -> dict[str, Any]:
     """The backend options of evaluation-driven training; an error for a backend without it."""
@@ -140,16 +158,16 @@ def selection_note(run_config: dict[str, Any]) -> str | None:
             f"{cost['wall_s']:.0f} s ({cost['episodes']} episodes).")
 
 
-def interrupted_note(backend: str, task: str, run_dir: Path, max_steps: int, run_id: str) -> str:
-    """What an interrupted training run kept and how to go on."""
+def interrupted_note(backend: str, task: str, run_dir: Path, max_steps: int, command: str = "train") -> str:
+    """What an interrupted training run kept and how to go on (``command``: the one to start again)."""
     checkpoints = backend_class(backend).checkpoints(run_dir)
     if checkpoints:
-        return (f"{run_id} recorded as interrupted. Kept: {len(checkpoints)} checkpoint(s) in {run_dir}/checkpoints "
-                f"(newest {checkpoints[-1].name}). Resume with: econmotor train --task-id {task} --motor-backend "
-                f"{backend} --output-dir {run_dir} --max-steps {max_steps} --resume")
+        return (f"the training run was recorded as interrupted. Kept: {len(checkpoints)} checkpoint(s) in "
+                f"{run_dir}/checkpoints (newest {checkpoints[-1].name}). Resume with: econmotor train --task-id "
+                f"{task} --motor-backend {backend} --output-dir {run_dir} --max-steps {max_steps} --resume")
     kept = f"the partial run directory {run_dir}" if run_dir.exists() else "no files"
-    return (f"{run_id} recorded as interrupted. Kept: {kept}; no checkpoint to resume from, so start again: "
-            f"econmotor train --task-id {task} --motor-backend {backend} --max-steps {max_steps}")
+    return (f"the training run was recorded as interrupted. Kept: {kept}; no checkpoint to resume from, so start "
+            f"again: econmotor {command} --task-id {task} --motor-backend {backend} --max-steps {max_steps}")
 
 
 @app.command("train")
@@ -164,7 +182,9 @@ def train_command(
     seed: int = SEED_OPTION,
     output_dir: Path = typer.Option(None, "--output-dir", help="Run directory (the policy id; default: a new "
                                     "runs/<task>-<time>-s<seed>-<pid>)."),
-    eval_episodes: int = typer.Option(5, "--eval-episodes", help="Deterministic episodes after training."),
+    eval_episodes: int = typer.Option(None, "--eval-episodes", help="Deterministic episodes after training "
+                                      f"(default {TRAINING_EVAL_EPISODES}; with --until-deployable as many as a "
+                                      "held-out evaluation, enough for a verdict)."),
     resume: bool = typer.Option(False, "--resume", help="Continue the interrupted run in --output-dir from its last "
                                 "checkpoint (a complete run is left as it is)."),
     algorithm: str = typer.Option(None, "--algorithm", help="Override the task's algorithm (the backend's "
@@ -183,6 +203,7 @@ def train_command(
     from econmotor.store.registry import Registry
     from econmotor.tasks import load_catalog
 
+    eval_episodes = training_eval_episodes(eval_episodes, until_deployable, select_episodes)
     check_flags(num_envs=num_envs, max_steps=max_steps, seed=seed, eval_episodes=eval_episodes)
     check_num_envs(backend, num_envs)
     capabilities = backend_class(backend).capabilities
@@ -200,6 +221,7 @@ def train_command(
     objective = resolve_objective(objective_config, objective_preset)
     configs = load_datapack_configs(datapacks)
     spec = load_catalog().get(task)
+    check_task_backend(spec, backend)
     extra: dict[str, Any] = selection_options(backend, until_deployable, select_every, select_episodes)
     if resume:
         extra["resume"] = True
@@ -225,7 +247,7 @@ def train_command(
     registry = None
 
     def note() -> str:
-        return f"{interrupted_note(backend, task, run_dir, max_steps, 'the run')} (registry {url})"
+        return f"{interrupted_note(backend, task, run_dir, max_steps)} (registry {url})"
 
     set_deadline_note(note)
     try:

@@ -114,6 +114,13 @@ def check_num_envs(backend: str, num_envs: int | None, flag: str = "--num-envs")
     backend_class(backend).check_num_envs(num_envs, flag)
 
 
+def check_task_backend(task: Any, backend: str, flag: str = "--motor-backend") -> None:
+    """The task (a catalog ``TaskSpec``) has an entry for ``backend``: the error names the flag and
+    the backends that can run the task, not the catalog file the user never wrote."""
+    if backend not in task.backends:
+        raise ConfigError(flag, None, f"task '{task.task_id}' does not run on '{backend}'", list(task.backends))
+
+
 def check_choice(flag: str, value: str | None, choices: Iterable[str]) -> str | None:
     """``value`` must be one of ``choices`` (``None`` passes: the flag was not given)."""
     from econmotor.errors import did_you_mean

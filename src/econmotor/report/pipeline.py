@@ -206,7 +206,8 @@ def pick_runs(registry: Registry, task_id: str, run_id: int | None = None, objec
             raise RegistryError(
                 f"no completed run of task '{task_id}' in the registry {registry.display_url}"
                 + (" matching the given objective/datapacks" if objective or datapacks else "")
-                + "; train one first (e.g. --motor-backend dishwashing or mujoco)")
+                + f"; train one first (econmotor train --task-id {task_id}; econmotor tasks --show {task_id} "
+                  "lists the backends that run it)")
     if chosen.kind not in ("train", "eval"):
         raise RegistryError(f"run #{chosen.id} is a {chosen.kind} run: it has no evaluation episodes to price")
     if chosen.kind == "eval":
