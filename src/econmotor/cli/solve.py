@@ -8,6 +8,7 @@ writes ``objective_surface.json``, ``objective_surface.md`` and ``pareto_front.p
 from __future__ import annotations
 
 import os
+import time
 from pathlib import Path
 
 import typer
@@ -66,6 +67,10 @@ def parse_reference(values: list[str]) -> dict[str, float]:
     return out
 
 
+#: where each solve writes its outputs (a folder of its own) unless --output-dir says otherwise
+SURFACES_DIR = Path("runs/objective_surface")
+
+
 def episode_files(paths: list[Path]) -> list[Path]:
     """``--episodes-jsonl``'s files: a file as given, a folder as every shadow run's
     ``shadow_episodes.jsonl`` below it (sorted); a folder without one is an error."""
@@ -103,7 +108,8 @@ def solve_command(
                                     "(priced at the task's electricity price)."),
     reference_point: list[str] = typer.Option([], "--reference-point", help="Hypervolume bound, e.g. "
                                               "energy=5 (keys: mpl, energy, error, risk)."),
-    output_dir: Path = typer.Option(Path("runs/objective_surface"), "--output-dir", help="Where outputs go."),
+    output_dir: Path = typer.Option(None, "--output-dir", help="Where outputs go (default: a new "
+                                    f"{SURFACES_DIR}/<UTC time>-<pid>, so a solve never overwrites another's)."),
     export_jsonl: Path = typer.Option(None, "--export-jsonl", help="Also write the episodes read as JSONL."),
 ) -> None:
     """Which objective should a customer buy under which constraints? Re-score recorded episodes."""
@@ -114,6 +120,8 @@ def solve_command(
     if constraints:
         check_input_files("--constraints", [constraints])
     check_output_dir("--output-dir", output_dir)
+    if output_dir is None:
+        output_dir = SURFACES_DIR / f"{time.strftime('%Y%m%d-%H%M%S', time.gmtime())}-{os.getpid()}"
     check_output_file("--export-jsonl", export_jsonl)
     if not episodes_jsonl:
         db_url = check_db_url(db_url, create=False)

@@ -66,3 +66,18 @@ def test_a_folder_reads_every_shadow_runs_episodes_below_it(tmp_path, capsys):
     assert main(["solve", "--episodes-jsonl", str(tmp_path / "empty")]) == 2
     err = capsys.readouterr().err
     assert "--episodes-jsonl" in err and "no shadow_episodes.jsonl below it" in err
+
+
+def test_a_solve_without_output_dir_never_overwrites_another(tmp_path, monkeypatch):
+    path = small_export(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    surfaces = tmp_path / "runs" / "objective_surface"
+    assert main(["solve", "--episodes-jsonl", str(path)]) == 0
+    (first,) = surfaces.iterdir()
+    before = (first / "objective_surface.json").read_text()
+    pids = iter([111, 222])  # two processes (within one second, the UTC time alone would repeat)
+    monkeypatch.setattr("econmotor.cli.solve.os.getpid", lambda: next(pids))
+    assert main(["solve", "--episodes-jsonl", str(path), "--vector", "1,0,0,0,0"]) == 0
+    assert main(["solve", "--episodes-jsonl", str(path), "--preset", "safety"]) == 0
+    assert len(list(surfaces.iterdir())) == 3
+    assert (first / "objective_surface.json").read_text() == before
