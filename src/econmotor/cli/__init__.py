@@ -15,7 +15,7 @@ from rich.markup import escape
 from typer._click.exceptions import ClickException  # typer vendors click
 
 from econmotor.cli._app import app, err_console
-from econmotor.cli._interrupts import InterruptGuard, end_interrupted_process, was_interrupted
+from econmotor.cli._interrupts import InterruptGuard, end_interrupted_process, interrupted_exit_code, was_interrupted
 from econmotor.errors import EconmotorError
 
 
@@ -54,12 +54,13 @@ def _run(argv: list[str] | None) -> int:
     except EconmotorError as exc:
         err_console.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
         return 2
-    except typer.Abort:
-        err_console.print("[yellow]aborted[/]")
-        return 130
+    except typer.Abort:  # a command that printed its own note of the interrupt (what it kept, how to resume)
+        if not was_interrupted():
+            err_console.print("[yellow]aborted[/]")
+        return interrupted_exit_code()
     except KeyboardInterrupt as exc:  # a command without its own note
         err_console.print(f"[yellow]interrupted[/] ({exc or 'Ctrl-C'}): nothing further was written", highlight=False)
-        return 130
+        return interrupted_exit_code()
     except typer.Exit as exc:
         return exc.exit_code
     except SystemExit as exc:  # click usage errors

@@ -113,8 +113,13 @@ def progress_bars() -> Iterator:
                 progress.console.print(label, highlight=False, soft_wrap=True)
             return
         if key not in tasks:
+            if not tasks:
+                progress.start()
             tasks[key] = progress.add_task(label, total=total)
         progress.update(tasks[key], completed=completed, total=total, description=label)
 
-    with progress:
+    try:
         yield update
+    finally:  # started with the first bar: a command that fails before one leaves no blank line
+        if tasks:
+            progress.stop()

@@ -8,7 +8,8 @@ at once, whatever the main thread is doing). If the command has not ended
 :data:`INTERRUPT_GRACE_S` seconds later, the watcher records this process's running runs as
 ``interrupted`` (:func:`econmotor.store.registry.interrupt_own_runs`), says so in one line (with
 the command's note of what it kept and how to resume, :func:`set_deadline_note`) and ends the
-process with status 130. While it does, an ``alarm`` of :data:`LAST_RESORT_S` seconds
+process with the shell's status for the signal (:func:`interrupted_exit_code`: 130 for SIGINT,
+143 for SIGTERM). While it does, an ``alarm`` of :data:`LAST_RESORT_S` seconds
 stands behind it: SIGALRM's default action ends the process even if the watcher is stuck too.
 
 A KeyboardInterrupt raised where Python swallows exceptions is delivered again. The handler runs
@@ -53,6 +54,13 @@ _deadline_note: list[Callable[[], str]] = []
 def _raise_interrupt(signum: int, frame: object) -> None:
     _received.append(signum)
     raise KeyboardInterrupt(f"signal {signal.Signals(signum).name}")
+
+
+def interrupted_exit_code() -> int:
+    """The exit status of a command ended by the first interrupt it received: ``128 + signal``, as a
+    shell reports a process the signal ended (130 for SIGINT, 143 for SIGTERM; job schedulers read
+    it); 130 when no signal was received (a KeyboardInterrupt raised some other way)."""
+    return 128 + (_received[0] if _received else signal.SIGINT)
 
 
 def was_interrupted() -> bool:
@@ -155,7 +163,7 @@ class InterruptGuard:
         sys.stderr.write(f"interrupted ({name}): still busy {grace_s:.0f} s later in a call that cannot be "
                          f"interrupted; {runs}; exiting now.{note}\n")
         sys.stderr.flush()
-        os._exit(130)
+        os._exit(interrupted_exit_code())
 
     def _unraisable(self, unraisable: sys.UnraisableHookArgs) -> None:
         """A KeyboardInterrupt that Python swallowed (module docstring): the watcher raises it

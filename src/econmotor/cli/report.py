@@ -43,6 +43,7 @@ from econmotor.cli.train import (
 from econmotor.cli.validation import (
     check_db_url,
     check_flags,
+    check_input_files,
     check_name,
     check_num_envs,
     check_output_dir,
@@ -110,6 +111,8 @@ def resolve_datapacks(tokens: list[str], db_url: str) -> list[DatapackConfig]:
 
 def resolve_objective(path: Path | None, name: str | None) -> EconomicObjectiveSpec:
     """The objective file, or the RewardBuilder default vector [1, 0.2, 0.1, 0.05, 0] named 'default'."""
+    if path is not None:
+        check_input_files("--objective-config", [path])
     objective = load_objective_spec(path) if path is not None else \
         objective_from_vector(ObjectiveVector.from_list(default_objective_vector()), "default")
     return with_objective_name(objective, name)

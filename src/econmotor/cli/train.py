@@ -24,6 +24,7 @@ from econmotor.cli.validation import (
     check_choice,
     check_db_url,
     check_flags,
+    check_input_files,
     check_num_envs,
     check_output_dir,
     check_output_file,
@@ -57,6 +58,7 @@ def resolve_objective(config: Path | None, preset: str | None) -> EconomicObject
     if config is not None and preset is not None:
         raise ConfigError("<command line>", "--objective-preset", "give --objective-config or --objective-preset")
     if config is not None:
+        check_input_files("--objective-config", [config])
         return load_objective_spec(config)
     if preset is not None:
         if preset not in OBJECTIVE_PRESETS:

@@ -30,6 +30,7 @@ def refused(capsys: pytest.CaptureFixture[str], args: list[str], *names: str) ->
     err = capsys.readouterr().err
     lines = [line for line in err.splitlines() if line.strip()]
     assert rc == 2 and len(lines) == 1 and "Traceback" not in err, err
+    assert err.startswith(lines[0]), err  # no blank line first (an unused progress display printed one)
     for name in names:
         assert name in lines[0], (name, lines[0])
     assert elapsed < FAST_S
@@ -231,3 +232,8 @@ def test_a_report_row_is_committed_only_after_its_files_exist(workdir):
         report_id = reg.record_report("dishwashing", {"a": 1}, {}, write_files=write)
         [row] = reg.reports()
         assert row.id == report_id and Path(row.files["json"]).is_file()
+
+
+def test_a_missing_run_directory_is_one_line_with_nothing_before_it(workdir, capsys):
+    refused(capsys, ["evaluate", "--task-id", "hopper_courier", "--policy", "runs/nothere"], "runs/nothere")
+    refused(capsys, [*REPORT, "--objective-config", "nope.yaml"], "--objective-config", "nope.yaml: file not found")

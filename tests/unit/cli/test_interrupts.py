@@ -95,6 +95,6 @@ def test_the_deadline_ends_a_command_that_does_not_stop_and_says_its_note():
     finally:
         proc.kill()
         proc.wait()
-    assert proc.returncode == 130
+    assert proc.returncode == 143  # 128 + SIGTERM
     assert "interrupted (SIGTERM): still busy 1 s later" in err
     assert err.rstrip().endswith("exiting now. Resume with: econmotor train --resume"), err
