@@ -36,8 +36,9 @@ def check_for_backends(pack: DatapackConfig, backend: str | None = None) -> list
         except ConfigError as exc:
             errors.append(exc)
     if not accepted:
-        # the most specific complaint: a bad value beats an unknown key
-        raise min(errors, key=lambda e: e.detail.startswith("unknown key"))
+        # the most specific complaint: a problem of the pack itself (a bad value, a missing clip file)
+        # beats a key some backend does not support, which beats an unknown key
+        raise min(errors, key=lambda e: (e.detail.startswith("unknown key"), "not supported by" in e.detail))
     return accepted
 
 

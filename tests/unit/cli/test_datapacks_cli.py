@@ -43,3 +43,16 @@ def test_a_wide_console_keeps_one_row_per_pack() -> None:
     assert all(col in text for col in COLUMNS)
     assert any("dishwashing_nominal" in line and "configs/datapacks/dishwashing_nominal.yaml" in line
                for line in text.splitlines())
+
+
+def test_a_missing_motion_clip_is_the_error_whichever_backend_is_asked(tmp_path, monkeypatch, capsys) -> None:
+    """The clip is the pack's own problem: no backend accepts it, and the error says so (not that
+    the dishwashing backend has no such randomization key); mujoco checks the file as holosoma does."""
+    monkeypatch.chdir(tmp_path)
+    pack = tmp_path / "pack.yaml"
+    pack.write_text("id: clipped\nmotion_clips:\n  - path: mocap/missing.npz\n"
+                    "domain_randomization:\n  friction_range: [0.5, 1.0]\n")
+    for args in ([], ["--motor-backend", "mujoco"], ["--motor-backend", "holosoma"]):
+        assert main(["datapacks", "validate", str(pack), *args]) == 2
+        err = " ".join(capsys.readouterr().err.split())
+        assert "pack.yaml" in err and "missing.npz" in err and "not found" in err, (args, err)

@@ -206,8 +206,14 @@ class MujocoBackend(MotorBackendBase):
     # --- declarations ----------------------------------------------------------------------------
     @classmethod
     def check_datapack(cls, pack: DatapackConfig, source: str) -> None:
-        """The randomization and curriculum a mujoco training run would apply."""
+        """The randomization and curriculum a mujoco training run would apply, and its motion clips'
+        files (their frames are checked against the robot when a run loads them)."""
         parse_randomization(pack.domain_randomization, pack.curriculum, source)
+        for i, clip in enumerate(pack.motion_clips):
+            path = clip.resolve(pack.base_dir)
+            if not path.is_file():
+                raise ConfigError(source, f"motion_clips[{i}].path", f"motion clip file not found: {path} (a "
+                                  "relative path is read from the current folder, else from the datapack's)")
 
     @classmethod
     def check_task_entry(cls, spec: TaskSpec) -> None:
