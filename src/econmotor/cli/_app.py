@@ -35,7 +35,7 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-datapacks_app = typer.Typer(help="Validate, list and record datapacks.", no_args_is_help=True)
+datapacks_app = typer.Typer(help="Validate datapacks; record motion clips.", no_args_is_help=True)
 app.add_typer(datapacks_app, name="datapacks")
 
 # Messages are soft-wrapped (one line each) when the stream is not a terminal, so piped output and

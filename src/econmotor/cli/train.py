@@ -95,8 +95,8 @@ def completed_run_note(backend: str, run_dir: Path) -> str | None:
         return None
     final = cls.final_policy_file
     config = read_run_config(run_dir, "trained")
-    return (f"{run_dir} is a complete run ({config.get('algorithm', '?')}, {config.get('max_steps', '?'):,} "
-            f"steps, final {final})" if isinstance(config.get("max_steps"), int)
+    return (f"{run_dir} is a complete run ({config.get('algorithm', '?')}, trained with --max-steps "
+            f"{config.get('max_steps', '?'):,}, final {final})" if isinstance(config.get("max_steps"), int)
             else f"{run_dir} is a complete run (final {final})")
 
 
@@ -156,8 +156,9 @@ def selection_note(run_config: dict[str, Any]) -> str | None:
     first = selection.get("became_deployable")
     when = (f"deployable on held-out episodes after {first['env_steps']:,} env steps ({first['wall_s']:.0f} s); "
             if first else "")
-    return (f"policy kept: {selection['why']}. {when}{cost['count']} held-out evaluations cost "
-            f"{cost['wall_s']:.0f} s ({cost['episodes']} episodes).")
+    spent = (f"{cost['count']} held-out evaluations cost {cost['wall_s']:.0f} s ({cost['episodes']} episodes)."
+             if cost["count"] else "")
+    return f"policy kept: {selection['why']}. {when}{spent}".rstrip()
 
 
 def interrupted_note(backend: str, task: str, run_dir: Path, max_steps: int, command: str = "train") -> str:
