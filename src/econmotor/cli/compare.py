@@ -52,6 +52,8 @@ def comparison_row(policy_id: str, doc: dict[str, Any]) -> dict[str, Any]:
     config = ((doc["runs"]["eval"] or {}).get("config") or {}).get("backend_config") or {}
     return {"policy": policy_id, "price_usd_per_unit": agg.get("price_usd_per_unit"),
             "price_low": price_iv.get("low"), "price_high": price_iv.get("high"),
+            # what its report says to charge (the cautious end of the intervals; None: not deployable)
+            "charge_usd_per_unit": (doc.get("recommendation") or {}).get("price_usd_per_unit"),
             "units_per_hour": agg.get("mpl_units_per_hour"), "wh_per_unit": doc["metrics"]["econ"].get(
                 "energy_wh_per_unit"), "fall_rate_bound": (intervals.get("error_rate") or {}).get("high"),
             "commanded_speed_m_per_s": config.get("commanded_speed_m_per_s"),
@@ -79,7 +81,10 @@ def rank(rows: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], str]:
         return ranked, (f"no winner: none of the {len(ranked)} policies is deployable (see the verdicts); "
                         "a not-deployable policy gets no recommended price")
     best = eligible[0]
-    winner = f"winner: {best['policy']} at {fmt(best['price_usd_per_unit'])} USD/unit"
+    charge = best.get("charge_usd_per_unit")
+    winner = (f"winner: {best['policy']}, charging {fmt(charge)} USD/unit (its report's price; point estimate "
+              f"{fmt(best['price_usd_per_unit'])})" if charge is not None
+              else f"winner: {best['policy']} at {fmt(best['price_usd_per_unit'])} USD/unit")
     if len(eligible) == 1:
         return ranked, (f"{winner}; the only deployable one of the {len(ranked)} policies (the others get no "
                         "recommended price)")

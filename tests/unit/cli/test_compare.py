@@ -50,6 +50,12 @@ def test_a_cheaper_policy_that_is_not_deployable_cannot_win() -> None:
     assert "larger than the intervals" not in summary
 
 
+def test_the_winner_line_quotes_the_price_its_report_charges() -> None:
+    """The report charges the cautious end of the intervals; the line says that figure, and the point estimate."""
+    _, summary = rank([{**_row("a", 0.1, 0.09, 0.11), "charge_usd_per_unit": 0.108}, _row("b", 0.2, 0.19, 0.21)])
+    assert summary.startswith("winner: a, charging 0.108 USD/unit (its report's price; point estimate 0.1)")
+
+
 def test_only_deployable_policies_are_compared_for_the_win() -> None:
     ranked, summary = rank([_row("cheap", 0.05, 0.04, 0.06, deployable=False), _row("b", 0.2, 0.19, 0.21),
                             _row("a", 0.1, 0.09, 0.11)])
