@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import pytest
 
@@ -49,6 +50,13 @@ def test_flipped_lagrangian_net_run_logs_multipliers_and_saves_the_net(tmp_path,
     printed = capsys.readouterr().out
     assert "objective default" not in printed and "sampled per episode from Dirichlet" in printed
     assert f"Lagrange multipliers at the end ({len(run['multipliers'])} dual updates, one per episode):" in printed
+    # the registry names what it trained on: sampled objectives, not the first one it is evaluated on
+    from econmotor.store.registry import Registry
+
+    with Registry(os.environ["ECONMOTOR_DB_URL"], create=False) as registry:  # the suite's own (conftest)
+        (recorded,) = registry.runs(kind="shadow")
+    assert recorded.objective_name == "dirichlet"
+    assert recorded.objective["first_evaluated_on"]["name"] == "default"
     # the net-mode run lists the net it saved among its files
     assert "econ_objective_net.pt" in printed
     net = EconObjectiveNet.load(out / "econ_objective_net.pt")

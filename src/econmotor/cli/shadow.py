@@ -114,7 +114,7 @@ def shadow_command(
         if "id" not in recorded:
             recorded["registry"] = registry = Registry(url)
             recorded["id"] = registry.start_run(
-                "shadow", env, "shadow", objective={"name": label, "vector": vector.to_list()},
+                "shadow", env, "shadow", objective=recorded_objective(label, vector, objective_sampling),
                 config={"run_dir": str(run_dir), "total_steps": total_steps,
                         "use_objective_reward": use_objective_reward, "constraint_mode": constraint_mode,
                         "objective_sampling": objective_sampling, "reward_weights": reward_weights},
@@ -184,6 +184,14 @@ def _wrapped(text: str, first: str = "", indent: str = "  ") -> list[str]:
     a path, stays whole): the first starts with ``first``, the later ones with ``indent``."""
     return textwrap.wrap(text, CONSOLE_WIDTH, initial_indent=first, subsequent_indent=indent,
                          break_long_words=False, break_on_hyphens=False) or [first]
+
+
+def recorded_objective(label: str, vector: ObjectiveVector, sampling: str) -> dict[str, Any]:
+    """The run's objective in the registry: with dirichlet sampling it trained on sampled objectives,
+    not on ``label`` (the first objective it is evaluated on), so the name says so."""
+    if sampling == "dirichlet":
+        return {"name": "dirichlet", "first_evaluated_on": {"name": label, "vector": vector.to_list()}}
+    return {"name": label, "vector": vector.to_list()}
 
 
 def header_lines(env: str, label: str, vector: ObjectiveVector, sampling: str, use_objective_reward: bool,
