@@ -52,7 +52,7 @@ class _UniqueKeyLoader(yaml.SafeLoader):
                 continue
             if duplicate:
                 raise yaml.constructor.ConstructorError(
-                    None, None, f"duplicate key {key!r} (line {key_node.start_mark.line + 1})", key_node.start_mark)
+                    None, None, f"duplicate key {key!r}", key_node.start_mark)  # the mark says where
         return super().construct_mapping(node, deep=deep)
 
 
@@ -93,9 +93,19 @@ def load_yaml_text(text: str | bytes, source: str | Path) -> Any:
         finally:
             loader.dispose()
     except yaml.YAMLError as exc:
-        raise ConfigError(source, None, "not valid YAML: " + " ".join(str(exc).split())) from None
+        raise ConfigError(source, None, f"not valid YAML: {_yaml_problem(exc)}") from None
     except RecursionError:  # belt and braces: the depth scan above should make this unreachable
         raise ConfigError(source, None, f"nested too deeply (limit {MAX_YAML_DEPTH})") from None
+
+
+def _yaml_problem(exc: yaml.YAMLError) -> str:
+    """PyYAML's complaint, where it is (line and column, 1-based), without its ``in "<unicode string>"``
+    (the text was parsed from memory; the ConfigError names the file)."""
+    if isinstance(exc, yaml.MarkedYAMLError) and exc.problem:
+        mark = exc.problem_mark
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        return " ".join(f"{exc.context + ': ' if exc.context else ''}{exc.problem}{where}".split())
+    return " ".join(str(exc).split())
 
 
 def _node_children(node: yaml.Node) -> list[yaml.Node]:

@@ -124,6 +124,13 @@ def test_duplicated_yaml_key(workdir, capsys):
     refused(capsys, [*REPORT, "--objective-config", "dup.yaml"], "dup.yaml", "duplicate key 'mpl_weight'", "line 3")
 
 
+def test_broken_yaml_names_the_file_and_where_not_an_in_memory_string(workdir, capsys):
+    (workdir / "broken.yaml").write_text("mpl_weight: 1.0\n  bad: [1, 2\n")
+    line = refused(capsys, [*REPORT, "--objective-config", "broken.yaml"], "broken.yaml", "not valid YAML",
+                   "line 2, column 6")
+    assert "<unicode string>" not in line
+
+
 def test_yaml_merge_keys_still_work():
     from econmotor.config.loading import load_yaml_text
 
