@@ -67,6 +67,9 @@ def _run(argv: list[str] | None) -> int:
         return int(exc.code or 0)
     except ClickException as exc:  # usage errors: one line naming the flag, no traceback
         message = " ".join(exc.format_message().split())
+        group = getattr(getattr(exc, "ctx", None), "command", None)  # the command group that was asked
+        if message.startswith("No such command") and "Did you mean" not in message and hasattr(group, "commands"):
+            message += f" Commands: {', '.join(sorted(group.commands))}."
         err_console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
         return exc.exit_code
     # with standalone_mode=False click returns typer.Exit's code instead of raising it

@@ -244,3 +244,8 @@ def test_a_report_row_is_committed_only_after_its_files_exist(workdir):
 def test_a_missing_run_directory_is_one_line_with_nothing_before_it(workdir, capsys):
     refused(capsys, ["evaluate", "--task-id", "hopper_courier", "--policy", "runs/nothere"], "runs/nothere")
     refused(capsys, [*REPORT, "--objective-config", "nope.yaml"], "--objective-config", "nope.yaml: file not found")
+
+
+def test_an_unknown_command_lists_the_commands_of_its_group(workdir, capsys):
+    refused(capsys, ["price"], "No such command 'price'", "Commands: compare, datapacks, demo,", "report")
+    refused(capsys, ["datapacks", "lst"], "No such command 'lst'", "Commands: record-clip, validate.")
