@@ -17,6 +17,7 @@ from typing import Any
 
 import typer
 from rich.console import Console
+from rich.measure import Measurement
 from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
@@ -26,6 +27,7 @@ from rich.progress import (
     TimeElapsedColumn,
     TimeRemainingColumn,
 )
+from rich.table import Table
 from rich.text import Text
 
 app = typer.Typer(
@@ -87,6 +89,11 @@ class RateColumn(ProgressColumn):
     def render(self, task) -> Text:
         speed = task.finished_speed or task.speed
         return Text(f"{speed:,.0f}/s" if speed else "", style="progress.data.speed")
+
+
+def fits_unwrapped(table: Table, out: Console) -> bool:
+    """Whether ``table`` at its natural width (every cell on one line) fits ``out``'s width."""
+    return Measurement.get(out, out.options.update_width(10_000), table).maximum <= out.width
 
 
 @contextlib.contextmanager

@@ -18,10 +18,9 @@ from typing import Any
 
 import typer
 from rich.console import Console
-from rich.measure import Measurement
 from rich.table import Table
 
-from econmotor.cli._app import app, console, make_backend, set_cpu_threads
+from econmotor.cli._app import app, console, fits_unwrapped, make_backend, set_cpu_threads
 from econmotor.cli.report import (
     check_imports_policies,
     price_imported,
@@ -41,7 +40,6 @@ from econmotor.tasks import load_catalog
 NO_WIDTH_REL = 1e-3
 COLUMNS = ("policy", "price USD/unit", "90% interval", "units/h", "Wh/unit", "falls", "fall-rate bound",
            "speed m/s", "mech / elec W", "verdict")
-UNBOUNDED = 10_000  # columns: room to measure a table's width without wrapping
 
 
 def comparison_row(policy_id: str, doc: dict[str, Any]) -> dict[str, Any]:
@@ -81,10 +79,8 @@ def rank(rows: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], str]:
         return ranked, (f"no winner: none of the {len(ranked)} policies is deployable (see the verdicts); "
                         "a not-deployable policy gets no recommended price")
     best = eligible[0]
-    charge = best.get("charge_usd_per_unit")
-    winner = (f"winner: {best['policy']}, charging {fmt(charge)} USD/unit (its report's price; point estimate "
-              f"{fmt(best['price_usd_per_unit'])})" if charge is not None
-              else f"winner: {best['policy']} at {fmt(best['price_usd_per_unit'])} USD/unit")
+    winner = (f"winner: {best['policy']}, charging {fmt(best['charge_usd_per_unit'])} USD/unit (its report's "
+              f"price; point estimate {fmt(best['price_usd_per_unit'])})")
     if len(eligible) == 1:
         return ranked, (f"{winner}; the only deployable one of the {len(ranked)} policies (the others get no "
                         "recommended price)")
@@ -126,7 +122,7 @@ def comparison_table(ranked: list[dict[str, Any]], title: str, out: Console) -> 
         table.add_column(column, justify="left" if column in ("policy", "verdict") else "right", overflow="fold")
     for row in cells:
         table.add_row(*row)
-    if Measurement.get(out, out.options.update_width(UNBOUNDED), table).maximum <= out.width:  # its natural width
+    if fits_unwrapped(table, out):
         return table
     table = Table(title=title)
     table.add_column(COLUMNS[0], overflow="fold")

@@ -12,17 +12,15 @@ from pathlib import Path
 
 import typer
 from rich.console import Console
-from rich.measure import Measurement
 from rich.table import Table
 
-from econmotor.cli._app import console, datapacks_app
+from econmotor.cli._app import console, datapacks_app, fits_unwrapped
 from econmotor.cli.validation import check_choice
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_configs
 from econmotor.motor_backend.factory import backend_class, known_backends
 
 COLUMNS = ("id", "clips", "domain_randomization", "curriculum", "backends", "file")
-UNBOUNDED = 10_000  # columns: room to measure a table's width without wrapping
 
 
 def check_for_backends(pack: DatapackConfig, backend: str | None = None) -> list[str]:
@@ -66,7 +64,7 @@ def datapacks_table(rows: list[tuple[str, ...]], out: Console) -> Table:
         table.add_column(col, overflow="fold")
     for row in rows:
         table.add_row(*row)
-    if Measurement.get(out, out.options.update_width(UNBOUNDED), table).maximum <= out.width:
+    if fits_unwrapped(table, out):
         return table
     table = Table(title="datapacks")
     table.add_column("field", width=max(map(len, COLUMNS)), overflow="fold")  # kept whole while it can be

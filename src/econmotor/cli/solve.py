@@ -8,7 +8,6 @@ writes ``objective_surface.json``, ``objective_surface.md`` and ``pareto_front.p
 from __future__ import annotations
 
 import os
-import time
 from pathlib import Path
 
 import typer
@@ -31,7 +30,9 @@ from econmotor.cli.validation import (
     note_abandoned,
     simplex_size,
 )
+from econmotor.economics.uncertainty import counted
 from econmotor.errors import ConfigError
+from econmotor.motor_backend.base import utc_stamp
 from econmotor.rl.shadow_log import EPISODES_FILE
 from econmotor.valuation import ConstraintSet, load_constraint_sets
 
@@ -121,7 +122,7 @@ def solve_command(
         check_input_files("--constraints", [constraints])
     check_output_dir("--output-dir", output_dir)
     if output_dir is None:
-        output_dir = SURFACES_DIR / f"{time.strftime('%Y%m%d-%H%M%S', time.gmtime())}-{os.getpid()}"
+        output_dir = SURFACES_DIR / f"{utc_stamp()}-{os.getpid()}"
     check_output_file("--export-jsonl", export_jsonl)
     if not episodes_jsonl:
         db_url = check_db_url(db_url, create=False)
@@ -151,10 +152,6 @@ def solve_command(
     _print_summary(surface, files)
 
 
-def plural(count: int, noun: str) -> str:
-    return f"{count} {noun}{'' if count == 1 else 's'}"
-
-
 def _print_summary(surface, files) -> None:
     """Objectives x constraint sets, each cell 'best valid run (J)'; grid objectives only in the files."""
     import json
@@ -162,8 +159,8 @@ def _print_summary(surface, files) -> None:
     document = json.loads(files["json"].read_text())
     shown = [o.name for o in surface.objectives if o.kind != "grid"][:12]
     # one row per (objective, constraint set): three columns fit 80 columns however many sets there are
-    table = Table(title=f"best valid run (utility J): {plural(surface.table.num_episodes, 'episode')}, "
-                        f"{plural(surface.table.num_runs, 'run')}")
+    table = Table(title=f"best valid run (utility J): {counted(surface.table.num_episodes, 'episode')}, "
+                        f"{counted(surface.table.num_runs, 'run')}")
     table.add_column("objective", overflow="fold")
     table.add_column("constraint set", overflow="fold")
     table.add_column("best valid run (J)", overflow="fold")
@@ -174,14 +171,14 @@ def _print_summary(surface, files) -> None:
     console.print(table)
     hidden = len(surface.objectives) - len(shown)
     if hidden:
-        console.print(f"{plural(hidden, 'more objective')} (grid vectors, or past the first 12): see "
+        console.print(f"{counted(hidden, 'more objective')} (grid vectors, or past the first 12): see "
                       f"{files['markdown'].name} and the JSON", highlight=False)
     for name in document["constraint_sets_no_run_meets"]:
         console.print(f"[yellow]no run meets constraint set '{name}'[/]")
     front = document["pareto_front"]
     bound = ", ".join(f"{key} {value:.4g}" for key, value in front["reference_point"].items())
     runs = ", ".join(front["run_ids"])
-    console.print(f"Pareto front: {plural(len(front['run_ids']), 'run')}: {runs}", highlight=False)
+    console.print(f"Pareto front: {counted(len(front['run_ids']), 'run')}: {runs}", highlight=False)
     console.print(f"hypervolume {front['hypervolume']:.6g} (reference point: {bound})", highlight=False)
     for kind, path in files.items():
         console.print(f"{kind}: {path}")

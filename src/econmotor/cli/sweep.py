@@ -89,9 +89,9 @@ def sweep_command(
     check_num_envs(motor_backend, num_envs)
     objectives = objectives_from_options(preset, vector, grid)
     check_size("--seeds", "sweep cells (objectives x seeds)", len(objectives) * len(seed_list), MAX_SWEEP_CELLS)
-    resume = "Resume by running the same command again: completed cells are skipped."
-    set_deadline_note(lambda: f"Completed cells are kept, each in {output_dir}/<cell key>/ and in the registry. "
-                              f"{resume}")
+    kept = (f"each in {output_dir}/<cell key>/ and in the registry. Resume by running the same command again: "
+            "completed cells are skipped.")
+    set_deadline_note(lambda: f"Completed cells are kept, {kept}")
     with open_registry(url) as registry:
         note_abandoned(registry)
         groups = datapack_groups(datapacks, registry)
@@ -112,8 +112,8 @@ def sweep_command(
         except KeyboardInterrupt:
             done = completed_cell_keys(registry, task_id, motor_backend) & {c.key for c in cells}
             err_console.print(f"[yellow]interrupted[/]: the cells in flight are recorded as interrupted in "
-                              f"{registry.display_url}. Kept: {len(done)} of {len(cells)} cells completed, each "
-                              f"in {output_dir}/<cell key>/ and in the registry. {resume}", highlight=False)
+                              f"{registry.display_url}. Kept: {len(done)} of {len(cells)} cells completed, {kept}",
+                              highlight=False)
             raise typer.Abort from None
     table = Table(title="sweep cells")
     for col in ("objective", "datapacks", "seed", "status", "run", "mean J", "cell key"):

@@ -205,6 +205,11 @@ def _plural(name: str, count: float) -> str:
     return name if count == 1 else (name[:-1] + "ies" if name.endswith("y") else name + "s")
 
 
+def counted(count: int, name: str) -> str:
+    """``count`` and ``name`` in the plural it takes: "1 run", "2 runs", "35 more objectives"."""
+    return f"{count} {_plural(name, count)}"
+
+
 def judge(economics: TaskEconomics, acceptance: Acceptance, unit: str, episodes: Sequence[Mapping[str, Any]],
           point: TaskPrice, policy: PricingPolicy = PricingPolicy()) -> tuple[Uncertainty, Verdict]:
     """The intervals of evaluation episodes (:func:`assess`) and the verdict on them (:func:`decide`):

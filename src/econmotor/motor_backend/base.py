@@ -240,9 +240,14 @@ REPORT_EVAL_SEED_OFFSET = 1_000
 SELECTION_SEED_OFFSET = 50_000
 
 
+def utc_stamp() -> str:
+    """The UTC time to the second, ``YYYYmmdd-HHMMSS``: with the process id, a folder name no other run takes."""
+    return time.strftime("%Y%m%d-%H%M%S", time.gmtime())
+
+
 def new_run_dir(runs_dir: str | Path, task_id: str, seed: int) -> Path:
     """A run directory of its own: ``<runs_dir>/<task>-<UTC time>-s<seed>-<pid>`` (never reused)."""
-    return Path(runs_dir) / f"{task_id}-{time.strftime('%Y%m%d-%H%M%S', time.gmtime())}-s{seed}-{os.getpid()}"
+    return Path(runs_dir) / f"{task_id}-{utc_stamp()}-s{seed}-{os.getpid()}"
 
 
 @dataclass(frozen=True)

@@ -58,8 +58,7 @@ class LagrangeMultipliers:
         upper: cap on every multiplier (OmniSafe's ``lambda_upper_bound``).
 
     ``history`` holds the multiplier values after each :meth:`update` (constraint name ->
-    lambda, nothing else); ``history_episodes`` holds, at the same index, how many episodes
-    that update averaged.
+    lambda, nothing else).
     """
 
     names: tuple[str, ...]
@@ -68,7 +67,6 @@ class LagrangeMultipliers:
     upper: float = 100.0
     values: dict[str, float] = field(init=False)
     history: list[dict[str, float]] = field(init=False, default_factory=list)
-    history_episodes: list[int] = field(init=False, default_factory=list)
     _pending: list[dict[str, float]] = field(init=False, default_factory=list)
 
     def __post_init__(self) -> None:
@@ -92,8 +90,7 @@ class LagrangeMultipliers:
         for name in self.names:
             mean_cost = sum(ep.get(name, 0.0) for ep in self._pending) / len(self._pending)
             self.values[name] = min(self.upper, max(0.0, self.values[name] + self.lr * mean_cost))
-        self.history.append(dict(self.values))  # multipliers only: the count goes beside them
-        self.history_episodes.append(len(self._pending))
+        self.history.append(dict(self.values))  # multipliers only
         self._pending.clear()
         return dict(self.values)
 

@@ -9,7 +9,8 @@ from econmotor.cli.compare import rank
 def _row(policy: str, price: float | None, low: float | None, high: float | None, units: float = 100.0,
          deployable: bool = True) -> dict:
     return {"policy": policy, "price_usd_per_unit": price, "price_low": low, "price_high": high,
-            "units_per_hour": units, "deployable": deployable}
+            "units_per_hour": units, "deployable": deployable,
+            "charge_usd_per_unit": high if deployable else None}  # a report charges the cautious end
 
 
 def test_lowest_price_wins_and_separated_intervals_say_so() -> None:
@@ -46,7 +47,8 @@ def test_no_winner_when_no_policy_is_deployable() -> None:
 def test_a_cheaper_policy_that_is_not_deployable_cannot_win() -> None:
     ranked, summary = rank([_row("cheap", 0.05, 0.04, 0.06, deployable=False), _row("safe", 0.2, 0.19, 0.21)])
     assert [r["policy"] for r in ranked] == ["safe", "cheap"]
-    assert summary.startswith("winner: safe at 0.2 USD/unit; the only deployable one of the 2 policies")
+    assert summary.startswith("winner: safe, charging 0.21 USD/unit (its report's price; point estimate 0.2); "
+                              "the only deployable one of the 2 policies")
     assert "larger than the intervals" not in summary
 
 
@@ -60,5 +62,6 @@ def test_only_deployable_policies_are_compared_for_the_win() -> None:
     ranked, summary = rank([_row("cheap", 0.05, 0.04, 0.06, deployable=False), _row("b", 0.2, 0.19, 0.21),
                             _row("a", 0.1, 0.09, 0.11)])
     assert [r["policy"] for r in ranked] == ["a", "b", "cheap"]
-    assert summary.startswith("winner: a at 0.1 USD/unit; the difference is larger than the intervals")
+    assert summary.startswith("winner: a, charging 0.11 USD/unit (its report's price; point estimate 0.1); "
+                              "the difference is larger than the intervals")
     assert "below b's" in summary and summary.endswith("not deployable, so not in the running: cheap")

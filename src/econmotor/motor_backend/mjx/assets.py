@@ -29,14 +29,15 @@ import mujoco
 
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.couriers.robots import ROBOTS, RobotSpec, robot_spec
+from econmotor.motor_backend.mjx.settings import INTEGRATORS
 
 __all__ = ["MJX_ADJUSTMENTS", "ROBOTS", "RobotSpec", "apply_model_options", "load_model", "robot_spec"]
 
 #: what load_model changes for MJX whatever the task says (documented in the module docstring).
 MJX_ADJUSTMENTS = {"opt.solver": "PGS -> Newton (MJX has CG and Newton only; humanoid.xml uses PGS)"}
 
-_INTEGRATORS = {"euler": mujoco.mjtIntegrator.mjINT_EULER, "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
-                "rk4": mujoco.mjtIntegrator.mjINT_RK4}
+#: the integrators ``model_options`` names (settings.INTEGRATORS), as MuJoCo's enum
+_INTEGRATORS = {name: getattr(mujoco.mjtIntegrator, f"mjINT_{name.upper()}") for name in INTEGRATORS}
 
 
 def apply_model_options(model: mujoco.MjModel, options: Mapping[str, Any], source: str = "<model_options>") -> None:

@@ -37,7 +37,7 @@ from econmotor.motor_backend.base import (
 )
 from econmotor.motor_backend.couriers.overlay import human_baseline_references
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
-from econmotor.motor_backend.mujoco.clips import load_bundle_clips, record_clip
+from econmotor.motor_backend.mujoco.clips import check_clip_file, load_bundle_clips, record_clip
 from econmotor.motor_backend.mujoco.env_factory import EnvRecipe, make_env
 from econmotor.motor_backend.mujoco.evaluation import load_policy, rollout_episodes, torch_act_fn
 from econmotor.motor_backend.mujoco.export import OnnxPolicyHandle, export_onnx
@@ -210,10 +210,7 @@ class MujocoBackend(MotorBackendBase):
         files (their frames are checked against the robot when a run loads them)."""
         parse_randomization(pack.domain_randomization, pack.curriculum, source)
         for i, clip in enumerate(pack.motion_clips):
-            path = clip.resolve(pack.base_dir)
-            if not path.is_file():
-                raise ConfigError(source, f"motion_clips[{i}].path", f"motion clip file not found: {path} (a "
-                                  "relative path is read from the current folder, else from the datapack's)")
+            check_clip_file(clip.resolve(pack.base_dir), source, f"motion_clips[{i}]")
 
     @classmethod
     def check_task_entry(cls, spec: TaskSpec) -> None:

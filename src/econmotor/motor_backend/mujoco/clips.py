@@ -47,12 +47,19 @@ class MotionClip:
         return vel[:nv] if len(vel) >= nv else np.zeros(nv)
 
 
+def check_clip_file(path: str | Path, origin: str = "<datapack>", key: str = "motion_clips") -> Path:
+    """``path`` if a clip file is there; else a ConfigError naming the datapack ``origin`` and ``key``."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(origin, f"{key}.path", f"motion clip file not found: {path} (a relative path is read "
+                          "from the current folder, else from the datapack's)")
+    return path
+
+
 def load_clip(path: str | Path, nq: int, origin: str = "<datapack>", key: str = "motion_clips",
               weight: float = 1.0) -> MotionClip:
     """Read and check one clip file; errors name the datapack ``origin`` and ``key``."""
-    path = Path(path)
-    if not path.is_file():
-        raise ConfigError(origin, f"{key}.path", f"motion clip file not found: {path}")
+    path = check_clip_file(path, origin, key)
     try:
         with np.load(path) as data:
             qpos = np.asarray(data["qpos"], dtype=np.float64)
