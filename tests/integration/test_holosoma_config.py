@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from econmotor.economics import courier_formulas as cf
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.datapacks import (
     DatapackProvider,
@@ -23,13 +24,13 @@ from econmotor.motor_backend.datapacks import (
 from econmotor.motor_backend.holosoma import backend as holosoma_backend
 from econmotor.motor_backend.holosoma.datapack_mapping import map_datapacks, validate_motion_npz
 from econmotor.motor_backend.holosoma.econ_formulas import (
+    base_tilt_rad,
     commanded_progress_m_per_s,
-    electrical_power_w,
+    meter_constants,
     overlay_term_rates,
-    tilt_risk,
 )
 from econmotor.motor_backend.holosoma.jobs import holosoma_error_text
-from econmotor.motor_backend.holosoma.plan import Capabilities, choose_simulator, plan_training
+from econmotor.motor_backend.holosoma.plan import Capabilities, choose_simulator, meter_settings, plan_training
 from econmotor.motor_backend.holosoma.protocol import PREFIX, parse_line
 from econmotor.motor_backend.holosoma.recording_metrics import episodes_from_recording
 from econmotor.tasks import get_task
@@ -124,19 +125,35 @@ def test_highest_weight_clip_becomes_the_validated_motion_file(tmp_path: Path) -
 
 def test_econ_formulas_by_hand() -> None:
     tau, qd = np.array([[10.0, -5.0]]), np.array([[2.0, 4.0]])
-    assert electrical_power_w(tau, qd, 0.8)[0] == pytest.approx((20 + 20) / 0.8)
+    assert cf.mechanical_power_w(tau, qd, np)[0] == pytest.approx(20 + 20)
     v, c = np.array([[1.0, 1.0], [0.5, 0.0]]), np.array([[1.0, 0.0], [0.05, 0.0]])
     assert commanded_progress_m_per_s(v, c).tolist() == pytest.approx([1.0, 0.0])  # standing command: none
     tilt = 0.4  # rad about x: q = (sin(t/2), 0, 0, cos(t/2))
     q = np.array([math.sin(tilt / 2), 0.0, 0.0, math.cos(tilt / 2)])
-    assert tilt_risk(q, math.cos(0.8)) == pytest.approx((1 - math.cos(tilt)) / (1 - math.cos(0.8)))
+    assert base_tilt_rad(q, np) == pytest.approx(tilt)
     steps, dt, episode_s = 1000, 0.02, 20.0  # 1 m/s for 20 s with 10 m units: 2 units in 20 s = 360/h
-    rates = overlay_term_rates(progress_units_per_s=np.full(steps, 0.1), power_w=np.full(steps, 360.0),
-                               fell=np.zeros(steps), risk=np.full(steps, 0.5), novelty=np.zeros(steps),
-                               dt_s=dt, episode_s=episode_s)
+    meter = {"leg_distance_m": 10.0, "drivetrain_efficiency": 0.8, "idle_power_w": 50.0, "tilt_margin_rad": 0.2,
+             "fall_tilt_rad": 0.8}
+    rates = overlay_term_rates(progress_units_per_s=np.full(steps, 0.1), mechanical_w=np.full(steps, 288.0),
+                               fell=np.zeros(steps), tilt_rad=np.full(steps, 0.5), novelty=np.zeros(steps),
+                               constants=meter_constants(meter, dt), episode_s=episode_s, xp=np)
     assert np.sum(rates["mpl_per_hour"] * dt) == pytest.approx(360.0)
-    assert np.sum(rates["energy_kwh"] * dt) == pytest.approx(360.0 * 20 / 3.6e6)
-    assert np.sum(rates["risk_score"] * dt) == pytest.approx(0.5)
+    assert np.sum(rates["energy_kwh"] * dt) == pytest.approx((288.0 / 0.8 + 50.0) * 20 / 3.6e6)  # idle counted
+    assert np.sum(rates["risk_score"] * dt) == pytest.approx((0.5 - 0.2) / (0.8 - 0.2))  # beyond the margin
+
+
+def test_meter_settings_come_from_the_catalog_entry_and_name_a_missing_key() -> None:
+    spec = get_task("humanoid_locomotion_g1")
+    entry = spec.backend_entry("holosoma")
+    meter = meter_settings(spec.task_id, entry, spec.source)
+    assert meter == {"leg_distance_m": entry["unit_length_m"], "drivetrain_efficiency": entry["drivetrain_efficiency"],
+                     "idle_power_w": entry["idle_power_w"], "tilt_margin_rad": entry["tilt_margin_rad"],
+                     "fall_tilt_rad": entry["max_tilt_rad"]}
+    without_idle = {k: v for k, v in entry.items() if k != "idle_power_w"}
+    with pytest.raises(ConfigError, match=r"holosoma.yaml.*backends\.holosoma\.idle_power_w.*courier meter"):
+        meter_settings(spec.task_id, without_idle, spec.source)
+    with pytest.raises(ConfigError, match="max_tilt_rad > tilt_margin_rad"):
+        meter_settings(spec.task_id, {**entry, "tilt_margin_rad": 0.9}, spec.source)
 
 
 def _recording(path: Path, steps: int, fall_at: int) -> None:
@@ -156,14 +173,15 @@ def _recording(path: Path, steps: int, fall_at: int) -> None:
 def test_recording_is_split_into_episodes_with_econ_raw_metrics(tmp_path: Path) -> None:
     path = tmp_path / "rec.npz"
     _recording(path, steps=100, fall_at=29)
-    settings = get_task("humanoid_locomotion_g1").backend_entry("holosoma") | {"unit_duration_s": 10.0,
-                                                                              "novelty_rate": 0.01}
-    episodes = episodes_from_recording(path, settings, num_episodes=5)
+    spec = get_task("humanoid_locomotion_g1")
+    settings = spec.backend_entry("holosoma") | {"unit_duration_s": 10.0, "novelty_rate": 0.01}
+    meter = meter_settings(spec.task_id, settings, spec.source)
+    episodes = episodes_from_recording(path, settings, meter, num_episodes=5)
     assert [e["length_steps"] for e in episodes] == [30, 70]
     first = episodes[0]
     assert first["termination_reason"] == "fall" and first["errors"] == 1
     assert first["units_completed"] == pytest.approx(0.5 * 30 * 0.02 / 10.0)
-    assert first["energy_wh"] == pytest.approx(20.0 / 0.8 * 30 * 0.02 / 3600)
+    assert first["energy_wh"] == pytest.approx((20.0 / 0.8 + meter["idle_power_w"]) * 30 * 0.02 / 3600)
     assert first["risk_score"] == 0 and first["return"] == 30
 
 

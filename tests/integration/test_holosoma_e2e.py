@@ -101,6 +101,15 @@ def test_trained_run_is_priced_by_the_sim2sim_evaluator(trained) -> None:
     assert 1.0 < mean_power_w < 20_000.0  # a 35 kg humanoid's joints, through an 80 % drivetrain
 
 
+def test_training_terms_and_the_evaluator_read_one_meter(trained) -> None:
+    """One meter per robot: the train job's econ terms get the very constants the sim-to-sim job meters with."""
+    _, _, result, _ = trained
+    job = json.loads((Path(result.policy_id) / "train_job.json").read_text(encoding="utf-8"))
+    meter = job["overlay"]["params"]["meter"]
+    assert meter == result.config["evaluation"]["meter"]
+    assert meter["idle_power_w"] > 0 and meter["fall_tilt_rad"] > meter["tilt_margin_rad"] > 0
+
+
 def test_onnx_handle_carries_both_metadata(trained) -> None:
     backend, _, result, _ = trained
     handle = backend.deploy_policy_handle(result.policy_id)

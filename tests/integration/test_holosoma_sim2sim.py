@@ -66,6 +66,10 @@ for name in sys.argv[1:]:
                             fall_tilt_rad=0.8)
     record = []
     robot = s.build_robot(c)
+    m = robot.model
+    colliders = [g for g in range(m.ngeom) if m.geom_bodyid[g] != 0 and (m.geom_contype[g] or m.geom_conaffinity[g])]
+    self_pairs = sum(1 for i in colliders for j in colliders if i < j and m.geom_bodyid[i] != m.geom_bodyid[j]
+                     and bool(m.geom_contype[i] & m.geom_conaffinity[j] or m.geom_contype[j] & m.geom_conaffinity[i]))
     # a 2 m leg with a 1 s dwell: the episode walks, stands (the gait phase's stand branch) and walks again
     ep = s.run_episode(robot, c, s.onnx_policy(c), s.CourseSettings(2.0, 1.0, 0.8), meter,
                        s.Stress(payload_kg_range=(3.0, 3.0), initial_joint_noise_rad=0.05), 7.0, 5,
@@ -76,6 +80,7 @@ for name in sys.argv[1:]:
     energy = cf.electrical_energy_wh(mech, meter.drivetrain_efficiency, meter.idle_power_w, c.physics_dt_s)
     units = (np.max(qpos[:, 0]) - c.init_pos[0]) / meter.leg_distance_m
     out[name] = {"steps": len(diffs), "max_abs_diff": max(diffs), "obs_dim": c.obs_dim,
+                 "self_collisions": c.self_collisions, "colliders": len(colliders), "self_pairs": self_pairs,
                  "episode": ep, "replayed": {"units_completed": float(max(units, 0.0)),
                  "energy_wh": float(np.sum(energy)), "risk_score": float(np.mean(risk)),
                  "episode_length_s": len(record) * c.physics_dt_s}}
@@ -131,6 +136,13 @@ def test_metering_equals_the_shared_courier_formulas_on_recorded_steps(checks: d
         for key, value in replayed.items():
             assert ep[key] == pytest.approx(value, rel=1e-9, abs=1e-12), (name, key)
         assert ep["units_completed"] > 0.5 and ep["risk_score"] > 0.0, name  # non-trivial figures compared
+
+
+def test_robot_collides_as_holosomas_simulator_models_it(checks: dict) -> None:
+    """Holosoma's G1 and T1 walkers train with enable_self_collisions=False: no two robot colliders may touch."""
+    for name, got in checks.items():
+        assert got["self_collisions"] is False, name
+        assert got["colliders"] > 20 and got["self_pairs"] == 0, name
 
 
 def _contract(**changes) -> PolicyContract:
@@ -199,6 +211,7 @@ def test_report_prices_an_imported_policy_without_training(tmp_path: Path, monke
     assert doc["episodes"][0]["termination_reason"] == "course_done"  # three legs, each with its dwell
     markdown = next((tmp_path / "out").glob("*.md")).read_text(encoding="utf-8")
     assert "imported policy holosoma:t1_29dof/fastsac" in markdown and "MuJoCo sim-to-sim" in markdown
+    assert "self-collisions off" in markdown  # the robot as its maker's simulator models it
     assert "m/s commanded" in markdown
 
 

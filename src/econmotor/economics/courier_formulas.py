@@ -4,7 +4,8 @@ Every formula takes ``xp``, the namespace its arguments live in, and runs the sa
 
 - :data:`PY` — one env's figures as Python floats (the ``mujoco`` backend's metering wrapper),
 - ``numpy`` — arrays on the host,
-- ``jax.numpy`` — traced arrays inside the ``mjx`` backend's jitted, vmapped step.
+- ``jax.numpy`` — traced arrays inside the ``mjx`` backend's jitted, vmapped step,
+- torch (``econ_formulas.torch_namespace()``) — Holosoma's training reward terms, on its GPU tensors.
 
 ``PY`` is not a special case inside the formulas: it is a namespace with numpy's names
 (``maximum``, ``where``, ``clip``, ...) bound to the builtins and :mod:`math`, which are what a
@@ -17,7 +18,8 @@ Per control step of ``dt_s`` seconds:
 - units (:func:`forward_units`): ``best_x' = max(best_x, x)``; ``units += (best_x' - best_x) / leg_distance_m``
   (a high-water mark: moving back and forth earns nothing),
 - energy (:func:`electrical_energy_wh`): mechanical power ``P_mech = sum_j |qfrc_actuator_j * qvel_j|`` W
-  (:func:`mechanical_power_w`), electrical ``P_el = P_mech / drivetrain_efficiency + idle_power_w``,
+  (:func:`mechanical_power_w`), electrical ``P_el = P_mech / drivetrain_efficiency + idle_power_w``
+  (:func:`electrical_power_w`),
   ``energy_wh += P_el * dt_s / 3600``,
 - risk (:func:`tilt_risk`): ``clip((tilt - tilt_margin_rad) / (fall_tilt_rad - tilt_margin_rad), 0, 1)``,
 - falls: a step that ends in a fall is one error,
@@ -88,10 +90,21 @@ def mechanical_power_w(qfrc_actuator: Any, qvel: Any, xp: Any) -> Any:
     return xp.sum(xp.absolute(xp.multiply(qfrc_actuator, qvel)), axis=-1)
 
 
+def electrical_power_w(mechanical_w: Any, drivetrain_efficiency: float, idle_power_w: float) -> Any:
+    """Electrical W drawn for a mechanical joint power: ``P_el = P_mech / drivetrain_efficiency + idle_power_w``
+    (braking counted as dissipated: ``P_mech`` sums absolute joint powers)."""
+    return mechanical_w / drivetrain_efficiency + idle_power_w
+
+
+def mechanical_from_electrical_w(electrical_w: Any, drivetrain_efficiency: float, idle_power_w: float) -> Any:
+    """The inverse of :func:`electrical_power_w`: ``P_mech = (P_el - idle_power_w) * drivetrain_efficiency`` (W)."""
+    return (electrical_w - idle_power_w) * drivetrain_efficiency
+
+
 def electrical_energy_wh(mechanical_w: Any, drivetrain_efficiency: float, idle_power_w: float,
                          dt_s: float) -> Any:
     """Electrical Wh over one control step: ``(P_mech / drivetrain_efficiency + idle_power_w) * dt_s / 3600``."""
-    return (mechanical_w / drivetrain_efficiency + idle_power_w) * (dt_s / SECONDS_PER_HOUR)
+    return electrical_power_w(mechanical_w, drivetrain_efficiency, idle_power_w) * (dt_s / SECONDS_PER_HOUR)
 
 
 def tilt_risk(tilt_rad: Any, tilt_margin_rad: float, fall_tilt_rad: float, xp: Any) -> Any:

@@ -2,7 +2,7 @@
 
 - :func:`actuated_dof_span`: the dofs power is summed over,
 - :func:`has_free_root`: whether the root joint is free-floating (Ant, Humanoid) or planar,
-- :func:`root_tilt_rad`: the torso's angle from upright, from ``qpos``.
+- :func:`root_tilt_rad`: the torso's angle from upright, from ``qpos`` (:func:`quat_tilt_rad`: from a quaternion).
 
 ``model`` is a ``mujoco.MjModel`` (the mjx backend's too, before ``mjx.put_model``).
 """
@@ -47,6 +47,11 @@ def root_tilt_rad(qpos: Any, free_root: bool, xp: Any) -> Any:
     axis and the world's), its argument clipped to [-1, 1] against rounding.
     """
     if free_root:
-        qx, qy = qpos[4], qpos[5]
-        return xp.arccos(xp.clip(1.0 - 2.0 * (qx * qx + qy * qy), -1.0, 1.0))
+        return quat_tilt_rad(qpos[4], qpos[5], xp)
     return xp.abs(qpos[2])
+
+
+def quat_tilt_rad(qx: Any, qy: Any, xp: Any) -> Any:
+    """The angle between a body's z axis and the world's, rad, from its unit quaternion's ``x`` and ``y``
+    (any component order): ``acos(1 - 2 (x^2 + y^2))``, the argument clipped to [-1, 1] against rounding."""
+    return xp.arccos(xp.clip(1.0 - 2.0 * (qx * qx + qy * qy), -1.0, 1.0))

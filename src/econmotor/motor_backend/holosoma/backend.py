@@ -43,6 +43,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from econmotor.economics.courier_formulas import mechanical_from_electrical_w
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import (
     RUN_CONFIG_FILE,
@@ -62,7 +63,7 @@ from econmotor.motor_backend.base import (
 )
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.motor_backend.holosoma.datapack_mapping import map_datapacks
-from econmotor.motor_backend.holosoma.econ_formulas import OVERLAY_TERM_KEYS, mechanical_from_electrical_w
+from econmotor.motor_backend.holosoma.econ_formulas import OVERLAY_TERM_KEYS
 from econmotor.motor_backend.holosoma.jobs import run_job
 from econmotor.motor_backend.holosoma.plan import (
     DEFAULT_CPU_MAX_ENV_STEPS,
@@ -70,6 +71,7 @@ from econmotor.motor_backend.holosoma.plan import (
     SIM2SIM_KEYS,
     Capabilities,
     choose_simulator,
+    meter_settings,
     plan_training,
     task_settings,
 )
@@ -77,6 +79,7 @@ from econmotor.motor_backend.holosoma.policy_import import (
     ALGO_FILE_PREFIX,
     NAME_PREFIX,
     is_imported_policy,
+    model_text,
     parse_policy_name,
 )
 from econmotor.motor_backend.holosoma.recording_metrics import episodes_from_recording
@@ -309,9 +312,8 @@ class HolosomaBackend(MotorBackendBase):
         messages = [*plan.messages, *overrides.messages, *messages]
         for text in messages:
             progress(f"holosoma: {text}", 1.0, 1.0)
-        overlay_params = {k: settings[k] for k in ("progress_mode", "unit_length_m", "unit_duration_s",
-                                                   "max_tilt_rad", "novelty_rate")}
-        overlay_params["efficiency"] = float(settings["drivetrain_efficiency"])
+        overlay_params = {k: settings[k] for k in ("progress_mode", "unit_duration_s", "novelty_rate")}
+        overlay_params["meter"] = meter_settings(task_id, settings, spec.source)  # the evaluator's constants too
         job = {
             "action": "train", "run_dir": str(run_dir), "run_name": f"{task_id}-seed{seed}",
             "experiment": plan.experiment, "algo": algo, "simulator": plan.simulator, "device": plan.device,
@@ -413,9 +415,7 @@ class HolosomaBackend(MotorBackendBase):
         leg_m = float(settings["unit_length_m"])
         course = {"leg_m": leg_m, "dwell_s": float(settings["dwell_s"]), "speed_m_per_s": speed,
                   "legs": int(settings["sim2sim_legs"])}
-        meter = {"leg_distance_m": leg_m, "drivetrain_efficiency": float(settings["drivetrain_efficiency"]),
-                 "idle_power_w": float(settings["idle_power_w"]), "tilt_margin_rad": float(settings["tilt_margin_rad"]),
-                 "fall_tilt_rad": float(settings["max_tilt_rad"])}
+        meter = meter_settings(task_id, settings, spec.source)  # the training terms' constants too
         job = {"action": "sim2sim", "run_dir": str(run_dir), "policy": policy, "num_episodes": int(num_episodes),
                "episode_s": episode_s, "seed": int(seed), "course": course, "meter": meter,
                "overrides": overrides.to_dict(), "task_id": task_id,
@@ -439,7 +439,8 @@ class HolosomaBackend(MotorBackendBase):
             "seed": int(seed), "evaluator": "sim2sim", "policy": policy_id, "imported": imported,
             "mean_power_w": power_w, "mean_mech_power_w": mechanical_from_electrical_w(
                 power_w, meter["drivetrain_efficiency"], meter["idle_power_w"]),
-            "figures_from": "MuJoCo sim-to-sim (plain MuJoCo, the policy's ONNX, holosoma_inference's observations)",
+            "figures_from": "MuJoCo sim-to-sim (plain MuJoCo, the policy's ONNX, holosoma_inference's observations; "
+                            f"{model_text(outcome.result['contract'])})",
             "commanded_speed_m_per_s": speed, "achieved_speed_m_per_s": achieved, "episode_length_s": episode_s,
             "course": course, "meter": meter, "datapacks": list(bundle.datapack_ids),
             "stress": outcome.result["stress"],
@@ -452,13 +453,14 @@ class HolosomaBackend(MotorBackendBase):
                     progress: ProgressFn) -> MotorEvalResult:
         """Holosoma's eval_agent with recording; econ metrics from the recording's episodes."""
         settings = record["settings"]  # the physical parameters the policy was trained with
+        meter = meter_settings(task_id, settings, str(Path(policy_id) / RUN_CONFIG_FILE))
         episode_s = float(self.eval_episode_length_s or record["episode_length_s"])
         steps = num_episodes * math.ceil(episode_s / float(record["control_dt_s"]))
         simulator = self._eval_simulator(record.get("simulator", "mujoco"), run_dir, progress)
         job = {"action": "evaluate", "run_dir": str(run_dir), "checkpoint": record["checkpoint"],
                "num_steps": steps, "episode_length_s": episode_s, "seed": int(seed), "simulator": simulator}
         outcome = run_job(self.python, job, run_dir, progress, self.job_timeout_s)
-        raw_episodes = episodes_from_recording(outcome.result["recording"], settings, num_episodes)
+        raw_episodes = episodes_from_recording(outcome.result["recording"], settings, meter, num_episodes)
         if not raw_episodes:
             raise BackendError(f"Holosoma's recording {outcome.result['recording']} holds no steps")
         raw, econ, episodes = summarize_episodes(raw_episodes, spec.economics)

@@ -1,21 +1,34 @@
-"""Per-step economic quantities of a legged robot, written once for numpy and torch.
+"""Per-step economic quantities of a legged robot in Holosoma: the couriers' meter, read from Holosoma's tensors.
 
-The reward terms (torch tensors, inside Holosoma) and the evaluation metrics
-(numpy arrays, from Holosoma's recording) call these same functions, so training
-optimises exactly what evaluation measures. Only operators that numpy arrays and
-torch tensors share are used (``+ - * / **``, ``abs``, ``.sum``, ``.clip``), so the
-module runs on numpy 1.x, numpy 2 and torch alike.
+One meter per robot: a G1 trained here (Holosoma's reward terms, torch) and a G1 priced here (the
+sim-to-sim evaluator, :mod:`.sim2sim`) are metered by the same formulas,
+:mod:`econmotor.economics.courier_formulas`, with the same constants (the task catalog's
+``backends.holosoma`` entry, :func:`econmotor.motor_backend.holosoma.plan.meter_settings`):
 
-Symbols: ``tau`` joint torques (N m), ``qd`` joint velocities (rad/s), ``eta``
-drivetrain efficiency (motor + gearbox + driver, dimensionless, 0 < eta <= 1),
-``v`` base linear velocity in the base frame (m/s), ``c`` commanded planar
-velocity in the base frame (m/s), ``L`` metres of travel per unit of work,
-``q = (x, y, z, w)`` base orientation quaternion.
+- electrical power ``P_el = sum_i |tau_i qd_i| / eta + idle_power_w`` (W; ``cf.mechanical_power_w``,
+  ``cf.electrical_power_w``; braking counted as dissipated: the G1/T1 drivers burn regenerated
+  energy in shunt resistors),
+- tilt risk ``clip((tilt - tilt_margin_rad) / (fall_tilt_rad - tilt_margin_rad), 0, 1)`` of the base's
+  tilt from upright (``cf.tilt_risk`` of :func:`base_tilt_rad`).
+
+What stays Holosoma's own: progress toward a unit (training has no course: the base velocity along
+the commanded direction, :func:`commanded_progress_m_per_s`), falls (Holosoma's terminations) and
+joint-space novelty (:func:`novelty_step`). The arithmetic uses only what numpy arrays and torch
+tensors share, or the ``xp`` namespace the courier formulas take (``numpy``, :func:`torch_namespace`).
+
+Symbols: ``tau`` joint torques (N m), ``qd`` joint velocities (rad/s), ``v`` base linear velocity in
+the base frame (m/s), ``c`` commanded planar velocity in the base frame (m/s), ``q = (x, y, z, w)``
+base orientation quaternion.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from types import SimpleNamespace
 from typing import Any
+
+from econmotor.economics import courier_formulas as cf
+from econmotor.motor_backend.couriers.physics import quat_tilt_rad
 
 #: overlay keys with a per-step Holosoma reward term (the named keys of compile_economic_overlay).
 OVERLAY_TERM_KEYS = ("mpl_per_hour", "energy_kwh", "error_rate", "risk_score", "novelty_score")
@@ -24,15 +37,30 @@ MIN_COMMAND_SPEED_M_PER_S = 0.1
 _EPS = 1e-8
 
 
-def electrical_power_w(tau: Any, qd: Any, efficiency: float) -> Any:
-    """P_elec = sum_i |tau_i * qd_i| / eta  (W), per row.
+def torch_namespace() -> Any:
+    """``xp`` for the courier formulas on torch tensors: numpy's names bound to torch's functions
+    (torch's ``maximum`` / ``minimum`` take no Python scalar, so they go through ``where``)."""
+    import torch
 
-    Braking (negative mechanical power) is counted as dissipated, not regenerated:
-    the G1/T1 drivers burn regenerated energy in shunt resistors.
-    """
-    if not 0.0 < efficiency <= 1.0:
-        raise ValueError(f"drivetrain efficiency must be in (0, 1], got {efficiency}")
-    return abs(tau * qd).sum(-1) / efficiency
+    return SimpleNamespace(maximum=lambda a, b: torch.where(a >= b, a, b),
+                           minimum=lambda a, b: torch.where(a <= b, a, b), where=torch.where, clip=torch.clip,
+                           arccos=torch.arccos, abs=torch.abs, absolute=torch.abs, multiply=torch.multiply,
+                           sum=torch.sum, floor=torch.floor)
+
+
+def meter_constants(meter: Mapping[str, float], dt_s: float) -> cf.MeterConstants:
+    """The courier meter's constants from a task's meter settings (:func:`.plan.meter_settings`: ``leg_distance_m``,
+    ``drivetrain_efficiency``, ``idle_power_w``, ``tilt_margin_rad``, ``fall_tilt_rad``), metering steps of ``dt_s``."""
+    return cf.MeterConstants(leg_distance_m=float(meter["leg_distance_m"]),
+                             drivetrain_efficiency=float(meter["drivetrain_efficiency"]),
+                             idle_power_w=float(meter["idle_power_w"]), dt_s=float(dt_s),
+                             tilt_margin_rad=float(meter["tilt_margin_rad"]),
+                             fall_tilt_rad=float(meter["fall_tilt_rad"]))
+
+
+def base_tilt_rad(quat_xyzw: Any, xp: Any) -> Any:
+    """The base's tilt from upright (rad) from Holosoma's ``(x, y, z, w)`` quaternions (last axis)."""
+    return quat_tilt_rad(quat_xyzw[..., 0], quat_xyzw[..., 1], xp)
 
 
 def commanded_progress_m_per_s(v_xy: Any, c_xy: Any) -> Any:
@@ -41,16 +69,6 @@ def commanded_progress_m_per_s(v_xy: Any, c_xy: Any) -> Any:
     along = (v_xy * c_xy).sum(-1) / (c_norm + _EPS)
     moving = c_norm >= MIN_COMMAND_SPEED_M_PER_S
     return along.clip(0.0) * moving
-
-
-def tilt_risk(quat_xyzw: Any, max_tilt_cos: float) -> Any:
-    """Risk in [0, 1] from base tilt: (1 - cos tilt) / (1 - cos tilt_max), clipped.
-
-    ``1 - cos tilt = 2 (x^2 + y^2)`` for a unit quaternion, so no trigonometry is needed;
-    0 upright, 1 at (or beyond) the tilt where a fall is imminent.
-    """
-    x, y = quat_xyzw[..., 0], quat_xyzw[..., 1]
-    return (2.0 * (x * x + y * y) / (1.0 - max_tilt_cos)).clip(0.0, 1.0)
 
 
 def novelty_step(q: Any, mean: Any, var: Any, rate: float) -> tuple[Any, Any, Any]:
@@ -71,38 +89,32 @@ def novelty_step(q: Any, mean: Any, var: Any, rate: float) -> tuple[Any, Any, An
 def overlay_term_rates(
     *,
     progress_units_per_s: Any,
-    power_w: Any,
+    mechanical_w: Any,
     fell: Any,
-    risk: Any,
+    tilt_rad: Any,
     novelty: Any,
-    dt_s: float,
+    constants: cf.MeterConstants,
     episode_s: float,
+    xp: Any,
 ) -> dict[str, Any]:
     """Raw per-step rates of the overlay keys, normalised so sum_t rate_t * dt = episode metric.
 
-    Holosoma's reward manager adds ``raw * weight * dt`` each step, so over an episode of
-    the nominal length ``T = episode_s``:
+    ``constants``: the courier meter's (:func:`meter_constants`, ``dt_s`` the control step).
+    Holosoma's reward manager adds ``raw * weight * dt`` each step, so over an episode of the
+    nominal length ``T = episode_s``:
 
-    - ``mpl_per_hour``:  rate = 3600 * units/s / T  ->  sum = good units per hour
-    - ``energy_kwh``:    rate = P_elec / 3.6e6      ->  sum = kWh
-    - ``error_rate``:    rate = fell / dt           ->  sum = falls (one attempted leg per episode)
-    - ``risk_score``:    rate = risk / T            ->  sum = mean risk
-    - ``novelty_score``: rate = novelty / T         ->  sum = mean novelty
+    - ``mpl_per_hour``:  rate = 3600 * units/s / T           ->  sum = good units per hour
+    - ``energy_kwh``:    rate = cf.electrical_power_w / 3.6e6 ->  sum = kWh, idle power included
+    - ``error_rate``:    rate = fell / dt                    ->  sum = falls (one attempted leg per episode)
+    - ``risk_score``:    rate = cf.tilt_risk / T              ->  sum = mean risk
+    - ``novelty_score``: rate = novelty / T                  ->  sum = mean novelty
     """
+    c = constants
+    electrical_w = cf.electrical_power_w(mechanical_w, c.drivetrain_efficiency, c.idle_power_w)
     return {
-        "mpl_per_hour": progress_units_per_s * (3600.0 / episode_s),
-        "energy_kwh": power_w / 3.6e6,
-        "error_rate": fell * (1.0 / dt_s),
-        "risk_score": risk * (1.0 / episode_s),
+        "mpl_per_hour": progress_units_per_s * (cf.SECONDS_PER_HOUR / episode_s),
+        "energy_kwh": electrical_w / (cf.SECONDS_PER_HOUR * cf.WH_PER_KWH),
+        "error_rate": fell * (1.0 / c.dt_s),
+        "risk_score": cf.tilt_risk(tilt_rad, c.tilt_margin_rad, c.fall_tilt_rad, xp) * (1.0 / episode_s),
         "novelty_score": novelty * (1.0 / episode_s),
     }
-
-
-def mechanical_from_electrical_w(electrical_power_w: float, efficiency: float, idle_power_w: float) -> float:
-    """The mechanical joint power behind an electrical draw: ``P_mech = (P_el - idle) * eta`` (W).
-
-    The inverse of the couriers' ``P_el = P_mech / eta + idle``
-    (:func:`econmotor.economics.courier_formulas.meter_step`): the sim-to-sim evaluation reports
-    both powers from the one metered energy.
-    """
-    return (electrical_power_w - idle_power_w) * efficiency

@@ -54,11 +54,15 @@ HOLOSOMA_TASK_PRESETS: dict[str, dict[str, Any]] = {
     "humanoid_wbt_g1": {**_OVERLAY_PHYSICS, "progress_mode": "time", "unit_duration_s": 6.5, "uses_motion_clip": True,
                         "experiment": {"ppo": "g1_29dof_wbt", "fast_sac": "g1_29dof_wbt_fast_sac"}},
 }
+#: the courier meter's settings, read alike by the training terms and the sim-to-sim evaluator
+#: (:func:`meter_settings`; idle power and the tilt margin have no default: each is sourced in the task catalog)
+METER_KEYS = ("unit_length_m", "drivetrain_efficiency", "idle_power_w", "tilt_margin_rad", "max_tilt_rad")
 #: the sim-to-sim evaluation's settings (no defaults: each is sourced in the task catalog, see holosoma.yaml)
-SIM2SIM_KEYS = ("idle_power_w", "tilt_margin_rad", "dwell_s", "course_speed_m_per_s", "sim2sim_legs",
-                "sim2sim_episode_s", "sim2sim_start_joint_noise_rad")
+SIM2SIM_KEYS = ("dwell_s", "course_speed_m_per_s", "sim2sim_legs", "sim2sim_episode_s",
+                "sim2sim_start_joint_noise_rad")
 _SETTING_KEYS = ("experiment", "progress_mode", "unit_length_m", "unit_duration_s", "drivetrain_efficiency",
-                 "max_tilt_rad", "novelty_rate", "overlay_gain", "uses_motion_clip", "algo", *SIM2SIM_KEYS)
+                 "max_tilt_rad", "novelty_rate", "overlay_gain", "uses_motion_clip", "algo", "idle_power_w",
+                 "tilt_margin_rad", *SIM2SIM_KEYS)
 
 
 @dataclass(frozen=True)
@@ -110,6 +114,29 @@ def task_settings(task_id: str, entry: Mapping[str, Any], source: str) -> dict[s
     if not 0.0 < as_float(settings["drivetrain_efficiency"], source, efficiency_key) <= 1.0:
         raise ConfigError(source, efficiency_key, "must be in (0, 1]")
     return settings
+
+
+def meter_settings(task_id: str, settings: Mapping[str, Any], source: str) -> dict[str, float]:
+    """The courier meter's constants of a task, under :class:`~econmotor.economics.courier_formulas.MeterConstants`'
+    names (without the step): the one source of Holosoma's training terms and of the sim-to-sim evaluator.
+
+    ``leg_distance_m = unit_length_m``, ``fall_tilt_rad = max_tilt_rad``; a missing key or a value out of range
+    is a ConfigError naming the catalog file and the key.
+    """
+    where = f"tasks.{task_id}.backends.holosoma"
+    missing = [k for k in METER_KEYS if k not in settings]
+    if missing:
+        raise ConfigError(source, f"{where}.{missing[0]}", "the courier meter needs it (training and sim-to-sim "
+                          "alike; give its unit and source)", METER_KEYS)
+    v = {k: as_float(settings[k], source, f"{where}.{k}") for k in METER_KEYS}
+    if v["idle_power_w"] < 0.0:
+        raise ConfigError(source, f"{where}.idle_power_w", f"must be >= 0, got {v['idle_power_w']}")
+    if not v["max_tilt_rad"] > v["tilt_margin_rad"] >= 0.0:
+        raise ConfigError(source, f"{where}.max_tilt_rad", "need max_tilt_rad > tilt_margin_rad >= 0 "
+                          f"(got {v['max_tilt_rad']} and {v['tilt_margin_rad']})")
+    return {"leg_distance_m": v["unit_length_m"], "drivetrain_efficiency": v["drivetrain_efficiency"],
+            "idle_power_w": v["idle_power_w"], "tilt_margin_rad": v["tilt_margin_rad"],
+            "fall_tilt_rad": v["max_tilt_rad"]}
 
 
 def choose_simulator(requested: str, caps: Capabilities) -> tuple[str, str]:

@@ -10,7 +10,8 @@ A policy is named by an ONNX file in Holosoma's export format (metadata ``dof_na
    dimensions, scales, history length, the (sorted) order the terms are concatenated in,
    gait phase (``use_phase``, ``gait_period``), control rate, default pose, action scale;
 3. Holosoma's experiment preset for that robot: the MJCF, effort limits, initial base
-   height, torso body, physics rate and decimation.
+   height, torso body, physics rate and decimation, and whether its simulator lets the robot
+   collide with itself (``enable_self_collisions``).
 
 Nothing is copied: every number comes from the installed packages. Name parsing
 (:func:`parse_policy_name`, :func:`is_imported_policy`) imports nothing and runs in the
@@ -50,6 +51,13 @@ def parse_policy_name(name: str) -> tuple[str, str]:
     return match.group(1), match.group(2)
 
 
+def model_text(contract: dict[str, Any]) -> str:
+    """How the evaluator models the robot, in words, from a contract's dict (:meth:`PolicyContract.to_dict`)."""
+    collisions = "self-collisions on" if contract.get("self_collisions", True) else \
+        "self-collisions off, colliders touching the floor only"
+    return f"the robot as Holosoma's simulator models it: {collisions} (preset {contract['experiment']})"
+
+
 @dataclass(frozen=True)
 class PolicyContract:
     """Everything the sim-to-sim evaluator needs to run one imported policy (see the module docstring).
@@ -85,6 +93,7 @@ class PolicyContract:
     torso_body: str
     inference_preset: str
     experiment: str
+    self_collisions: bool = True  # Holosoma's enable_self_collisions (False for the G1 and T1 walkers)
 
     @property
     def control_dt_s(self) -> float:
@@ -204,7 +213,8 @@ def resolve_contract(policy: str) -> PolicyContract:
         decimation=int(sim.control_decimation_steps),
         init_pos=tuple(float(v) for v in robot.init_state.pos),
         xml_path=str(_resolve_asset(robot.asset.asset_root, robot.asset.xml_file)),
-        torso_body=str(robot.torso_name), inference_preset=preset_name, experiment=experiment_name)
+        torso_body=str(robot.torso_name), inference_preset=preset_name, experiment=experiment_name,
+        self_collisions=bool(robot.asset.enable_self_collisions))
     check_obs_size(contract, source)
     if abs(contract.control_dt_s * contract.control_rate_hz - 1.0) > 1e-6:
         raise ConfigError(source, "rl_rate", f"holosoma_inference runs the policy at {contract.control_rate_hz} Hz "

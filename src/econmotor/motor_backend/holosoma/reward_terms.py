@@ -15,11 +15,14 @@ each step (see :func:`econmotor.motor_backend.holosoma.econ_formulas.overlay_ter
 - progress toward the unit of work: base velocity along the commanded direction / metres
   per unit (``progress_mode="velocity"``), or tracked time / seconds per unit (``"time"``,
   whole-body tracking);
-- electrical power: sum |torque x joint velocity| / drivetrain efficiency, averaged over
-  the physics sub-steps of the control step;
+- electrical power: sum |torque x joint velocity| (averaged over the physics sub-steps of the
+  control step) / drivetrain efficiency + idle power, the couriers' formula;
 - falls: terminations that are not time-outs (``reset_buf & ~time_out_buf``);
-- risk: base tilt from the orientation quaternion (0 upright, 1 at ``max_tilt_rad``);
+- risk: the couriers' tilt risk of the base's tilt (0 within ``tilt_margin_rad``, 1 at ``fall_tilt_rad``);
 - novelty: distance of the joint configuration from its running statistics.
+
+Power and risk are the sim-to-sim evaluator's meter (:mod:`econmotor.economics.courier_formulas`) with
+the evaluator's constants (``params["meter"]``, the task catalog's: :func:`.plan.meter_settings`).
 
 All econ terms of one env share one computation per step: the first term the manager
 calls (the "leader") computes every rate, the others read them.
@@ -27,7 +30,6 @@ calls (the "leader") computes every rate, the others read them.
 
 from __future__ import annotations
 
-import math
 import time
 from typing import Any
 
@@ -35,13 +37,15 @@ import torch
 from holosoma.managers.observation.terms.locomotion import get_base_lin_vel
 from holosoma.managers.reward.base import RewardTermBase
 
+from econmotor.economics import courier_formulas as cf
 from econmotor.motor_backend.holosoma.econ_formulas import (
     OVERLAY_TERM_KEYS,
+    base_tilt_rad,
     commanded_progress_m_per_s,
-    electrical_power_w,
+    meter_constants,
     novelty_step,
     overlay_term_rates,
-    tilt_risk,
+    torch_namespace,
 )
 
 SUPPORTED_KEYS = OVERLAY_TERM_KEYS
@@ -49,6 +53,7 @@ TERM_PREFIX = "econ_"
 #: seconds spent in econ terms and calls made, in this process (the overhead benchmark reads it).
 TIMER = {"seconds": 0.0, "calls": 0}
 _STATE_ATTR = "_econmotor_overlay_state"
+XP = torch_namespace()
 
 
 class _OverlayState:
@@ -69,11 +74,11 @@ def _joint_control(env: Any) -> Any:
     raise RuntimeError("econ overlay: no action term with torques (needs Holosoma's joint_control)")
 
 
-def _power_w(env: Any, efficiency: float) -> torch.Tensor:
+def _mechanical_w(env: Any) -> torch.Tensor:
     term = _joint_control(env)
     if hasattr(term, "torques_substep") and hasattr(term, "dof_vel_substep"):
-        return electrical_power_w(term.torques_substep, term.dof_vel_substep, efficiency).mean(-1)
-    return electrical_power_w(term.torques, env.simulator.dof_vel, efficiency)
+        return cf.mechanical_power_w(term.torques_substep, term.dof_vel_substep, XP).mean(-1)
+    return cf.mechanical_power_w(term.torques, env.simulator.dof_vel, XP)
 
 
 def _progress_units_per_s(env: Any, params: dict[str, Any]) -> torch.Tensor:
@@ -81,7 +86,7 @@ def _progress_units_per_s(env: Any, params: dict[str, Any]) -> torch.Tensor:
         return torch.full((env.num_envs,), 1.0 / params["unit_duration_s"], device=env.device)
     v_xy = get_base_lin_vel(env)[:, :2]
     c_xy = env.command_manager.commands[:, :2]
-    return commanded_progress_m_per_s(v_xy, c_xy) / params["unit_length_m"]
+    return commanded_progress_m_per_s(v_xy, c_xy) / params["meter"]["leg_distance_m"]
 
 
 def compute_step_rates(env: Any, state: _OverlayState, params: dict[str, Any]) -> dict[str, torch.Tensor]:
@@ -96,22 +101,24 @@ def compute_step_rates(env: Any, state: _OverlayState, params: dict[str, Any]) -
     )
     return overlay_term_rates(
         progress_units_per_s=_progress_units_per_s(env, params),
-        power_w=_power_w(env, params["efficiency"]),
+        mechanical_w=_mechanical_w(env),
         fell=fell,
-        risk=tilt_risk(env.simulator.base_quat, math.cos(params["max_tilt_rad"])),
+        tilt_rad=base_tilt_rad(env.simulator.base_quat, XP),
         novelty=novelty,
-        dt_s=float(env.dt),
+        constants=meter_constants(params["meter"], float(env.dt)),
         episode_s=float(env.max_episode_length_s),
+        xp=XP,
     )
 
 
 class EconOverlayTerm(RewardTermBase):
     """One overlay key as a stateful Holosoma reward term (raw, unweighted value).
 
-    Params (``RewardTermCfg.params``): ``key`` (one of :data:`SUPPORTED_KEYS`),
-    ``unit_length_m`` (metres per unit of work), ``unit_duration_s`` (seconds per unit in
-    ``"time"`` mode), ``progress_mode`` (``"velocity"`` | ``"time"``), ``efficiency``
-    (drivetrain, 0-1), ``max_tilt_rad`` (tilt at which risk is 1), ``novelty_rate``.
+    Params (``RewardTermCfg.params``): ``key`` (one of :data:`SUPPORTED_KEYS`), ``meter`` (the
+    courier meter's constants, :func:`.plan.meter_settings`: ``leg_distance_m`` metres per unit of
+    work, ``drivetrain_efficiency``, ``idle_power_w``, ``tilt_margin_rad``, ``fall_tilt_rad``),
+    ``unit_duration_s`` (seconds per unit in ``"time"`` mode), ``progress_mode`` (``"velocity"`` |
+    ``"time"``), ``novelty_rate``.
     """
 
     def __init__(self, cfg: Any, env: Any) -> None:

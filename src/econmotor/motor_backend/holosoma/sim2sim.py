@@ -8,6 +8,9 @@ Per episode (seeded: ``seed + episode index``):
 - **the robot** starts at Holosoma's initial base position in its default pose (plus the
   datapack's initial joint perturbation); the floor is a plane named ``floor`` (the G1
   MJCF's foot contact pairs refer to it); the physics step is Holosoma's (``1 / fps``).
+- **collisions** as Holosoma's MuJoCo simulator models the robot (:func:`apply_collision_filter`):
+  with the preset's ``enable_self_collisions=False`` (the G1 and T1 walkers') the robot's colliders
+  touch the floor only, not each other.
 - **control**: the policy runs at its control rate (``decimation`` physics steps per
   action); a PD loop at the physics rate drives the actuators:
   ``tau = kp (default + action_scale * action - q) - kd qd``, clipped to the effort limits.
@@ -35,14 +38,14 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 
 from econmotor.economics import courier_formulas as cf
 from econmotor.motor_backend.couriers.physics import root_tilt_rad
-from econmotor.motor_backend.holosoma.econ_formulas import mechanical_from_electrical_w
+from econmotor.motor_backend.holosoma import econ_formulas
 from econmotor.motor_backend.holosoma.policy_import import PolicyContract, check_dof_names
 
 #: the base below this fraction of its initial height is a fall (the robot is on the ground)
@@ -71,7 +74,8 @@ class CourseSettings:
 
 @dataclass(frozen=True)
 class MeterSettings:
-    """The courier meter's constants (the task catalog's, with unit and source there)."""
+    """The courier meter's constants (the task catalog's, with unit and source there; the same
+    :func:`.plan.meter_settings` the training terms read)."""
 
     leg_distance_m: float
     drivetrain_efficiency: float
@@ -252,6 +256,7 @@ def build_robot(contract: PolicyContract) -> Robot:
     spec.option.timestep = contract.physics_dt_s
     if not any(g.name == "floor" for g in spec.geoms):
         spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 0.05])
+    apply_collision_filter(spec, contract.self_collisions)
     model = spec.compile()
     joints = [model.joint(j).name for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
     act_joint = {model.joint(int(model.actuator_trnid[a, 0])).name: a for a in range(model.nu)
@@ -263,6 +268,34 @@ def build_robot(contract: PolicyContract) -> Robot:
     return Robot(model, mujoco.MjData(model), _index(model.jnt_qposadr[jids]), _index(model.jnt_dofadr[jids]),
                  _index(np.array([act_joint[n] for n in contract.dof_names])), torso, float(model.body_mass[torso]),
                  floor, model.pair_friction.copy(), model.geom_friction[floor].copy())
+
+
+#: MuJoCo collision bits of Holosoma's scene manager: robot geoms are class 1, the floor and terrain class 2
+ROBOT_CONTYPE, ENVIRONMENT_CONTYPE = 1, 2
+
+
+def apply_collision_filter(spec: Any, self_collisions: bool) -> int:
+    """Holosoma's collision classes on an ``MjSpec`` (its MuJoCo scene manager's ``_configure_robot_collisions``).
+
+    Every geom of a named robot body that collides by MuJoCo's default (``contype = conaffinity = 1``) gets
+    ``conaffinity`` 3 (robot and environment) with self-collisions, 2 (environment only) without; the floor
+    gets ``contype`` 2, ``conaffinity`` 1. Two geoms touch when ``contype_a & conaffinity_b`` or
+    ``contype_b & conaffinity_a``: the robot always touches the floor, and itself only with self-collisions.
+    The MJCF's explicit ``<pair>`` contacts (the G1's feet on the floor) are kept. Returns the geoms set.
+    """
+    robot_conaffinity = ROBOT_CONTYPE | ENVIRONMENT_CONTYPE if self_collisions else ENVIRONMENT_CONTYPE
+    changed = 0
+    for body in spec.bodies:
+        if not body.name or body.name == spec.worldbody.name:
+            continue
+        for geom in body.geoms:
+            if geom.contype == ROBOT_CONTYPE and geom.conaffinity == ROBOT_CONTYPE:
+                geom.conaffinity = robot_conaffinity
+                changed += 1
+    for geom in spec.worldbody.geoms:
+        if geom.name == "floor":
+            geom.contype, geom.conaffinity = ENVIRONMENT_CONTYPE, ROBOT_CONTYPE
+    return changed
 
 
 def _index(indices: np.ndarray) -> np.ndarray | slice:
@@ -321,8 +354,7 @@ def reset_robot(robot: Robot, contract: PolicyContract, stress: Stress, rng: np.
 
 def meter_constants(meter: MeterSettings, physics_dt_s: float) -> cf.MeterConstants:
     """The shared meter's constants, metering every physics step (``dt_s`` = the physics step)."""
-    return cf.MeterConstants(meter.leg_distance_m, meter.drivetrain_efficiency, meter.idle_power_w, physics_dt_s,
-                             meter.tilt_margin_rad, meter.fall_tilt_rad)
+    return econ_formulas.meter_constants(asdict(meter), physics_dt_s)
 
 
 def step_reading(qpos: np.ndarray, qfrc: np.ndarray, qvel: np.ndarray, fall_tilt_rad: float,
@@ -417,7 +449,7 @@ def run_episode(robot: Robot, contract: PolicyContract, policy: Callable[[np.nda
         "commanded_speed_m_per_s": min(course.speed_m_per_s, controller.vx_max),
         "achieved_speed_m_per_s": walk_m / walk_s if walk_s > 0 else 0.0, "walking_s": walk_s,
         "max_lateral_m": max_lateral, "mean_power_w": power_w,
-        "mean_mech_power_w": mechanical_from_electrical_w(power_w, meter.drivetrain_efficiency, meter.idle_power_w),
+        "mean_mech_power_w": cf.mechanical_from_electrical_w(power_w, meter.drivetrain_efficiency, meter.idle_power_w),
         "pushes": float(pushes), **{f"stress_{k}": v for k, v in draws.items()},
     }
 
