@@ -33,6 +33,7 @@ from econmotor.motor_backend.holosoma.jobs import holosoma_error_text
 from econmotor.motor_backend.holosoma.plan import Capabilities, choose_simulator, meter_settings, plan_training
 from econmotor.motor_backend.holosoma.protocol import PREFIX, parse_line
 from econmotor.motor_backend.holosoma.recording_metrics import episodes_from_recording
+from econmotor.robots import card
 from econmotor.tasks import get_task
 
 REPO = Path(__file__).resolve().parents[2]
@@ -148,12 +149,14 @@ def test_meter_settings_come_from_the_catalog_entry_and_name_a_missing_key() -> 
     meter = meter_settings(spec.task_id, entry, spec.source)
     assert meter == {"leg_distance_m": entry["unit_length_m"], "drivetrain_efficiency": entry["drivetrain_efficiency"],
                      "idle_power_w": entry["idle_power_w"], "tilt_margin_rad": entry["tilt_margin_rad"],
-                     "fall_tilt_rad": entry["max_tilt_rad"]}
+                     "fall_tilt_rad": card(entry["robot"]).fall_tilt_rad}  # the fall rule is the robot card's
     without_idle = {k: v for k, v in entry.items() if k != "idle_power_w"}
     with pytest.raises(ConfigError, match=r"holosoma.yaml.*backends\.holosoma\.idle_power_w.*courier meter"):
         meter_settings(spec.task_id, without_idle, spec.source)
-    with pytest.raises(ConfigError, match="max_tilt_rad > tilt_margin_rad"):
+    with pytest.raises(ConfigError, match=r"tilt_margin_rad.*fall tilt of robot card g1_29dof"):
         meter_settings(spec.task_id, {**entry, "tilt_margin_rad": 0.9}, spec.source)
+    with pytest.raises(ConfigError, match=r"unknown robot 'g9'.*g1_29dof"):
+        meter_settings(spec.task_id, {**entry, "robot": "g9"}, spec.source)
 
 
 def _recording(path: Path, steps: int, fall_at: int) -> None:

@@ -19,8 +19,9 @@ import pytest
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.holosoma.backend import HolosomaBackend, find_holosoma_python
 from econmotor.motor_backend.holosoma.jobs import job_environment
-from econmotor.motor_backend.holosoma.policy_import import PolicyContract, check_dof_names, check_obs_size
+from econmotor.motor_backend.holosoma.policy_import import PolicyContract, check_obs_size, robot_card_for
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
+from econmotor.robots import card
 
 pytestmark = [pytest.mark.holosoma]
 REPO = Path(__file__).resolve().parents[2]
@@ -78,9 +79,9 @@ for name in sys.argv[1:]:
     mech = cf.mechanical_power_w(np.array([r["qfrc"] for r in record]), np.array([r["qvel"] for r in record]), np)
     risk = cf.tilt_risk(root_tilt_rad(qpos.T, True, np), meter.tilt_margin_rad, meter.fall_tilt_rad, np)
     energy = cf.electrical_energy_wh(mech, meter.drivetrain_efficiency, meter.idle_power_w, c.physics_dt_s)
-    units = (np.max(qpos[:, 0]) - c.init_pos[0]) / meter.leg_distance_m
+    units = (np.max(qpos[:, 0]) - c.card.init_pos[0]) / meter.leg_distance_m
     out[name] = {"steps": len(diffs), "max_abs_diff": max(diffs), "obs_dim": c.obs_dim,
-                 "self_collisions": c.self_collisions, "colliders": len(colliders), "self_pairs": self_pairs,
+                 "self_collisions": c.card.self_collisions, "colliders": len(colliders), "self_pairs": self_pairs,
                  "episode": ep, "replayed": {"units_completed": float(max(units, 0.0)),
                  "energy_wh": float(np.sum(energy)), "risk_score": float(np.mean(risk)),
                  "episode_length_s": len(record) * c.physics_dt_s}}
@@ -146,31 +147,32 @@ def test_robot_collides_as_holosomas_simulator_models_it(checks: dict) -> None:
 
 
 def _contract(**changes) -> PolicyContract:
-    terms = ("actions", "dof_pos")
-    base = PolicyContract(
-        policy="p.onnx", onnx_path="/x/p.onnx", input_name="actor_obs", obs_dim=4, action_dim=2,
-        dof_names=("a", "b"), kp=(1.0, 1.0), kd=(0.1, 0.1), default_dof_angles=(0.0, 0.0), effort_limits=(5.0, 5.0),
-        action_scale=0.25, action_clip=100.0, command_ranges={}, obs_terms=terms, obs_dims={"actions": 2, "dof_pos": 2},
-        obs_scales={"actions": 1.0, "dof_pos": 1.0}, history_length=1, use_phase=True, gait_period_s=1.0,
-        control_rate_hz=50.0, physics_dt_s=0.005, decimation=4, init_pos=(0.0, 0.0, 0.8), xml_path="/x/r.xml",
-        torso_body="torso", inference_preset="preset-loco", experiment="exp")
+    g1 = card("g1_29dof")
+    base = PolicyContract(policy="p.onnx", onnx_path="/x/p.onnx", input_name="actor_obs", obs_dim=g1.obs_dim,
+                          action_dim=g1.num_dofs, dof_names=g1.dof_names, kp=g1.kp, kd=g1.kd, command_ranges={},
+                          card=g1)
     return replace(base, **changes)
 
 
 def test_wrong_observation_size_names_both_sides() -> None:
     check_obs_size(_contract(), "p.onnx")
     with pytest.raises(ConfigError) as info:
-        check_obs_size(_contract(obs_dim=100), "p.onnx")
+        check_obs_size(_contract(obs_dim=50), "p.onnx")
     text = str(info.value)
-    assert "takes 100 observations" in text and "'preset-loco' builds 4" in text and "actions 2 + dof_pos 2" in text
+    width = card("g1_29dof").obs_dim
+    assert "takes 50 observations" in text and f"robot card 'g1_29dof' builds {width}" in text
+    assert "actions 29 + base_ang_vel 3" in text
+    with pytest.raises(ConfigError, match="outputs 12 actions for 29 dof_names"):
+        check_obs_size(_contract(action_dim=12), "p.onnx")
 
 
-def test_dof_name_mismatch_names_both_sides() -> None:
-    check_dof_names(["a", "b"], ["a", "b", "c"], ["a", "b"], "robot.xml", "p.onnx")
+def test_joints_of_a_card_in_another_order_name_both_sides() -> None:
+    names = card("t1_29dof").dof_names
+    assert robot_card_for(names, "p.onnx") is card("t1_29dof")
     with pytest.raises(ConfigError) as info:
-        check_dof_names(["a", "knee"], ["a", "b"], ["a", "b"], "robot.xml", "p.onnx")
+        robot_card_for((names[1], names[0], *names[2:]), "p.onnx")
     text = str(info.value)
-    assert "['knee']" in text and "robot.xml" in text and "['a', 'b']" in text
+    assert "p.onnx" in text and "robot card 't1_29dof' in another order" in text and names[0] in text
 
 
 def evaluation_error(backend: HolosomaBackend, python: Path, script: str, onnx_file: Path) -> str:
@@ -192,7 +194,7 @@ def test_onnx_whose_joints_fit_no_robot_is_a_clear_error(backend: HolosomaBacken
               "    if p.key == 'dof_names': p.value = json.dumps(['knee_x'] + json.loads(p.value)[1:])\n"
               "onnx.save(m, sys.argv[1])\n")
     text = evaluation_error(backend, python, script, onnx_file)
-    assert "knee_x" in text and "g1-29dof-loco" in text
+    assert "knee_x" in text and "no robot card has" in text and "g1_29dof (29 joints" in text
 
 
 def test_report_prices_an_imported_policy_without_training(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -235,7 +237,7 @@ def test_compare_ranks_policies_on_the_same_seeds(tmp_path: Path, monkeypatch: p
 
 def test_onnx_with_the_wrong_observation_width_is_a_clear_error(backend: HolosomaBackend, python: Path,
                                                                   tmp_path: Path) -> None:
-    """A policy taking 50 observations with G1's metadata: the error names its width and the preset's 100."""
+    """A policy taking 50 observations with G1's metadata: the error names its width and the card's 100."""
     onnx_file = tmp_path / "narrow.onnx"
     script = ("import sys, onnx\nfrom onnx import TensorProto, helper\n"
               "from econmotor.motor_backend.holosoma.policy_import import shipped_policy_path\n"
@@ -249,4 +251,4 @@ def test_onnx_with_the_wrong_observation_width_is_a_clear_error(backend: Holosom
               "model.metadata_props.extend(shipped.metadata_props)\n"
               "onnx.save(model, sys.argv[1])\n")
     text = evaluation_error(backend, python, script, onnx_file)
-    assert "takes 50 observations" in text and "'g1-29dof-loco' builds 100" in text
+    assert "takes 50 observations" in text and "robot card 'g1_29dof' builds 100" in text

@@ -85,5 +85,5 @@ CARD = RobotCard(
     sources={"robot": "holosoma 0.0.3 config_values/robot.py t1_29dof_waist_wrist",
              "simulator": "holosoma 0.0.3 config_values/loco/t1/experiment.py t1_29dof",
              "observation": "holosoma_inference 0.1.3 preset t1-29dof-loco",
-             "fall rule": "econmotor's sim-to-sim evaluator (tasks/holosoma.yaml max_tilt_rad; assumption)"},
+             "fall rule": "assumption: econmotor's sim-to-sim evaluator and meter (risk 1 at fall_tilt_rad)"},
 )

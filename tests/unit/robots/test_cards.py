@@ -18,7 +18,6 @@ import numpy as np
 import pytest
 
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.holosoma.policy_import import PolicyContract
 from econmotor.motor_backend.holosoma.sim2sim import ObservationBuilder
 from econmotor.robots import CARDS, card
 from econmotor.robots.model import FLOOR, joint_indices, load_model, mjcf_path
@@ -71,24 +70,10 @@ def test_unknown_robot_and_missing_package_are_clear_errors() -> None:
         mjcf_path(replace(card("g1_29dof"), mjcf_package="no_such_robot_package"))
 
 
-def contract_of(c) -> PolicyContract:
-    """The sim-to-sim evaluator's contract with the card's facts (its observation builder reads these)."""
-    conv = c.observation
-    return PolicyContract(
-        policy=c.name, onnx_path="", input_name="actor_obs", obs_dim=c.obs_dim, action_dim=c.num_dofs,
-        dof_names=c.dof_names, kp=c.kp, kd=c.kd, default_dof_angles=c.default_dof_angles,
-        effort_limits=c.effort_limits, action_scale=c.action_scale, action_clip=c.action_clip,
-        command_ranges={k: list(v) for k, v in c.command_ranges.items()}, obs_terms=conv.terms,
-        obs_dims=dict(conv.dims), obs_scales=dict(conv.scales), history_length=conv.history_length,
-        use_phase=conv.use_phase, gait_period_s=conv.gait_period_s, control_rate_hz=c.control_rate_hz,
-        physics_dt_s=c.physics_dt_s, decimation=c.decimation, init_pos=c.init_pos, xml_path=str(mjcf_path(c)),
-        torso_body=c.torso_body, inference_preset=c.inference_preset, experiment=c.holosoma_experiment)
-
-
 @pytest.mark.parametrize("name", NAMES)
 def test_observation_in_numpy_and_jax_equals_the_evaluators(name: str) -> None:
     c = card(name)
-    builder = ObservationBuilder(contract_of(c))
+    builder = ObservationBuilder(c)
     rng = np.random.default_rng(3)
     jit_obs = jax.jit(lambda **s: build_observation(c, jnp, **s))
     jit_phase = jax.jit(lambda p, st, v, w: advance_phase(p, st, v, w, c, jnp))

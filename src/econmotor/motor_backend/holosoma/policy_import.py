@@ -1,21 +1,19 @@
-"""Importing a locomotion policy trained elsewhere: the contract between an ONNX file and MuJoCo.
+"""Importing a locomotion policy trained elsewhere: the contract between an ONNX file and its robot's card.
 
 A policy is named by an ONNX file in Holosoma's export format (metadata ``dof_names``,
 ``kp``, ``kd``, ``command_ranges``) or by a shipped policy, ``holosoma:<robot>/<algo>``
 (``holosoma:g1_29dof/ppo``, ``holosoma:t1_29dof/fastsac``, ...: the ONNX files under
-``holosoma_inference/models/loco/``). :func:`resolve_contract` reads, in this order:
+``holosoma_inference/models/loco/``). :func:`resolve_contract` reads:
 
-1. the ONNX metadata: joint order, PD gains, command ranges, input name and width;
-2. holosoma_inference's inference preset whose robot has those joints: observation terms,
-   dimensions, scales, history length, the (sorted) order the terms are concatenated in,
-   gait phase (``use_phase``, ``gait_period``), control rate, default pose, action scale;
-3. Holosoma's experiment preset for that robot: the MJCF, effort limits, initial base
-   height, torso body, physics rate and decimation, and whether its simulator lets the robot
-   collide with itself (``enable_self_collisions``).
+1. the ONNX: joint order, PD gains and command ranges (an imported policy declares its gains),
+   input name and width;
+2. the robot card whose joints those are, in that order (:mod:`econmotor.robots`): the MJCF,
+   default pose, action scale and clip, effort limits, torso, fall rule, collision filter, physics
+   rate and decimation, and the observation convention (terms, scales, order, gait phase).
 
-Nothing is copied: every number comes from the installed packages. Name parsing
-(:func:`parse_policy_name`, :func:`is_imported_policy`) imports nothing and runs in the
-main interpreter; :func:`resolve_contract` runs in .venv-holosoma.
+Name parsing (:func:`parse_policy_name`, :func:`is_imported_policy`) imports nothing and runs in
+the main interpreter; :func:`resolve_contract` runs in either (a shipped name needs
+holosoma_inference's files: .venv-holosoma).
 """
 
 from __future__ import annotations
@@ -23,11 +21,12 @@ from __future__ import annotations
 import json
 import re
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from econmotor.errors import ConfigError
+from econmotor.robots import CARDS, RobotCard
 
 #: ``holosoma:<robot>/<algo>`` (the shipped locomotion policies)
 NAME_PREFIX = "holosoma:"
@@ -53,17 +52,15 @@ def parse_policy_name(name: str) -> tuple[str, str]:
 
 def model_text(contract: dict[str, Any]) -> str:
     """How the evaluator models the robot, in words, from a contract's dict (:meth:`PolicyContract.to_dict`)."""
-    collisions = "self-collisions on" if contract.get("self_collisions", True) else \
+    collisions = "self-collisions on" if contract["self_collisions"] else \
         "self-collisions off, colliders touching the floor only"
-    return f"the robot as Holosoma's simulator models it: {collisions} (preset {contract['experiment']})"
+    return f"robot card {contract['robot']}, as Holosoma's simulator models it: {collisions}"
 
 
 @dataclass(frozen=True)
 class PolicyContract:
-    """Everything the sim-to-sim evaluator needs to run one imported policy (see the module docstring).
-
-    Joint-indexed tuples follow ``dof_names`` (the ONNX order). ``obs_terms`` is the
-    concatenation order (holosoma_inference sorts a group's term names).
+    """One imported policy on its robot (see the module docstring): what the ONNX declares, and the
+    robot card its joints name. Joint-indexed tuples follow ``dof_names`` (the ONNX's and the card's order).
     """
 
     policy: str
@@ -74,33 +71,36 @@ class PolicyContract:
     dof_names: tuple[str, ...]
     kp: tuple[float, ...]
     kd: tuple[float, ...]
-    default_dof_angles: tuple[float, ...]
-    effort_limits: tuple[float, ...]
-    action_scale: float
-    action_clip: float
     command_ranges: dict[str, list[float]]
-    obs_terms: tuple[str, ...]
-    obs_dims: dict[str, int]
-    obs_scales: dict[str, float]
-    history_length: int
-    use_phase: bool
-    gait_period_s: float
-    control_rate_hz: float
-    physics_dt_s: float
-    decimation: int
-    init_pos: tuple[float, float, float]
-    xml_path: str
-    torso_body: str
-    inference_preset: str
-    experiment: str
-    self_collisions: bool = True  # Holosoma's enable_self_collisions (False for the G1 and T1 walkers)
+    card: RobotCard
 
     @property
-    def control_dt_s(self) -> float:
-        return self.physics_dt_s * self.decimation
+    def physics_dt_s(self) -> float:
+        return self.card.physics_dt_s
+
+    @property
+    def control_rate_hz(self) -> float:
+        return self.card.control_rate_hz
+
+    @property
+    def experiment(self) -> str:
+        """Holosoma's experiment preset of the robot (its PPO locomotion recipe)."""
+        return self.card.holosoma_experiment
+
+    @property
+    def inference_preset(self) -> str:
+        """holosoma_inference's preset of the robot (the observation convention's source)."""
+        return self.card.inference_preset
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        """The policy's own fields, the card's name and what the evaluator models from it (for the report)."""
+        c = self.card
+        return {"policy": self.policy, "onnx_path": self.onnx_path, "input_name": self.input_name,
+                "obs_dim": self.obs_dim, "action_dim": self.action_dim, "dof_names": list(self.dof_names),
+                "kp": list(self.kp), "kd": list(self.kd), "command_ranges": self.command_ranges, "robot": c.name,
+                "experiment": c.holosoma_experiment, "inference_preset": c.inference_preset,
+                "physics_dt_s": c.physics_dt_s, "decimation": c.decimation, "self_collisions": c.self_collisions,
+                "fall_tilt_rad": c.fall_tilt_rad, "min_base_z_m": c.min_base_z_m}
 
 
 def shipped_policy_path(name: str) -> Path:
@@ -130,44 +130,18 @@ def onnx_metadata(path: str | Path) -> dict[str, Any]:
     return out
 
 
-def _inference_preset(dof_names: Sequence[str], source: str) -> tuple[str, Any]:
-    """The holosoma_inference locomotion preset whose robot has exactly these joints, in this order."""
-    from holosoma_inference.config.config_values.inference import INFERENCE_REGISTRY
-
-    candidates = {k: v for k, v in INFERENCE_REGISTRY.items() if v.task.use_phase}  # locomotion presets
-    for key, cfg in candidates.items():
-        if tuple(cfg.robot.dof_names) == tuple(dof_names):
-            return key, cfg
-    for key, cfg in candidates.items():  # same joints, another order: say so
-        if sorted(cfg.robot.dof_names) == sorted(dof_names):
-            raise ConfigError(source, "dof_names", f"the joints of preset '{key}' in another order "
-                              f"(policy: {list(dof_names)}; preset: {list(cfg.robot.dof_names)})")
-    raise ConfigError(source, "dof_names", f"no holosoma_inference locomotion preset has the policy's "
-                      f"{len(dof_names)} joints {list(dof_names)[:4]}...",
-                      [f"{k} ({len(v.robot.dof_names)} joints: {', '.join(v.robot.dof_names[:2])}, ...)"
-                       for k, v in candidates.items()])
-
-
-def _experiment(robot_type: str, dof_names: Sequence[str], source: str) -> tuple[str, Any]:
-    """Holosoma's (PPO) locomotion experiment for ``robot_type``: robot config and simulator rates."""
-    from holosoma.config_values.experiment import EXPERIMENT_REGISTRY
-
-    names = sorted(EXPERIMENT_REGISTRY.keys(), key=len)  # "g1_29dof" before "g1_29dof_fast_sac"
-    for name in names:
-        cfg = EXPERIMENT_REGISTRY[name]
-        if cfg.robot.asset.robot_type == robot_type and sorted(cfg.robot.dof_names) == sorted(dof_names):
-            return name, cfg
-    raise ConfigError(source, "dof_names", f"no Holosoma experiment preset for robot '{robot_type}'",
-                      sorted({EXPERIMENT_REGISTRY[n].robot.asset.robot_type for n in names}))
-
-
-def _resolve_asset(root: str, relative: str) -> Path:
-    if root.startswith("@"):
-        import importlib
-
-        package, _, rest = root[1:].partition("/")
-        root = str(Path(importlib.import_module(package).__file__).parent / rest)
-    return Path(root) / relative
+def robot_card_for(dof_names: Sequence[str], source: str) -> RobotCard:
+    """The robot card whose joints are exactly ``dof_names``, in this order; else a ConfigError naming both sides."""
+    for c in CARDS.values():
+        if tuple(c.dof_names) == tuple(dof_names):
+            return c
+    for c in CARDS.values():  # same joints, another order: say so
+        if sorted(c.dof_names) == sorted(dof_names):
+            raise ConfigError(source, "dof_names", f"the joints of robot card '{c.name}' in another order "
+                              f"(policy: {list(dof_names)}; card: {list(c.dof_names)})")
+    raise ConfigError(source, "dof_names", f"no robot card has the policy's {len(dof_names)} joints "
+                      f"{list(dof_names)[:4]}...",
+                      [f"{c.name} ({c.num_dofs} joints: {', '.join(c.dof_names[:2])}, ...)" for c in CARDS.values()])
 
 
 def resolve_contract(policy: str) -> PolicyContract:
@@ -186,62 +160,26 @@ def resolve_contract(policy: str) -> PolicyContract:
     for key in ("kp", "kd"):
         if len(meta[key]) != len(dof_names):
             raise ConfigError(source, key, f"{len(meta[key])} gains for {len(dof_names)} dof_names")
-    preset_name, preset = _inference_preset(dof_names, source)
-    experiment_name, experiment = _experiment(preset.robot.robot_type, dof_names, source)
-    robot = experiment.robot
-    by_name = dict(zip(robot.dof_names, robot.dof_effort_limit_list, strict=True))
-    obs = preset.observation
-    group = "actor_obs"
-    terms = tuple(sorted(obs.obs_dict[group]))  # holosoma_inference concatenates a group's terms sorted
-    sim = experiment.simulator.config.sim
+    card = robot_card_for(dof_names, source)
     session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     inp, out = session.get_inputs()[0], session.get_outputs()[0]
     contract = PolicyContract(
         policy=policy, onnx_path=str(path.resolve()), input_name=inp.name,
         obs_dim=int(inp.shape[-1]), action_dim=int(out.shape[-1]), dof_names=dof_names,
         kp=tuple(float(v) for v in meta["kp"]), kd=tuple(float(v) for v in meta["kd"]),
-        default_dof_angles=tuple(float(v) for v in preset.robot.default_dof_angles),
-        effort_limits=tuple(float(by_name[n]) for n in dof_names),
-        action_scale=float(preset.task.policy_action_scale),
-        action_clip=float(robot.control.action_clip_value),
-        command_ranges={k: list(v) for k, v in (meta.get("command_ranges") or {}).items()},
-        obs_terms=terms, obs_dims={t: int(obs.obs_dims[t]) for t in terms},
-        obs_scales={t: float(obs.obs_scales[t]) for t in terms},
-        history_length=int(obs.history_length_dict.get(group, 1)),
-        use_phase=bool(preset.task.use_phase), gait_period_s=float(preset.task.gait_period),
-        control_rate_hz=float(preset.task.rl_rate), physics_dt_s=1.0 / float(sim.fps),
-        decimation=int(sim.control_decimation_steps),
-        init_pos=tuple(float(v) for v in robot.init_state.pos),
-        xml_path=str(_resolve_asset(robot.asset.asset_root, robot.asset.xml_file)),
-        torso_body=str(robot.torso_name), inference_preset=preset_name, experiment=experiment_name,
-        self_collisions=bool(robot.asset.enable_self_collisions))
+        command_ranges={k: list(v) for k, v in (meta.get("command_ranges") or {}).items()}, card=card)
     check_obs_size(contract, source)
-    if abs(contract.control_dt_s * contract.control_rate_hz - 1.0) > 1e-6:
-        raise ConfigError(source, "rl_rate", f"holosoma_inference runs the policy at {contract.control_rate_hz} Hz "
-                          f"but Holosoma trained it at {1 / contract.control_dt_s:g} Hz "
-                          f"({sim.fps} Hz physics / {sim.control_decimation_steps})")
     return contract
 
 
 def check_obs_size(contract: PolicyContract, source: str) -> None:
-    """The preset's observation width must equal the ONNX input's; else a ConfigError naming both."""
-    width = sum(contract.obs_dims[t] for t in contract.obs_terms) * contract.history_length
-    if width != contract.obs_dim:
-        parts = " + ".join(f"{t} {contract.obs_dims[t]}" for t in contract.obs_terms)
+    """The card's observation width must equal the ONNX input's; else a ConfigError naming both."""
+    conv = contract.card.observation
+    if conv.obs_dim != contract.obs_dim:
+        parts = " + ".join(f"{t} {conv.dims[t]}" for t in conv.terms)
         raise ConfigError(source, f"input '{contract.input_name}'",
-                          f"the ONNX policy takes {contract.obs_dim} observations but preset "
-                          f"'{contract.inference_preset}' builds {width} ({parts}; history {contract.history_length})")
+                          f"the ONNX policy takes {contract.obs_dim} observations but robot card "
+                          f"'{contract.card.name}' builds {conv.obs_dim} ({parts}; history {conv.history_length})")
     if contract.action_dim != len(contract.dof_names):
         raise ConfigError(source, "dof_names", f"the ONNX policy outputs {contract.action_dim} actions for "
                           f"{len(contract.dof_names)} dof_names")
-
-
-def check_dof_names(dof_names: Sequence[str], joints: Sequence[str], actuators: Sequence[str], model: str,
-                    source: str) -> None:
-    """Every policy joint must be a hinge joint and an actuator of the MuJoCo model; else a ConfigError
-    naming the policy's missing joints and the model's joints (both sides)."""
-    for kind, names in (("joints", joints), ("actuators", actuators)):
-        missing = [n for n in dof_names if n not in names]
-        if missing:
-            raise ConfigError(source, "dof_names", f"policy joints {missing} are not {kind} of the MuJoCo model "
-                              f"{model} (policy: {len(dof_names)} dof_names; model {kind}: {list(names)})")

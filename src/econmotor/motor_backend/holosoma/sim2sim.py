@@ -5,18 +5,17 @@ from, :mod:`.policy_import`); the main interpreter reaches it through a ``sim2si
 
 Per episode (seeded: ``seed + episode index``):
 
-- **the robot** starts at Holosoma's initial base position in its default pose (plus the
-  datapack's initial joint perturbation); the floor is a plane named ``floor`` (the G1
-  MJCF's foot contact pairs refer to it); the physics step is Holosoma's (``1 / fps``).
-- **collisions** as Holosoma's MuJoCo simulator models the robot (:func:`apply_collision_filter`):
-  with the preset's ``enable_self_collisions=False`` (the G1 and T1 walkers') the robot's colliders
-  touch the floor only, not each other.
+- **the robot** is its card's (:mod:`econmotor.robots`, the contract's ``card``): the model of
+  :func:`econmotor.robots.model.model_spec` (the maker's MJCF, a plane named ``floor``, the physics
+  step, and collisions as Holosoma's MuJoCo simulator models them: with ``self_collisions`` False,
+  the G1's and T1's, the robot's colliders touch the floor only, not each other); it starts at the
+  card's initial base position in its default pose (plus the initial joint perturbation).
 - **control**: the policy runs at its control rate (``decimation`` physics steps per
   action); a PD loop at the physics rate drives the actuators:
   ``tau = kp (default + action_scale * action - q) - kd qd``, clipped to the effort limits.
-- **observation**: :class:`ObservationBuilder`, holosoma_inference's contract (terms, scales,
-  sorted order, history, gait phase); equal to holosoma_inference's own code
-  (tests/integration/test_holosoma_sim2sim.py).
+- **observation**: :class:`ObservationBuilder`, the card's convention built by
+  :mod:`econmotor.robots.observation` (the function the JAX trainer calls too); equal to
+  holosoma_inference's own code (tests/integration/test_holosoma_sim2sim.py).
 - **the course** (:class:`CourseController`): a corridor along +x of ``legs`` legs of
   ``leg_m`` metres (the episode ends after the last leg's dwell, or at its time limit); on each leg
   the controller commands the course speed and a yaw rate that
@@ -29,8 +28,8 @@ Per episode (seeded: ``seed + episode index``):
 - **metering**: each physics step goes through the couriers' shared formula
   :func:`econmotor.economics.courier_formulas.meter_step` (units on the forward high-water mark
   of x along the course, electrical energy ``sum |qfrc_actuator qvel| / efficiency + idle``,
-  tilt risk, falls). A fall (tilt past ``fall_tilt_rad`` or the base below
-  :data:`FALL_HEIGHT_FRACTION` of its initial height) ends the episode with one error.
+  tilt risk, falls). A fall, the card's rule (tilt past ``fall_tilt_rad`` or the base below
+  ``min_base_z_m``), ends the episode with one error.
 """
 
 from __future__ import annotations
@@ -46,12 +45,10 @@ import numpy as np
 from econmotor.economics import courier_formulas as cf
 from econmotor.motor_backend.couriers.physics import root_tilt_rad
 from econmotor.motor_backend.holosoma import econ_formulas
-from econmotor.motor_backend.holosoma.policy_import import PolicyContract, check_dof_names
-
-#: the base below this fraction of its initial height is a fall (the robot is on the ground)
-FALL_HEIGHT_FRACTION = 0.5
-#: commands below this (m/s, rad/s) are "stand" for holosoma_inference's gait phase
-_STAND_EPS = 0.01
+from econmotor.motor_backend.holosoma.policy_import import PolicyContract
+from econmotor.robots import RobotCard
+from econmotor.robots import observation as robot_obs
+from econmotor.robots.model import FLOOR, joint_indices, model_spec
 
 
 @dataclass(frozen=True)
@@ -74,8 +71,8 @@ class CourseSettings:
 
 @dataclass(frozen=True)
 class MeterSettings:
-    """The courier meter's constants (the task catalog's, with unit and source there; the same
-    :func:`.plan.meter_settings` the training terms read)."""
+    """The courier meter's constants (:func:`.plan.meter_settings`, the ones the training terms read: the task
+    catalog's, with unit and source there, and the robot card's fall tilt)."""
 
     leg_distance_m: float
     drivetrain_efficiency: float
@@ -130,65 +127,30 @@ class Stress:
 
 
 class ObservationBuilder:
-    """The policy's observation, built the way holosoma_inference builds it (its contract, not its code).
+    """The policy's observation, one control step at a time: the card's convention
+    (:func:`econmotor.robots.observation.build_observation`: holosoma_inference's terms, scales, sorted
+    order and gait phase) over the episode's state (the gait clock, the last clipped action)."""
 
-    Terms (holosoma_inference's ``get_current_obs_buffer_dict``): ``base_ang_vel`` (body frame),
-    ``projected_gravity`` (gravity in the body frame), ``command_lin_vel`` (vx, vy),
-    ``command_ang_vel`` (yaw rate), ``dof_pos`` minus the default pose, ``dof_vel``, ``actions``
-    (the last clipped policy output), ``sin_phase`` / ``cos_phase`` of the two feet's gait
-    phases; each times its scale, concatenated in the contract's (sorted) order, each term's
-    ``history_length`` frames oldest first (zeros before the first).
-    """
-
-    def __init__(self, contract: PolicyContract) -> None:
-        self.c = contract
-        self.default = np.asarray(contract.default_dof_angles, dtype=np.float64)
-        self.phase_dt = 2.0 * math.pi / (contract.control_rate_hz * contract.gait_period_s)
+    def __init__(self, card: RobotCard) -> None:
+        self.card = card
         self.reset()
 
     def reset(self) -> None:
-        """Episode start: zero history, phases (0, pi) for the two feet, no previous action."""
-        self.history: dict[str, list[np.ndarray]] = {t: [] for t in self.c.obs_terms}
-        self.phase = np.array([0.0, math.pi])
+        """Episode start: phases (0, pi) for the two feet, no previous action."""
+        self.phase = robot_obs.initial_phase(np)
         self.standing = False
-        self.last_action = np.zeros(len(self.c.dof_names), dtype=np.float32)
+        self.last_action = np.zeros(self.card.num_dofs, dtype=np.float32)
 
     def advance_phase(self, lin_vel: np.ndarray, ang_vel: float) -> None:
-        """One control step of the gait clock; both feet at pi while the command is "stand"."""
-        self.phase = np.fmod(self.phase + self.phase_dt + math.pi, 2.0 * math.pi) - math.pi
-        if np.linalg.norm(lin_vel) < _STAND_EPS and abs(ang_vel) < _STAND_EPS:
-            self.phase = np.full(2, math.pi)
-            self.standing = True
-        elif self.standing:
-            self.phase = np.array([0.0, math.pi])
-            self.standing = False
-
-    def terms(self, quat_wxyz: np.ndarray, ang_vel_body: np.ndarray, q: np.ndarray, qd: np.ndarray,
-              lin_vel_cmd: np.ndarray, ang_vel_cmd: float) -> dict[str, np.ndarray]:
-        """Unscaled terms of the current state (``q``, ``qd`` in the policy's joint order)."""
-        w, x, y, z = (float(v) for v in quat_wxyz)
-        # third row of the body-to-world rotation matrix = world z axis in the body frame
-        gravity = -np.array([2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)])
-        return {"base_ang_vel": np.asarray(ang_vel_body, dtype=np.float64), "projected_gravity": gravity,
-                "command_lin_vel": np.asarray(lin_vel_cmd, dtype=np.float64),
-                "command_ang_vel": np.array([ang_vel_cmd]), "dof_pos": q - self.default, "dof_vel": qd,
-                "actions": self.last_action.astype(np.float64), "sin_phase": np.sin(self.phase),
-                "cos_phase": np.cos(self.phase), "command_stand": np.array([0.0 if self.standing else 1.0])}
+        """One control step of the gait clock (:func:`econmotor.robots.observation.advance_phase`)."""
+        phase, standing = robot_obs.advance_phase(self.phase, self.standing, lin_vel, ang_vel, self.card, np)
+        self.phase, self.standing = phase, bool(standing)
 
     def build(self, **state: Any) -> np.ndarray:
-        """The observation row ``[1, obs_dim]`` (float32) of a state (arguments of :meth:`terms`)."""
-        current = self.terms(**state)
-        parts = []
-        n = self.c.history_length
-        for term in self.c.obs_terms:
-            frame = (current[term] * self.c.obs_scales[term]).astype(np.float32)
-            buf = self.history[term]
-            buf.append(frame)
-            del buf[:-n]
-            if len(buf) < n:  # before the history fills: zeros for the frames not seen yet
-                parts.extend([np.zeros_like(frame)] * (n - len(buf)))
-            parts.extend(buf)
-        return np.concatenate(parts)[None, :]
+        """The observation row ``[1, obs_dim]`` (float32) of a state (``quat_wxyz``, ``ang_vel_body``, ``q``,
+        ``qd`` in the card's joint order, ``lin_vel_cmd``, ``ang_vel_cmd``)."""
+        return robot_obs.build_observation(self.card, np, last_action=self.last_action, phase=self.phase,
+                                           **state)[None, :]
 
 
 class CourseController:
@@ -249,53 +211,16 @@ class Robot:
 
 
 def build_robot(contract: PolicyContract) -> Robot:
-    """The contract's MJCF with a floor plane and Holosoma's physics step; joints and actuators matched by name."""
+    """The card's model (:func:`econmotor.robots.model.model_spec`); joints and actuators matched by name."""
     import mujoco
 
-    spec = mujoco.MjSpec.from_file(contract.xml_path)
-    spec.option.timestep = contract.physics_dt_s
-    if not any(g.name == "floor" for g in spec.geoms):
-        spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 0.05])
-    apply_collision_filter(spec, contract.self_collisions)
-    model = spec.compile()
-    joints = [model.joint(j).name for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
-    act_joint = {model.joint(int(model.actuator_trnid[a, 0])).name: a for a in range(model.nu)
-                 if model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT}
-    check_dof_names(contract.dof_names, joints, list(act_joint), contract.xml_path, contract.onnx_path)
-    jids = [model.joint(n).id for n in contract.dof_names]
-    torso = model.body(contract.torso_body).id
-    floor = model.geom("floor").id
-    return Robot(model, mujoco.MjData(model), _index(model.jnt_qposadr[jids]), _index(model.jnt_dofadr[jids]),
-                 _index(np.array([act_joint[n] for n in contract.dof_names])), torso, float(model.body_mass[torso]),
-                 floor, model.pair_friction.copy(), model.geom_friction[floor].copy())
-
-
-#: MuJoCo collision bits of Holosoma's scene manager: robot geoms are class 1, the floor and terrain class 2
-ROBOT_CONTYPE, ENVIRONMENT_CONTYPE = 1, 2
-
-
-def apply_collision_filter(spec: Any, self_collisions: bool) -> int:
-    """Holosoma's collision classes on an ``MjSpec`` (its MuJoCo scene manager's ``_configure_robot_collisions``).
-
-    Every geom of a named robot body that collides by MuJoCo's default (``contype = conaffinity = 1``) gets
-    ``conaffinity`` 3 (robot and environment) with self-collisions, 2 (environment only) without; the floor
-    gets ``contype`` 2, ``conaffinity`` 1. Two geoms touch when ``contype_a & conaffinity_b`` or
-    ``contype_b & conaffinity_a``: the robot always touches the floor, and itself only with self-collisions.
-    The MJCF's explicit ``<pair>`` contacts (the G1's feet on the floor) are kept. Returns the geoms set.
-    """
-    robot_conaffinity = ROBOT_CONTYPE | ENVIRONMENT_CONTYPE if self_collisions else ENVIRONMENT_CONTYPE
-    changed = 0
-    for body in spec.bodies:
-        if not body.name or body.name == spec.worldbody.name:
-            continue
-        for geom in body.geoms:
-            if geom.contype == ROBOT_CONTYPE and geom.conaffinity == ROBOT_CONTYPE:
-                geom.conaffinity = robot_conaffinity
-                changed += 1
-    for geom in spec.worldbody.geoms:
-        if geom.name == "floor":
-            geom.contype, geom.conaffinity = ENVIRONMENT_CONTYPE, ROBOT_CONTYPE
-    return changed
+    card = contract.card
+    model = model_spec(card).compile()
+    qpos_adr, dof_adr, actuators = joint_indices(model, card)
+    torso = model.body(card.torso_body).id
+    floor = model.geom(FLOOR).id
+    return Robot(model, mujoco.MjData(model), _index(qpos_adr), _index(dof_adr), _index(actuators), torso,
+                 float(model.body_mass[torso]), floor, model.pair_friction.copy(), model.geom_friction[floor].copy())
 
 
 def _index(indices: np.ndarray) -> np.ndarray | slice:
@@ -332,11 +257,12 @@ def reset_robot(robot: Robot, contract: PolicyContract, stress: Stress, rng: np.
 
     m, d = robot.model, robot.data
     mujoco.mj_resetData(m, d)
-    d.qpos[0:3] = contract.init_pos
+    card = contract.card
+    d.qpos[0:3] = card.init_pos
     d.qpos[3:7] = (1.0, 0.0, 0.0, 0.0)
     noise = stress.initial_joint_noise_rad
-    d.qpos[robot.qpos_adr] = np.asarray(contract.default_dof_angles) + (
-        rng.uniform(-noise, noise, len(contract.dof_names)) if noise > 0 else 0.0)
+    d.qpos[robot.qpos_adr] = card.array("default_dof_angles") + (
+        rng.uniform(-noise, noise, card.num_dofs) if noise > 0 else 0.0)
     draws: dict[str, float] = {}
     m.pair_friction[:] = robot.nominal_pair_friction
     m.geom_friction[robot.floor_geom] = robot.nominal_floor_friction
@@ -385,22 +311,21 @@ def run_episode(robot: Robot, contract: PolicyContract, policy: Callable[[np.nda
     rng = np.random.default_rng(seed)
     m, d = robot.model, robot.data
     draws = reset_robot(robot, contract, stress, rng)
-    obs = ObservationBuilder(contract)
-    controller = CourseController(course, contract.control_dt_s, contract.command_ranges)
-    constants = meter_constants(meter, contract.physics_dt_s)
+    card = contract.card
+    obs = ObservationBuilder(card)
+    controller = CourseController(course, card.control_dt_s, contract.command_ranges)
+    constants = meter_constants(meter, card.physics_dt_s)
     sums = cf.MeterSums(best_x=float(d.qpos[0]))
-    kp, kd = np.asarray(contract.kp), np.asarray(contract.kd)
-    limit = np.asarray(contract.effort_limits)
-    default = np.asarray(contract.default_dof_angles)
-    min_z = FALL_HEIGHT_FRACTION * contract.init_pos[2]
+    kp, kd = np.asarray(contract.kp), np.asarray(contract.kd)  # the policy's own gains
+    limit, default = card.array("effort_limits"), card.array("default_dof_angles")
     next_push = float(rng.uniform(*stress.push_interval_s)) if stress.push_interval_s is not None else math.inf
-    control_steps = round(episode_s / contract.control_dt_s)
+    control_steps = round(episode_s / card.control_dt_s)
     walk_s, walk_m, pushes, max_lateral = 0.0, 0.0, 0, 0.0
     fell, steps_done = False, 0
     for step in range(control_steps):
         if controller.finished:
             break
-        t = step * contract.control_dt_s
+        t = step * card.control_dt_s
         if t >= next_push:
             lo, hi = stress.max_push_vel_m_per_s  # type: ignore[misc]
             d.qvel[0:2] += rng.uniform(-1.0, 1.0, 2) * np.array([lo, hi])
@@ -413,16 +338,15 @@ def run_episode(robot: Robot, contract: PolicyContract, policy: Callable[[np.nda
         row = obs.build(lin_vel_cmd=lin, ang_vel_cmd=yaw_rate, **robot_state(robot))
         if on_observation is not None:
             on_observation(robot, obs, row, vx, yaw_rate)
-        action = np.clip(np.asarray(policy(row), dtype=np.float32).reshape(-1), -contract.action_clip,
-                         contract.action_clip)
+        action = np.clip(np.asarray(policy(row), dtype=np.float32).reshape(-1), -card.action_clip, card.action_clip)
         obs.last_action = action
-        target = default + contract.action_scale * action.astype(np.float64)
-        for _ in range(contract.decimation):
+        target = default + card.action_scale * action.astype(np.float64)
+        for _ in range(card.decimation):
             q, qd = d.qpos[robot.qpos_adr], d.qvel[robot.dof_adr]
             d.ctrl[robot.actuators] = np.clip(kp * (target - q) - kd * qd, -limit, limit)
             mujoco.mj_step(m, d)
             qfrc, qvel = d.qfrc_actuator[robot.dof_adr], d.qvel[robot.dof_adr]
-            reading = step_reading(d.qpos, qfrc, qvel, meter.fall_tilt_rad, min_z)
+            reading = step_reading(d.qpos, qfrc, qvel, card.fall_tilt_rad, card.min_base_z_m)
             cf.meter_step(sums, reading, constants, cf.PY)
             fell = bool(reading.fell)
             if record is not None:
@@ -431,21 +355,21 @@ def run_episode(robot: Robot, contract: PolicyContract, policy: Callable[[np.nda
                 break
         steps_done = step + 1
         if vx > 0.0:  # a walking control step: its progress along x counts toward the achieved speed
-            walk_s += contract.control_dt_s
+            walk_s += card.control_dt_s
             walk_m += float(d.qpos[0]) - x
         max_lateral = max(max_lateral, abs(float(d.qpos[1])))
         if fell:
             break
     n, units, best_x, errors, energy_wh, risk_sum = (
         float(v) for v in (sums.steps, sums.units, sums.best_x, sums.errors, sums.energy_wh, sums.risk_sum))
-    length_s = n * contract.physics_dt_s
+    length_s = n * card.physics_dt_s
     power_w = energy_wh * cf.SECONDS_PER_HOUR / length_s if length_s > 0 else 0.0
     return {
         "units_completed": units, "units_attempted": units + errors, "errors": errors,
         "episode_length_s": length_s, "length_steps": float(steps_done), "energy_wh": energy_wh,
         "risk_score": risk_sum / n if n else 0.0, "novelty_score": 0.0,
         "termination_reason": "fall" if fell else "course_done" if controller.finished else "time_out",
-        "distance_m": best_x - contract.init_pos[0], "legs_reached": float(controller.legs_done),
+        "distance_m": best_x - card.init_pos[0], "legs_reached": float(controller.legs_done),
         "commanded_speed_m_per_s": min(course.speed_m_per_s, controller.vx_max),
         "achieved_speed_m_per_s": walk_m / walk_s if walk_s > 0 else 0.0, "walking_s": walk_s,
         "max_lateral_m": max_lateral, "mean_power_w": power_w,

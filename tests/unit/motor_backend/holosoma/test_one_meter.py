@@ -23,6 +23,7 @@ from econmotor.motor_backend.holosoma.econ_formulas import (
     torch_namespace,
 )
 from econmotor.motor_backend.holosoma.plan import meter_settings, task_settings
+from econmotor.robots import card
 from econmotor.tasks import get_task
 
 STEPS, JOINTS = 400, 29
@@ -96,9 +97,10 @@ def test_training_terms_meter_each_step_as_the_evaluator_does(task_id: str, name
 
 
 def test_the_robots_are_metered_with_the_catalogs_constants() -> None:
-    """Both robots' training and evaluation read their meter from the catalog entry (no default hides in code)."""
+    """Both robots' training and evaluation read their meter from the catalog entry and the robot card it names
+    (no default hides in code)."""
     for task_id in ("humanoid_locomotion_g1", "humanoid_locomotion_t1", "humanoid_wbt_g1"):
         entry = get_task(task_id).backend_entry("holosoma")
         meter = _meter(task_id)
         assert (meter["idle_power_w"], meter["tilt_margin_rad"]) == (entry["idle_power_w"], entry["tilt_margin_rad"])
-        assert meter["fall_tilt_rad"] == entry["max_tilt_rad"]
+        assert meter["fall_tilt_rad"] == card(entry["robot"]).fall_tilt_rad  # the robot card's fall rule
