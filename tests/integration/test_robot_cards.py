@@ -38,9 +38,18 @@ import numpy as np
 from holosoma.config_values.experiment import EXPERIMENT_REGISTRY
 from holosoma_inference.config.config_values.inference import INFERENCE_REGISTRY
 from holosoma_inference.policies.locomotion import LocomotionPolicy
-from econmotor.motor_backend.holosoma.policy_import import _resolve_asset, onnx_metadata, shipped_policy_path
+import importlib
+from pathlib import Path
+from econmotor.motor_backend.holosoma.policy_import import onnx_metadata, shipped_policy_path
 from econmotor.robots import CARDS
 from econmotor.robots.model import joint_indices, load_model, mjcf_path
+
+def _resolve_asset(root, relative):
+    # Holosoma's asset root: a directory, or "@package/sub" inside an installed package
+    if root.startswith("@"):
+        package, _, rest = root[1:].partition("/")
+        root = str(Path(importlib.import_module(package).__file__).parent / rest)
+    return Path(root) / relative
 
 def by_group(names, gains):
     # Holosoma's per-joint gain: the value of the (first) group name the joint name contains
