@@ -145,16 +145,16 @@ class MjxBackend(MotorBackendBase):
     def env(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str] = (),
             datapack_configs: Sequence[DatapackConfig] | None = None) -> tuple[Any, dict[str, Any]]:
         """The (memoised) env for a task, objective and datapacks, and a JSON-able description."""
-        from econmotor.motor_backend.mjx.env import MjxCourierEnv
+        from econmotor.motor_backend.mjx.env import env_class
 
         configs = list(datapack_configs or ())
         bundle = self.provider.resolve(task_id, datapack_ids, configs)
         memo = json.dumps([task_id, objective.to_dict(), [p.to_dict() for p in configs], list(bundle.datapack_ids)],
                           sort_keys=True, default=str)
         if memo not in self._envs:
-            self._envs[memo] = MjxCourierEnv(task_id, objective=objective, datapacks=[bundle] if configs or
-                                             bundle.datapack_ids else [], catalog=self.catalog,
-                                             keep_task_reward=self.keep_task_reward)
+            self._envs[memo] = env_class(self.settings(task_id))(
+                task_id, objective=objective, datapacks=[bundle] if configs or bundle.datapack_ids else [],
+                catalog=self.catalog, keep_task_reward=self.keep_task_reward)
         env = self._envs[memo]
         spec = self.catalog.get(task_id)
         described = {
