@@ -128,10 +128,18 @@ class MjxBackend(MotorBackendBase):
 
     @classmethod
     def check_datapack(cls, pack: DatapackConfig, source: str) -> None:
-        """The domain randomization the batched couriers honour (no curriculum)."""
+        """The domain randomization the batched couriers honour (no curriculum): the Gymnasium
+        couriers' keys, or the humanoid couriers' Holosoma keys (``humanoid_stress.yaml``)."""
         from econmotor.motor_backend.mjx.env import parse_mjx_randomization
+        from econmotor.motor_backend.mjx.humanoid_env import check_humanoid_datapack
 
-        parse_mjx_randomization([pack])
+        try:
+            parse_mjx_randomization([pack])
+        except ConfigError as courier_error:
+            try:
+                check_humanoid_datapack(pack, source)
+            except ConfigError:
+                raise courier_error from None
 
     @classmethod
     def check_task_entry(cls, spec: Any) -> None:

@@ -135,6 +135,16 @@ def parse_humanoid_stress(datapacks: Sequence[Any], push_preset: Mapping[str, An
                           stress.max_push_vel_m_per_s, stress.initial_joint_noise_rad, kp, kd)
 
 
+def check_humanoid_datapack(pack: Any, source: str) -> None:
+    """A datapack the humanoid couriers can apply (:func:`parse_humanoid_stress`), else its ConfigError."""
+    from econmotor.motor_backend.datapacks import DatapackBundle
+
+    bundle = DatapackBundle(task_id="<check>", datapack_ids=(pack.id,), motion_clips=tuple(pack.motion_clips or ()),
+                            domain_randomization=dict(pack.domain_randomization or {}),
+                            curriculum=dict(pack.curriculum or {}), sources={pack.id: source})
+    parse_humanoid_stress([bundle], {"push_interval_s": (1.0, 1.0), "max_push_vel": (0.0, 0.0)}, 0.0)
+
+
 def parse_locomotion(settings: MjxTaskSettings) -> tuple[float, dict[str, float], dict[str, dict[str, Any]]]:
     """``(episode_s, weights, params)`` of the entry's ``locomotion`` mapping; errors name the catalog key."""
     src, prefix = settings.source, f"backend_entries.mjx.{settings.task_id}.locomotion"
@@ -285,7 +295,7 @@ class MjxHumanoidCourierEnv:
         robot = {"phase": jnp.asarray(initial_phase(np), jnp.float32), "standing": jnp.zeros((), bool),
                  "last_action": jnp.zeros(n, jnp.float32), "command": jnp.zeros(3, jnp.float32),
                  **{k: zero + v for k, v in start._asdict().items()}, "time_s": zero,
-                 "next_push_s": self._draw(k_push, st.push_interval_s) if st.push_interval_s else jnp.inf * zero}
+                 "next_push_s": self._draw(k_push, st.push_interval_s) if st.push_interval_s else jnp.full((), jnp.inf)}
         obs, observed = self._observe(data, robot)
         episode = {k: zero for k in EPISODE_KEYS}
         episode["best_x"] = episode["x0"] = qpos[0]
