@@ -2,11 +2,12 @@
 
 As tests/unit/motor_backend/couriers/test_courier_robots.py holds the Gymnasium records to
 Gymnasium, a script run in .venv-holosoma reads every fact a card copies from the installed
-holosoma (experiment preset: robot, simulator, randomization), holosoma_inference (inference
-preset: observation, task, robot) and the shipped ONNX walkers' metadata; each must equal the
-card's. The same script drives the card's model in MuJoCo C and records holosoma_inference's own
-``actor_obs`` rows (its ``LocomotionPolicy`` code) for those states: the observation the card
-builds in JAX, in the main interpreter, equals them.
+holosoma (experiment preset: robot, simulator, randomization, rewards), holosoma_inference
+(inference preset: observation, task, robot) and the shipped ONNX walkers' metadata; each must
+equal the card's, and the mjx couriers' locomotion reward weights (``tasks/mjx.yaml``) must be
+Holosoma's reward preset of the robot's experiment. The same script drives the card's model in
+MuJoCo C and records holosoma_inference's own ``actor_obs`` rows (its ``LocomotionPolicy`` code)
+for those states: the observation the card builds in JAX, in the main interpreter, equals them.
 """
 
 from __future__ import annotations
@@ -83,6 +84,7 @@ for name, card in CARDS.items():
         "gait_period_s": [inf.task.gait_period],
     }
     facts["card_mjcf"] = str(mjcf_path(card))
+    facts["rewards"] = {k: {"weight": t.weight, **dict(t.params)} for k, t in exp.reward.terms.items()}
 
     ref = LocomotionPolicy.__new__(LocomotionPolicy)  # its observation code, without robot SDK or inputs
     ref.config = inf
@@ -168,3 +170,12 @@ def test_observation_built_in_jax_equals_holosoma_inference(holosoma: dict, name
                  "phase": phase}
         ours = obs_fn(**{k: jnp.asarray(v, jnp.float32) for k, v in state.items()})
         np.testing.assert_allclose(np.asarray(ours), row["obs"], atol=2e-5, rtol=1e-5)
+
+
+@pytest.mark.parametrize("name", sorted(CARDS))
+def test_mjx_locomotion_rewards_are_holosomas_preset(holosoma: dict, name: str) -> None:
+    from econmotor.tasks import load_catalog
+
+    catalog = load_catalog()
+    [task] = [t for t in catalog.ids("mjx") if catalog.get(t).backends["mjx"].get("robot") == name]
+    assert catalog.get(task).backends["mjx"]["locomotion"]["rewards"] == holosoma[name]["facts"]["rewards"]
