@@ -60,13 +60,13 @@ from econmotor.motor_backend.holosoma.datapack_mapping import map_datapacks
 from econmotor.motor_backend.holosoma.sim2sim import Stress
 from econmotor.motor_backend.mjx._mjx import mjx
 from econmotor.motor_backend.mjx.assets import apply_model_options
+from econmotor.motor_backend.mjx.env import auto_reset, task_settings, with_overlay_columns
 from econmotor.motor_backend.mjx.locomotion_rewards import TERMS, LocomotionReading, locomotion_reward
-from econmotor.motor_backend.mjx.settings import MjxTaskSettings, parse_mjx_settings
+from econmotor.motor_backend.mjx.settings import MjxTaskSettings
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
 from econmotor.robots import card as robot_card
 from econmotor.robots.model import joint_indices, load_model
 from econmotor.robots.observation import advance_phase, build_observation, initial_phase, projected_gravity
-from econmotor.tasks import load_catalog
 
 #: overlay keys a humanoid courier can weight (no novelty table, no pose tracking)
 HUMANOID_TERMS = ("mpl_per_hour", "error_rate", "energy_kwh", "risk_score")
@@ -185,12 +185,9 @@ class MjxHumanoidCourierEnv:
     def __init__(self, task_id: str, *, objective: EconomicObjectiveSpec | None = None,
                  datapacks: Sequence[Any] = (), seed: int = 0, catalog: Any = None,
                  keep_task_reward: bool = True, economics: bool = True) -> None:
-        catalog = catalog if catalog is not None else load_catalog()
-        spec = catalog.get(task_id)
-        self.task_id, self.seed = task_id, int(seed)
-        self.settings: MjxTaskSettings = parse_mjx_settings(spec)
+        spec, self.settings, where = task_settings(task_id, catalog)
         s = self.settings
-        where = f"{s.source}: backend_entries.mjx.{task_id}"
+        self.task_id, self.seed = task_id, int(seed)
         self.card = c = robot_card(s.robot, where)
         self.episode_s, self.weights, self.reward_params = parse_locomotion(s)
         self.course = CourseSettings(**{"leg_m": s.leg_distance_m, **s.course})
@@ -402,16 +399,8 @@ class MjxHumanoidCourierEnv:
         truncated = truncated & ~fell
         done = fell | truncated
 
-        def reset_done(carry):
-            fresh = jax.vmap(self._reset_one)(reset_keys)
-
-            def pick(new, old):
-                return jnp.where(done.reshape(done.shape + (1,) * (old.ndim - 1)), new, old)
-
-            return jax.tree_util.tree_map(pick, fresh, carry)
-
-        carry = (data, obs, robot, episode, state.randomization)
-        data, obs, robot, episode, dr = jax.lax.cond(jnp.any(done), reset_done, lambda c: c, carry)
+        data, obs, robot, episode, dr = auto_reset(done, self._reset_one, reset_keys,
+                                                   (data, obs, robot, episode, state.randomization))
         return HumanoidEnvState(data, obs, reward, done.astype(jnp.float32), truncated.astype(jnp.float32), episode,
                                 finished, env_keys, robot, dr)
 
@@ -427,11 +416,6 @@ class MjxHumanoidCourierEnv:
             row["control_dt_s"] = self.control_dt_s
             row["termination_reason"] = "fall" if cols["fell"][i] > 0.5 else \
                 "course_done" if cols["course_done"][i] > 0.5 else "time_out"
-            row["total_return"] = row["return"] + row["overlay_return"]
-            for k in self.scales:
-                raw = float(cols[f"overlay_{k}_raw"][i])
-                row[f"overlay_{k}_raw"] = raw
-                row[f"overlay_{k}_weighted"] = self.factors[k] * raw
-            rows.append(row)
+            rows.append(with_overlay_columns(row, cols, i, self.factors))
         return rows
 
