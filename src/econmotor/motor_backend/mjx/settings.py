@@ -25,7 +25,8 @@ A real robot's courier (``mjx/humanoid_env.py``) names its robot card instead of
 The metering keys (:data:`INHERITED_KEYS`) are the couriers' (``couriers/settings.py``): with
 ``inherit: mujoco`` they are read from the task's ``backends.mujoco`` entry, so the two backends
 cannot drift; with ``inherit: holosoma`` from its ``backends.holosoma`` entry
-(:data:`HOLOSOMA_METERING`, the sim-to-sim evaluator's constants, and the course:
+(:func:`~econmotor.motor_backend.holosoma.plan.meter_settings`: the constants Holosoma's training terms
+and the sim-to-sim evaluator read, one meter per robot; and the course:
 :data:`HOLOSOMA_COURSE`); without it they may be written here with the same meaning. Both go through
 :func:`~econmotor.motor_backend.couriers.settings.parse_metering_settings`.
 """
@@ -38,6 +39,7 @@ from typing import Any
 from econmotor.config.loading import as_int, as_str, check_keys, require_mapping
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.couriers.settings import METERING_KEYS, MeteringSettings, parse_metering_settings
+from econmotor.motor_backend.holosoma.plan import meter_settings, task_settings
 from econmotor.tasks.catalog import TaskSpec
 
 #: keys shared with the mujoco backend's entry (the economics of the physics).
@@ -45,10 +47,6 @@ INHERITED_KEYS = METERING_KEYS
 OWN_KEYS = ("inherit", "num_envs", "cpu_num_envs_cap", "normalize_obs", "checkpoint_every_steps", "ppo",
             "novelty_table_size", "model_options", "robot", "locomotion")
 INHERITS = ("mujoco", "holosoma")
-#: the holosoma entry's metering keys -> the couriers' (``inherit: holosoma``)
-HOLOSOMA_METERING = {"unit_length_m": "leg_distance_m", "drivetrain_efficiency": "drivetrain_efficiency",
-                     "idle_power_w": "idle_power_w", "tilt_margin_rad": "tilt_margin_rad",
-                     "max_tilt_rad": "fall_tilt_rad"}
 #: the holosoma entry's course keys -> the course's (``couriers/course.py``)
 HOLOSOMA_COURSE = {"unit_length_m": "leg_m", "dwell_s": "dwell_s", "course_speed_m_per_s": "speed_m_per_s",
                    "sim2sim_legs": "legs"}
@@ -107,9 +105,12 @@ def parse_mjx_settings(spec: TaskSpec) -> MjxTaskSettings:
         if inherit == "holosoma":
             if robot is None:
                 raise ConfigError(src, key("robot"), "is required with inherit: holosoma (a robot card)")
-            parent = {"env_id": robot, **{ours: parent[theirs] for theirs, ours in HOLOSOMA_METERING.items()
-                                          if theirs in parent}}
-            holosoma = spec.backend_entry("holosoma")
+            holosoma = task_settings(spec.task_id, parent, spec.source)
+            if holosoma["robot"] != robot:
+                raise ConfigError(src, key("robot"), f"the holosoma entry's robot is {holosoma['robot']!r}: one "
+                                  "robot, one meter", [str(holosoma["robot"])])
+            # one meter per robot: the constants Holosoma's training terms and the sim-to-sim evaluator read
+            parent = {"env_id": robot, **meter_settings(spec.task_id, holosoma, spec.source)}
             course = {ours: holosoma[theirs] for theirs, ours in HOLOSOMA_COURSE.items() if theirs in holosoma}
             start_noise = float(holosoma.get("sim2sim_start_joint_noise_rad", 0.0))
         base = parse_metering_settings(parent, spec.source, f"tasks.{spec.task_id}.backends.{inherit}")

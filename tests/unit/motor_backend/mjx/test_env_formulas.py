@@ -16,10 +16,12 @@ from econmotor.economics import courier_formulas as cf
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.couriers import overlay, physics, robots
 from econmotor.motor_backend.datapacks import DatapackConfig
+from econmotor.motor_backend.holosoma.plan import meter_settings, task_settings
 from econmotor.motor_backend.mjx import env as mjx_env
-from econmotor.motor_backend.mjx.settings import HOLOSOMA_COURSE, HOLOSOMA_METERING, INHERITED_KEYS, parse_mjx_settings
+from econmotor.motor_backend.mjx.settings import HOLOSOMA_COURSE, INHERITED_KEYS, parse_mjx_settings
 from econmotor.motor_backend.mujoco import metering
 from econmotor.motor_backend.mujoco.settings import parse_mujoco_settings
+from econmotor.robots import card
 from econmotor.tasks import load_catalog
 
 FORMULAS = ("meter_step", "mechanical_power_w", "novelty_bonus", "novelty_cell", "running_metrics",
@@ -150,8 +152,10 @@ def test_robot_couriers_inherit_the_sim_to_sim_meter_and_course():
     for task_id in robots:
         spec = catalog.get(task_id)
         settings, holosoma = parse_mjx_settings(spec), spec.backends["holosoma"]
-        for theirs, ours in HOLOSOMA_METERING.items():
-            assert getattr(settings, ours) == holosoma[theirs], (task_id, ours)
+        meter = meter_settings(task_id, task_settings(task_id, holosoma, spec.source), spec.source)
+        for key, value in meter.items():  # one meter per robot: Holosoma's training terms and sim-to-sim read it
+            assert getattr(settings, key) == value, (task_id, key)
+        assert settings.fall_tilt_rad == card(robots[task_id]).fall_tilt_rad
         for theirs, ours in HOLOSOMA_COURSE.items():
             assert settings.course[ours] == holosoma[theirs], (task_id, ours)
         assert settings.start_joint_noise_rad == holosoma["sim2sim_start_joint_noise_rad"]
