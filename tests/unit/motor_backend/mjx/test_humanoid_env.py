@@ -20,7 +20,6 @@ from __future__ import annotations
 import json
 import subprocess
 from pathlib import Path
-from types import SimpleNamespace
 
 import jax
 import jax.numpy as jnp
@@ -99,11 +98,7 @@ def test_mjx_humanoid_steps_meter_and_observe_as_mujoco_c(robot: str) -> None:
                               card.fall_tilt_rad)
     constants = s2s.meter_constants(meter, card.physics_dt_s)
     kp, kd, limit = card.array("kp"), card.array("kd"), card.array("effort_limits")
-    conv = card.observation  # the evaluator's observation builder reads these contract fields
-    builder = s2s.ObservationBuilder(SimpleNamespace(
-        default_dof_angles=card.default_dof_angles, control_rate_hz=card.control_rate_hz,
-        gait_period_s=conv.gait_period_s, obs_terms=conv.terms, obs_scales=conv.scales,
-        history_length=conv.history_length, dof_names=card.dof_names))
+    builder = s2s.ObservationBuilder(card)  # the evaluator's observation builder, on the robot's card
     controller = s2s.CourseController(env.course, card.control_dt_s, card.command_ranges)
     vx, yaw_rate = controller.command(float(data.qpos[0]), float(data.qpos[1]), s2s._yaw(data.qpos[3:7]))
     builder.advance_phase(np.array([vx, 0.0]), yaw_rate)
