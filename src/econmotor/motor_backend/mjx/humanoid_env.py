@@ -99,14 +99,9 @@ class HumanoidEnvState(NamedTuple):
 
 
 @dataclasses.dataclass(frozen=True)
-class HumanoidStress:
-    """The datapacks' stress as this env applies it (None / 0: off)."""
+class HumanoidStress(Stress):
+    """The evaluator's :class:`Stress` plus the PD gains' per-joint scale ranges (None: off)."""
 
-    friction_range: tuple[float, float] | None = None
-    payload_kg_range: tuple[float, float] | None = None
-    push_interval_s: tuple[float, float] | None = None
-    max_push_vel_m_per_s: tuple[float, float] | None = None
-    start_joint_noise_rad: float = 0.0
     kp_range: tuple[float, float] | None = None
     kd_range: tuple[float, float] | None = None
 
@@ -131,8 +126,8 @@ def parse_humanoid_stress(datapacks: Sequence[Any], push_preset: Mapping[str, An
             raise ConfigError(source, "domain_randomization", f"the mjx humanoid couriers cannot apply {unsupported}")
         actuators = rand.get("actuator_randomizer_state", {})
         kp, kd = (tuple(actuators[k]) if k in actuators else None for k in ("kp_range", "kd_range"))
-    return HumanoidStress(stress.friction_range, stress.payload_kg_range, stress.push_interval_s,
-                          stress.max_push_vel_m_per_s, stress.initial_joint_noise_rad, kp, kd)
+    return HumanoidStress(**{f.name: getattr(stress, f.name) for f in dataclasses.fields(Stress)},
+                          kp_range=kp, kd_range=kd)
 
 
 def check_humanoid_datapack(pack: Any, source: str) -> None:
@@ -276,8 +271,8 @@ class MjxHumanoidCourierEnv:
         st, n = self.stress, self.card.num_dofs
         k_q, k_mu, k_pay, k_kp, k_kd, k_push = jax.random.split(key, 6)
         qpos = self._qpos0
-        if st.start_joint_noise_rad > 0:
-            noise = st.start_joint_noise_rad
+        if st.initial_joint_noise_rad > 0:
+            noise = st.initial_joint_noise_rad
             qpos = qpos.at[self._qadr].add(self._draw(k_q, (-noise, noise), (n,)))
         dr: dict[str, jax.Array] = {}
         if st.friction_range is not None:

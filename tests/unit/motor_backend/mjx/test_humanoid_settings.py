@@ -30,7 +30,7 @@ def test_the_stress_datapack_is_drawn_as_the_evaluator_draws_it() -> None:
     stress = parse_humanoid_stress([bundle(**pack.domain_randomization)], G1_29DOF.push_preset, 0.05)
     assert stress.friction_range == (0.4, 1.0) and stress.payload_kg_range == (2.0, 5.0)
     assert stress.push_interval_s == G1_29DOF.push_preset["push_interval_s"]  # "pushes: true": Holosoma's interval
-    assert stress.max_push_vel_m_per_s == (0.5, 0.5) and stress.start_joint_noise_rad == 0.05
+    assert stress.max_push_vel_m_per_s == (0.5, 0.5) and stress.initial_joint_noise_rad == 0.05
     gains = parse_humanoid_stress([bundle(kp_range=[0.9, 1.1], kd_range=[0.8, 1.2])], G1_29DOF.push_preset, 0.0)
     assert (gains.kp_range, gains.kd_range, gains.friction_range) == ((0.9, 1.1), (0.8, 1.2), None)
     with pytest.raises(ConfigError, match="packs/p.yaml.*mass_randomizer"):
