@@ -1,0 +1,154 @@
+"""RobotCard: what every part of econmotor needs to know about one real robot, written once.
+
+A card is a frozen value: the robot's MJCF (a file inside an installed package, read offline),
+its joints in the policy's order, default pose, PD gains, action scale and clip, effort limits,
+torso, feet, the fall rule, the collision filter its maker's simulator applies, and the
+observation convention of its maker's inference stack (:class:`ObservationConvention`). The
+trainer (``motor_backend/mjx``), the policy importer and the sim-to-sim evaluator
+(``motor_backend/holosoma``) and the meter read these fields; none of them branches on a
+robot's name. Building the MuJoCo model from a card is :mod:`econmotor.robots.model`, the
+observation :mod:`econmotor.robots.observation`.
+
+This package imports NumPy and MuJoCo only, so the main interpreter (NumPy 2, MuJoCo 3.x, JAX)
+and ``.venv-holosoma`` (NumPy 1.x, MuJoCo 4.x) both load it;
+``tests/integration/test_robot_cards.py`` holds every fact to Holosoma's own presets.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ObservationConvention:
+    """How the policy's ``actor_obs`` row is built (holosoma_inference's ``ObservationConfig`` and task).
+
+    ``terms``: the concatenation order, holosoma_inference's group terms *sorted by name*;
+    ``dims`` / ``scales``: per term (each term times its scale); ``history_length``: frames per
+    term, oldest first; ``use_phase`` / ``gait_period_s``: the two feet's gait clock, advanced by
+    ``2 pi / (control_rate_hz * gait_period_s)`` per control step, both feet at pi while the
+    command is below ``stand_eps`` (m/s and rad/s), restarting at (0, pi) when it rises again.
+    """
+
+    terms: tuple[str, ...]
+    dims: Mapping[str, int]
+    scales: Mapping[str, float]
+    history_length: int = 1
+    use_phase: bool = True
+    gait_period_s: float = 1.0
+    stand_eps: float = 0.01
+
+    @property
+    def obs_dim(self) -> int:
+        """Width of one ``actor_obs`` row: ``sum(dims) * history_length``."""
+        return sum(self.dims[t] for t in self.terms) * self.history_length
+
+
+#: holosoma_inference's locomotion ``actor_obs`` terms, sorted: the order it concatenates them in
+LOCOMOTION_TERMS = tuple(sorted(("base_ang_vel", "projected_gravity", "command_lin_vel", "command_ang_vel", "dof_pos",
+                                 "dof_vel", "actions", "sin_phase", "cos_phase")))
+#: the shipped walkers' command ranges (their ONNX metadata; holosoma's locomotion command preset)
+LOCOMOTION_COMMAND_RANGES = {"lin_vel_x": (-1.0, 1.0), "lin_vel_y": (-1.0, 1.0), "ang_vel_yaw": (-1.0, 1.0)}
+
+
+def locomotion_observation(num_dofs: int, scales: Mapping[str, float], gait_period_s: float = 1.0,
+                           history_length: int = 1) -> ObservationConvention:
+    """holosoma_inference's locomotion observation for a robot of ``num_dofs`` joints, with its ``scales``
+    (one per term of :data:`LOCOMOTION_TERMS`)."""
+    per_joint = {"actions", "dof_pos", "dof_vel"}
+    widths = {"base_ang_vel": 3, "projected_gravity": 3, "command_lin_vel": 2, "command_ang_vel": 1,
+              "sin_phase": 2, "cos_phase": 2}
+    dims = {t: num_dofs if t in per_joint else widths[t] for t in LOCOMOTION_TERMS}
+    return ObservationConvention(terms=LOCOMOTION_TERMS, dims=dims,
+                                 scales={t: float(scales[t]) for t in LOCOMOTION_TERMS},
+                                 history_length=history_length, use_phase=True, gait_period_s=gait_period_s)
+
+
+@dataclass(frozen=True)
+class RobotCard:
+    """One robot's facts (module docstring). Joint-indexed tuples follow ``dof_names``.
+
+    - ``mjcf_package`` / ``mjcf_file``: the MJCF inside an installed package (found without
+      importing it); ``mjcf_install``: how to install that package when it is missing.
+    - ``kp`` (N m/rad), ``kd`` (N m s/rad), ``effort_limits`` (N m): the PD loop at the physics
+      rate, ``tau = clip(kp (default + action_scale * action - q) - kd qd, -limit, limit)``;
+      ``action_clip``: the policy output is clipped to +-this first.
+    - ``physics_dt_s`` and ``decimation``: physics steps per policy step (``control_dt_s``).
+    - ``init_pos``: the root's start position, m; the root starts upright.
+    - ``torso_body``: tilt is read from the root quaternion (the pelvis), the torso is where a
+      payload is carried; ``foot_bodies`` / ``foot_geoms``: the feet and their colliders (the
+      geoms MJX lets touch the floor).
+    - fall rule: tilt past ``fall_tilt_rad`` or the root below ``fall_height_fraction * init_pos[2]``.
+    - collision filter: ``self_collisions`` False as in Holosoma's MuJoCo simulator (robot
+      geoms collide with the floor only).
+    """
+
+    name: str
+    mjcf_package: str
+    mjcf_file: str
+    mjcf_install: str
+    dof_names: tuple[str, ...]
+    default_dof_angles: tuple[float, ...]
+    kp: tuple[float, ...]
+    kd: tuple[float, ...]
+    effort_limits: tuple[float, ...]
+    action_scale: float
+    action_clip: float
+    physics_dt_s: float
+    decimation: int
+    init_pos: tuple[float, float, float]
+    root_body: str
+    torso_body: str
+    foot_bodies: tuple[str, str]
+    foot_geoms: tuple[str, ...]
+    fall_tilt_rad: float
+    fall_height_fraction: float
+    self_collisions: bool
+    command_ranges: Mapping[str, tuple[float, float]]
+    observation: ObservationConvention
+    holosoma_experiment: str
+    inference_preset: str
+    sources: Mapping[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        n = len(self.dof_names)
+        for key in ("default_dof_angles", "kp", "kd", "effort_limits"):
+            if len(getattr(self, key)) != n:
+                raise ValueError(f"robot card {self.name}: {key} has {len(getattr(self, key))} values "
+                                 f"for {n} dof_names")
+        if self.observation.dims.get("actions", n) != n or self.observation.dims.get("dof_pos", n) != n:
+            raise ValueError(f"robot card {self.name}: observation dims disagree with {n} dof_names")
+
+    @property
+    def num_dofs(self) -> int:
+        return len(self.dof_names)
+
+    @property
+    def control_dt_s(self) -> float:
+        """One policy step: ``physics_dt_s * decimation``."""
+        return self.physics_dt_s * self.decimation
+
+    @property
+    def control_rate_hz(self) -> float:
+        return 1.0 / self.control_dt_s
+
+    @property
+    def obs_dim(self) -> int:
+        return self.observation.obs_dim
+
+    @property
+    def min_base_z_m(self) -> float:
+        """The fall rule's height: the root below this is on the ground."""
+        return self.fall_height_fraction * self.init_pos[2]
+
+    @property
+    def phase_dt(self) -> float:
+        """The gait clock's advance per control step, rad."""
+        return 2.0 * np.pi / (self.control_rate_hz * self.observation.gait_period_s)
+
+    def array(self, key: str, dtype: type = np.float64) -> np.ndarray:
+        """A joint-indexed field as an array (``kp``, ``kd``, ``default_dof_angles``, ``effort_limits``)."""
+        return np.asarray(getattr(self, key), dtype=dtype)
