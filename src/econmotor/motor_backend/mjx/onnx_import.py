@@ -94,10 +94,14 @@ class ImportedActor:
 
 def policy_file(policy: str, holosoma_venv: str | Path | None = None) -> Path:
     """The ONNX file of ``policy``: a shipped name (module docstring) or a path; a ConfigError otherwise."""
-    from econmotor.motor_backend.holosoma.policy_import import NAME_PREFIX, shipped_policy_file
+    import importlib.util
+
+    from econmotor.motor_backend.holosoma.backend import find_holosoma_python
+    from econmotor.motor_backend.holosoma.policy_import import NAME_PREFIX, shipped_policy_path
 
     if policy.startswith(NAME_PREFIX):
-        return shipped_policy_file(policy, holosoma_venv)
+        here = importlib.util.find_spec("holosoma_inference") is not None
+        return shipped_policy_path(policy, None if here else find_holosoma_python(holosoma_venv), "--init-policy")
     path = Path(policy)
     if path.suffix != ".onnx" or not path.is_file():
         raise ConfigError("--init-policy", policy, "no such ONNX file",
