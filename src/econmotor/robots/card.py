@@ -84,6 +84,8 @@ class RobotCard:
     - fall rule: tilt past ``fall_tilt_rad`` or the root below ``fall_height_fraction * init_pos[2]``.
     - collision filter: ``self_collisions`` False as in Holosoma's MuJoCo simulator (robot
       geoms collide with the floor only).
+    - ``push_preset``: Holosoma's locomotion push term (``push_randomizer_state``: ``push_interval_s``
+      range, s, and ``max_push_vel`` in x and y, m/s), what a datapack's ``pushes: true`` means.
     """
 
     name: str
@@ -109,6 +111,7 @@ class RobotCard:
     self_collisions: bool
     command_ranges: Mapping[str, tuple[float, float]]
     observation: ObservationConvention
+    push_preset: Mapping[str, tuple[float, float]]
     holosoma_experiment: str
     inference_preset: str
     sources: Mapping[str, str] = field(default_factory=dict)

@@ -79,6 +79,7 @@ CARD = RobotCard(
     observation=locomotion_observation(29, scales={
         "actions": 1.0, "base_ang_vel": 1.0, "command_ang_vel": 1.0, "command_lin_vel": 1.0, "cos_phase": 1.0,
         "dof_pos": 1.0, "dof_vel": 0.1, "projected_gravity": 1.0, "sin_phase": 1.0}),
+    push_preset={"push_interval_s": (5.0, 10.0), "max_push_vel": (1.0, 1.0)},
     holosoma_experiment="t1_29dof",
     inference_preset="t1-29dof-loco",
     sources={"robot": "holosoma 0.0.3 config_values/robot.py t1_29dof_waist_wrist",
