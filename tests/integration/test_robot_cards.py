@@ -2,11 +2,12 @@
 
 As tests/unit/motor_backend/couriers/test_courier_robots.py holds the Gymnasium records to
 Gymnasium, a script run in .venv-holosoma reads every fact a card copies from the installed
-holosoma (experiment preset: robot, simulator, randomization), holosoma_inference (inference
-preset: observation, task, robot) and the shipped ONNX walkers' metadata; each must equal the
-card's. The same script drives the card's model in MuJoCo C and records holosoma_inference's own
-``actor_obs`` rows (its ``LocomotionPolicy`` code) for those states: the observation the card
-builds in JAX, in the main interpreter, equals them.
+holosoma (experiment preset: robot, simulator, randomization, rewards), holosoma_inference
+(inference preset: observation, task, robot) and the shipped ONNX walkers' metadata; each must
+equal the card's, and the mjx couriers' locomotion reward weights (``tasks/mjx.yaml``) must be
+Holosoma's reward preset of the robot's experiment. The same script drives the card's model in
+MuJoCo C and records holosoma_inference's own ``actor_obs`` rows (its ``LocomotionPolicy`` code)
+for those states: the observation the card builds in JAX, in the main interpreter, equals them.
 """
 
 from __future__ import annotations
@@ -70,6 +71,7 @@ for name, card in CARDS.items():
         "init_pos": [list(robot.init_state.pos)],
         "torso_body": [robot.torso_name],
         "foot_bodies": [[b for b in bodies if b.endswith(robot.foot_body_name)]],
+        "foot_contact_bodies": [list(robot.key_bodies), [b for b in bodies if b.endswith(robot.foot_height_name)]],
         "self_collisions": [robot.asset.enable_self_collisions],
         "mjcf": [str(_resolve_asset(robot.asset.asset_root, robot.asset.xml_file))],
         "command_ranges": [{k: v for k, v in m["command_ranges"].items() if k != "heading"} for m in onnx.values()],
@@ -82,6 +84,7 @@ for name, card in CARDS.items():
         "gait_period_s": [inf.task.gait_period],
     }
     facts["card_mjcf"] = str(mjcf_path(card))
+    facts["rewards"] = {k: {"weight": t.weight, **dict(t.params)} for k, t in exp.reward.terms.items()}
 
     ref = LocomotionPolicy.__new__(LocomotionPolicy)  # its observation code, without robot SDK or inputs
     ref.config = inf
@@ -137,7 +140,8 @@ def test_card_states_holosomas_own_presets(holosoma: dict, name: str) -> None:
         "kp": list(card.kp), "kd": list(card.kd), "effort_limits": list(card.effort_limits),
         "action_scale": card.action_scale, "action_clip": card.action_clip, "physics_dt_s": card.physics_dt_s,
         "decimation": card.decimation, "control_rate_hz": card.control_rate_hz, "init_pos": list(card.init_pos),
-        "torso_body": card.torso_body, "foot_bodies": list(card.foot_bodies), "self_collisions": card.self_collisions,
+        "torso_body": card.torso_body, "foot_bodies": list(card.foot_bodies),
+        "foot_contact_bodies": list(card.foot_contact_bodies), "self_collisions": card.self_collisions,
         "mjcf": facts["card_mjcf"],
         "command_ranges": {k: list(v) for k, v in card.command_ranges.items()},
         "push_preset": {k: list(v) for k, v in card.push_preset.items()},
@@ -166,3 +170,12 @@ def test_observation_built_in_jax_equals_holosoma_inference(holosoma: dict, name
                  "phase": phase}
         ours = obs_fn(**{k: jnp.asarray(v, jnp.float32) for k, v in state.items()})
         np.testing.assert_allclose(np.asarray(ours), row["obs"], atol=2e-5, rtol=1e-5)
+
+
+@pytest.mark.parametrize("name", sorted(CARDS))
+def test_mjx_locomotion_rewards_are_holosomas_preset(holosoma: dict, name: str) -> None:
+    from econmotor.tasks import load_catalog
+
+    catalog = load_catalog()
+    [task] = [t for t in catalog.ids("mjx") if catalog.get(t).backends["mjx"].get("robot") == name]
+    assert catalog.get(task).backends["mjx"]["locomotion"]["rewards"] == holosoma[name]["facts"]["rewards"]

@@ -80,7 +80,8 @@ class RobotCard:
     - ``init_pos``: the root's start position, m; the root starts upright.
     - ``torso_body``: tilt is read from the root quaternion (the pelvis), the torso is where a
       payload is carried; ``foot_bodies`` / ``foot_geoms``: the feet and their colliders (the
-      geoms MJX lets touch the floor).
+      geoms MJX lets touch the floor); ``foot_contact_bodies``: the points under the soles whose
+      height the gait reward tracks (Holosoma's ``key_bodies``).
     - fall rule: tilt past ``fall_tilt_rad`` or the root below ``fall_height_fraction * init_pos[2]``.
     - collision filter: ``self_collisions`` False as in Holosoma's MuJoCo simulator (robot
       geoms collide with the floor only).
@@ -106,6 +107,7 @@ class RobotCard:
     torso_body: str
     foot_bodies: tuple[str, str]
     foot_geoms: tuple[str, ...]
+    foot_contact_bodies: tuple[str, str]
     fall_tilt_rad: float
     fall_height_fraction: float
     self_collisions: bool

@@ -69,6 +69,7 @@ CARD = RobotCard(
     torso_body="torso_link",
     foot_bodies=("left_ankle_roll_link", "right_ankle_roll_link"),
     foot_geoms=tuple(f"{side}_foot{i}_collision" for side in ("left", "right") for i in range(1, 8)),
+    foot_contact_bodies=("left_foot_contact_point", "right_foot_contact_point"),
     fall_tilt_rad=0.8,
     fall_height_fraction=0.5,
     self_collisions=False,

@@ -72,6 +72,7 @@ CARD = RobotCard(
     torso_body="Trunk",
     foot_bodies=("left_foot_link", "right_foot_link"),
     foot_geoms=tuple(f"{side}_rail_{i}" for side in ("L", "R") for i in range(1, 8)),
+    foot_contact_bodies=("left_foot_contact_point", "right_foot_contact_point"),
     fall_tilt_rad=0.8,
     fall_height_fraction=0.5,
     self_collisions=False,

@@ -145,10 +145,18 @@ class MjxBackend(MotorBackendBase):
 
     @classmethod
     def check_datapack(cls, pack: DatapackConfig, source: str) -> None:
-        """The domain randomization the batched couriers honour (no curriculum)."""
+        """The domain randomization the batched couriers honour (no curriculum): the Gymnasium
+        couriers' keys, or the humanoid couriers' Holosoma keys (``humanoid_stress.yaml``)."""
         from econmotor.motor_backend.mjx.env import parse_mjx_randomization
+        from econmotor.motor_backend.mjx.humanoid_env import check_humanoid_datapack
 
-        parse_mjx_randomization([pack])
+        try:
+            parse_mjx_randomization([pack])
+        except ConfigError as courier_error:
+            try:
+                check_humanoid_datapack(pack, source)
+            except ConfigError:
+                raise courier_error from None
 
     @classmethod
     def check_task_entry(cls, spec: Any) -> None:
@@ -162,16 +170,16 @@ class MjxBackend(MotorBackendBase):
     def env(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str] = (),
             datapack_configs: Sequence[DatapackConfig] | None = None) -> tuple[Any, dict[str, Any]]:
         """The (memoised) env for a task, objective and datapacks, and a JSON-able description."""
-        from econmotor.motor_backend.mjx.env import MjxCourierEnv
+        from econmotor.motor_backend.mjx.env import env_class
 
         configs = list(datapack_configs or ())
         bundle = self.provider.resolve(task_id, datapack_ids, configs)
         memo = json.dumps([task_id, objective.to_dict(), [p.to_dict() for p in configs], list(bundle.datapack_ids)],
                           sort_keys=True, default=str)
         if memo not in self._envs:
-            self._envs[memo] = MjxCourierEnv(task_id, objective=objective, datapacks=[bundle] if configs or
-                                             bundle.datapack_ids else [], catalog=self.catalog,
-                                             keep_task_reward=self.keep_task_reward)
+            self._envs[memo] = env_class(self.settings(task_id))(
+                task_id, objective=objective, datapacks=[bundle] if configs or bundle.datapack_ids else [],
+                catalog=self.catalog, keep_task_reward=self.keep_task_reward)
         env = self._envs[memo]
         spec = self.catalog.get(task_id)
         described = {

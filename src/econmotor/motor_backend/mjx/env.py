@@ -126,6 +126,15 @@ def parse_mjx_randomization(datapacks: Sequence[Any]) -> DomainRandomization:
     return randomization
 
 
+def env_class(settings: MjxTaskSettings) -> type:
+    """The env a task's mjx entry asks for: a robot card's courier (``robot:``) or a Gymnasium body's."""
+    if settings.robot is not None:
+        from econmotor.motor_backend.mjx.humanoid_env import MjxHumanoidCourierEnv
+
+        return MjxHumanoidCourierEnv
+    return MjxCourierEnv
+
+
 class MjxCourierEnv:
     """A courier task as batched pure functions (module docstring); API in ``MJX_INTERFACE.md``.
 

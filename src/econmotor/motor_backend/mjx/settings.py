@@ -16,9 +16,17 @@ Schema::
           eulerdamp: false           # implicit joint damping in the Euler integrator (default true)
           contact_geoms: [foot_geom] # the only robot geoms that collide (default: all of them)
 
+A real robot's courier (``mjx/humanoid_env.py``) names its robot card instead of a Gymnasium env::
+
+        inherit: holosoma            # metering and course from the task's backends.holosoma entry
+        robot: g1_29dof              # econmotor.robots card: model, joints, PD, observation
+        locomotion: {...}            # episode, reward terms, start: validated by mjx/humanoid_env.py
+
 The metering keys (:data:`INHERITED_KEYS`) are the couriers' (``couriers/settings.py``): with
 ``inherit: mujoco`` they are read from the task's ``backends.mujoco`` entry, so the two backends
-cannot drift; without it they may be written here with the same meaning. Both go through
+cannot drift; with ``inherit: holosoma`` from its ``backends.holosoma`` entry
+(:data:`HOLOSOMA_METERING`, the sim-to-sim evaluator's constants, and the course:
+:data:`HOLOSOMA_COURSE`); without it they may be written here with the same meaning. Both go through
 :func:`~econmotor.motor_backend.couriers.settings.parse_metering_settings`.
 """
 
@@ -35,7 +43,15 @@ from econmotor.tasks.catalog import TaskSpec
 #: keys shared with the mujoco backend's entry (the economics of the physics).
 INHERITED_KEYS = METERING_KEYS
 OWN_KEYS = ("inherit", "num_envs", "cpu_num_envs_cap", "normalize_obs", "checkpoint_every_steps", "ppo",
-            "novelty_table_size", "model_options")
+            "novelty_table_size", "model_options", "robot", "locomotion")
+INHERITS = ("mujoco", "holosoma")
+#: the holosoma entry's metering keys -> the couriers' (``inherit: holosoma``)
+HOLOSOMA_METERING = {"unit_length_m": "leg_distance_m", "drivetrain_efficiency": "drivetrain_efficiency",
+                     "idle_power_w": "idle_power_w", "tilt_margin_rad": "tilt_margin_rad",
+                     "max_tilt_rad": "fall_tilt_rad"}
+#: the holosoma entry's course keys -> the course's (``couriers/course.py``)
+HOLOSOMA_COURSE = {"unit_length_m": "leg_m", "dwell_s": "dwell_s", "course_speed_m_per_s": "speed_m_per_s",
+                   "sim2sim_legs": "legs"}
 #: ``model_options`` keys; values are validated by :func:`parse_model_options`.
 MODEL_OPTION_KEYS = ("integrator", "iterations", "ls_iterations", "eulerdamp", "contact_geoms")
 INTEGRATORS = ("euler", "implicitfast", "rk4")
@@ -54,6 +70,10 @@ class MjxTaskSettings:
     novelty_table_size: int = 4096
     ppo: dict[str, Any] = field(default_factory=dict)
     model_options: dict[str, Any] = field(default_factory=dict)
+    robot: str | None = None  # a robot card (econmotor.robots): the task runs mjx/humanoid_env.py
+    locomotion: dict[str, Any] = field(default_factory=dict)
+    course: dict[str, Any] = field(default_factory=dict)  # couriers/course.py CourseSettings keys
+    start_joint_noise_rad: float = 0.0  # each joint's start drawn within +- this of the default pose, rad
     source: str = "<catalog>"
 
     def __getattr__(self, name: str) -> Any:
@@ -74,16 +94,31 @@ def parse_mjx_settings(spec: TaskSpec) -> MjxTaskSettings:
     check_keys(entry, OWN_KEYS + INHERITED_KEYS, src, prefix)
     key = lambda name: f"{prefix}.{name}"
     inherit = entry.get("inherit")
+    robot = as_str(entry["robot"], src, key("robot")) if "robot" in entry else None
+    course: dict[str, Any] = {}
+    start_noise = 0.0
     if inherit is not None:
-        as_str(inherit, src, key("inherit"), ("mujoco",))
+        as_str(inherit, src, key("inherit"), INHERITS)
         repeated = [k for k in INHERITED_KEYS if k in entry]
         if repeated:
-            raise ConfigError(src, key(repeated[0]), "comes from the mujoco entry (inherit: mujoco); remove it here")
-        base = parse_metering_settings(spec.backend_entry("mujoco"), spec.source,
-                                       f"tasks.{spec.task_id}.backends.mujoco")
+            raise ConfigError(src, key(repeated[0]), f"comes from the {inherit} entry (inherit: {inherit}); "
+                              "remove it here")
+        parent = spec.backend_entry(inherit)
+        if inherit == "holosoma":
+            if robot is None:
+                raise ConfigError(src, key("robot"), "is required with inherit: holosoma (a robot card)")
+            parent = {"env_id": robot, **{ours: parent[theirs] for theirs, ours in HOLOSOMA_METERING.items()
+                                          if theirs in parent}}
+            holosoma = spec.backend_entry("holosoma")
+            course = {ours: holosoma[theirs] for theirs, ours in HOLOSOMA_COURSE.items() if theirs in holosoma}
+            start_noise = float(holosoma.get("sim2sim_start_joint_noise_rad", 0.0))
+        base = parse_metering_settings(parent, spec.source, f"tasks.{spec.task_id}.backends.{inherit}")
     else:  # the metering keys written here, with the same rules
-        base = parse_metering_settings(entry, src, prefix)
-    kw: dict[str, Any] = {"task_id": spec.task_id, "metering": base, "source": src}
+        base = parse_metering_settings({"env_id": robot, **entry} if robot else entry, src, prefix)
+    kw: dict[str, Any] = {"task_id": spec.task_id, "metering": base, "source": src, "robot": robot,
+                          "course": course, "start_joint_noise_rad": start_noise}
+    if entry.get("locomotion"):
+        kw["locomotion"] = dict(require_mapping(entry["locomotion"], src, key("locomotion")))
     for name in ("num_envs", "cpu_num_envs_cap", "checkpoint_every_steps", "novelty_table_size"):
         if name in entry:
             kw[name] = as_int(entry[name], src, key(name), min_value=1)

@@ -67,7 +67,8 @@ def env_layout(env: Any, normalized: bool) -> tuple[dict[str, Any], dict[str, An
     model = env.mj_model
     obs = {"obs_dim": int(env.observation_size), "dtype": "float32", "normalized_in_graph": bool(normalized),
            "joints": [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(model.njnt)],
-           "note": "Gymnasium v5 observation of the env id (the mujoco backend's layout)"}
+           "note": getattr(env, "obs_layout_note",
+                           "Gymnasium v5 observation of the env id (the mujoco backend's layout)")}
     action = {"action_dim": int(env.action_size), "low": np.asarray(env.action_low).tolist(),
               "high": np.asarray(env.action_high).tolist(),
               "actuators": [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in range(model.nu)]}

@@ -17,7 +17,7 @@ from econmotor.errors import ConfigError
 from econmotor.motor_backend.couriers import overlay, physics, robots
 from econmotor.motor_backend.datapacks import DatapackConfig
 from econmotor.motor_backend.mjx import env as mjx_env
-from econmotor.motor_backend.mjx.settings import INHERITED_KEYS, parse_mjx_settings
+from econmotor.motor_backend.mjx.settings import HOLOSOMA_COURSE, HOLOSOMA_METERING, INHERITED_KEYS, parse_mjx_settings
 from econmotor.motor_backend.mujoco import metering
 from econmotor.motor_backend.mujoco.settings import parse_mujoco_settings
 from econmotor.tasks import load_catalog
@@ -131,14 +131,30 @@ def test_the_per_step_formulas_are_plain_functions_of_named_quantities():
 
 def test_mjx_catalog_entries_inherit_the_mujoco_metering():
     catalog = load_catalog()
-    assert set(catalog.ids("mjx")) == {"hopper_courier", "walker_courier", "ant_courier", "humanoid_courier"}
-    for task_id in catalog.ids("mjx"):
+    couriers = [t for t in catalog.ids("mjx") if catalog.get(t).backends["mjx"].get("inherit") == "mujoco"]
+    assert set(couriers) == {"hopper_courier", "walker_courier", "ant_courier", "humanoid_courier"}
+    for task_id in couriers:
         spec = catalog.get(task_id)
         mjx_settings, mujoco_settings = parse_mjx_settings(spec), parse_mujoco_settings(spec)
         for key in INHERITED_KEYS:
             assert getattr(mjx_settings, key) == getattr(mujoco_settings, key), (task_id, key)
         assert mjx_settings.num_envs >= 1024 and mjx_settings.ppo
         assert spec.backend_source("mjx").endswith("mjx.yaml")
+
+
+def test_robot_couriers_inherit_the_sim_to_sim_meter_and_course():
+    catalog = load_catalog()
+    robots = {t: catalog.get(t).backends["mjx"]["robot"] for t in catalog.ids("mjx")
+              if catalog.get(t).backends["mjx"].get("inherit") == "holosoma"}
+    assert robots == {"humanoid_locomotion_g1": "g1_29dof", "humanoid_locomotion_t1": "t1_29dof"}
+    for task_id in robots:
+        spec = catalog.get(task_id)
+        settings, holosoma = parse_mjx_settings(spec), spec.backends["holosoma"]
+        for theirs, ours in HOLOSOMA_METERING.items():
+            assert getattr(settings, ours) == holosoma[theirs], (task_id, ours)
+        for theirs, ours in HOLOSOMA_COURSE.items():
+            assert settings.course[ours] == holosoma[theirs], (task_id, ours)
+        assert settings.start_joint_noise_rad == holosoma["sim2sim_start_joint_noise_rad"]
 
 
 def test_an_inherited_key_written_again_is_a_config_error():

@@ -8,6 +8,7 @@ import pytest
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.mjx.assets import load_model, robot_spec
 from econmotor.motor_backend.mjx.env import MjxCourierEnv
+from econmotor.motor_backend.mjx.humanoid_env import MjxHumanoidCourierEnv
 from econmotor.motor_backend.mjx.settings import parse_mjx_settings
 from econmotor.tasks import load_catalog
 
@@ -26,6 +27,11 @@ def geoms_that_collide(model: mujoco.MjModel) -> set[str]:
 def test_the_catalog_runs_every_courier_as_brax_does_on_mjx():
     catalog = load_catalog()
     for task_id in catalog.ids("mjx"):
+        if "robot" in catalog.get(task_id).backends["mjx"]:
+            env = MjxHumanoidCourierEnv(task_id, catalog=catalog)  # feet-only contacts from its robot card
+            assert geoms_that_collide(env.mj_model) - {"floor"} == set(env.card.foot_geoms)
+            assert env.mj_model.opt.iterations <= 4 and env.mj_model.opt.ls_iterations <= 8
+            continue
         env = MjxCourierEnv(task_id, catalog=catalog)
         opt = env.mj_model.opt
         assert opt.integrator == mujoco.mjtIntegrator.mjINT_EULER, task_id

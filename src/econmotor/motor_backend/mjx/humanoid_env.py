@@ -1,0 +1,437 @@
+"""MjxHumanoidCourierEnv: a real robot (a robot card) walking the delivery course in MJX, economics in the step.
+
+The same interface as :class:`~econmotor.motor_backend.mjx.env.MjxCourierEnv` (batched pure
+``reset(key, num_envs)`` / ``step(state, action)``, auto-reset, ``finished`` raw metrics), so the
+mjx backend trains, evaluates and exports it unchanged. A task runs here when its mjx entry names
+a robot card (``robot: g1_29dof``, ``tasks/mjx.yaml``); everything robot-specific is read from the
+card (:mod:`econmotor.robots`), never from the robot's name.
+
+- **the robot**: the card's MJCF with its maker's collision filter and feet-only contacts
+  (:func:`econmotor.robots.model.load_model` with ``contacts="feet"``), the task's
+  ``model_options`` (solver iterations) applied; the start: ``card.init_pos``, upright, the default
+  pose plus the start-pose noise.
+- **action -> torques**, Holosoma's convention: the action clipped to ``+-card.action_clip``,
+  PD targets ``default + action_scale * action``, ``card.decimation`` physics steps per action each
+  applying ``tau = clip(kp (target - q) - kd qd, -effort_limit, effort_limit)``.
+- **observation**: holosoma_inference's ``actor_obs`` (:func:`econmotor.robots.observation.build_observation`),
+  the command being the course's (below); so a policy trained here runs in the sim-to-sim
+  evaluator and in holosoma_inference, and theirs here.
+- **the course** (:mod:`econmotor.motor_backend.couriers.course`): the sim-to-sim evaluator's,
+  legs of ``leg_m`` at the course speed with a dwell at each end; the episode ends at its time
+  limit (``locomotion.episode_s``), when the course is done, or at a fall.
+- **metering**: every physics step through :func:`econmotor.economics.courier_formulas.meter_step`
+  as the evaluator meters it (units on the forward high-water mark of x, energy
+  ``sum |qfrc_actuator qvel| / efficiency + idle``, tilt risk, a fall = one error, the card's fall
+  rule), frozen after a fall.
+- **reward**: ``keep_task_reward * locomotion + J(t) - J(t-1)``: the locomotion terms of
+  :mod:`.locomotion_rewards` with the catalog's weights, plus the economic overlay's potential
+  ``J`` (as the other mjx couriers: each term's episode sum is the episode metric of its key).
+- **stress in the graph**, from the datapacks' Holosoma keys (``humanoid_stress.yaml``, read by
+  :func:`~econmotor.motor_backend.holosoma.datapack_mapping.map_datapacks` as for the evaluator):
+  floor friction and torso payload per episode, base-velocity pushes at random intervals, kp/kd
+  scale per joint (``kp_range`` / ``kd_range``), start-pose noise.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+
+from econmotor.config.loading import as_float, check_keys, require_mapping
+from econmotor.economics import courier_formulas as cf
+from econmotor.errors import ConfigError
+from econmotor.motor_backend.couriers.course import (
+    CourseSettings,
+    CourseState,
+    course_command,
+    course_finished,
+    course_start,
+    heading_yaw,
+)
+from econmotor.motor_backend.couriers.overlay import human_baseline_references, overlay_term_factors
+from econmotor.motor_backend.couriers.physics import root_tilt_rad
+from econmotor.motor_backend.holosoma.datapack_mapping import map_datapacks
+from econmotor.motor_backend.holosoma.sim2sim import Stress
+from econmotor.motor_backend.mjx._mjx import mjx
+from econmotor.motor_backend.mjx.assets import apply_model_options
+from econmotor.motor_backend.mjx.locomotion_rewards import TERMS, LocomotionReading, locomotion_reward
+from econmotor.motor_backend.mjx.settings import MjxTaskSettings, parse_mjx_settings
+from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
+from econmotor.robots import card as robot_card
+from econmotor.robots.model import joint_indices, load_model
+from econmotor.robots.observation import advance_phase, build_observation, initial_phase, projected_gravity
+from econmotor.tasks import load_catalog
+
+#: overlay keys a humanoid courier can weight (no novelty table, no pose tracking)
+HUMANOID_TERMS = ("mpl_per_hour", "error_rate", "energy_kwh", "risk_score")
+#: ``locomotion`` keys of the mjx entry
+LOCOMOTION_KEYS = ("episode_s", "rewards")
+#: running sums of the episode kept on the device
+_METER_KEYS = tuple(f.name for f in dataclasses.fields(cf.MeterSums))
+EPISODE_KEYS = (*_METER_KEYS, "control_steps", "task_return", "overlay_j", "x0", "walk_s", "walk_m", "max_lateral_m",
+                "legs_done")
+BASE_METRIC_KEYS = ("units_completed", "units_attempted", "errors", "episode_length_s", "length_steps", "energy_wh",
+                    "risk_score", "novelty_score", "return", "forward_distance_m", "fell", "overlay_return",
+                    "legs_reached", "achieved_speed_m_per_s", "walking_s", "max_lateral_m", "mean_power_w",
+                    "course_done")
+
+
+class HumanoidEnvState(NamedTuple):
+    """The batched state (every array leads with ``num_envs``); ``robot`` holds the policy-side
+    state (gait phase, last action, command, course), ``randomization`` this episode's draws."""
+
+    data: Any
+    obs: jax.Array
+    reward: jax.Array
+    done: jax.Array
+    truncated: jax.Array
+    episode: dict[str, jax.Array]
+    finished: dict[str, jax.Array]
+    key: jax.Array
+    robot: dict[str, jax.Array]
+    randomization: dict[str, jax.Array]
+
+
+@dataclasses.dataclass(frozen=True)
+class HumanoidStress:
+    """The datapacks' stress as this env applies it (None / 0: off)."""
+
+    friction_range: tuple[float, float] | None = None
+    payload_kg_range: tuple[float, float] | None = None
+    push_interval_s: tuple[float, float] | None = None
+    max_push_vel_m_per_s: tuple[float, float] | None = None
+    start_joint_noise_rad: float = 0.0
+    kp_range: tuple[float, float] | None = None
+    kd_range: tuple[float, float] | None = None
+
+
+def parse_humanoid_stress(datapacks: Sequence[Any], push_preset: Mapping[str, Any],
+                          start_joint_noise_rad: float) -> HumanoidStress:
+    """The datapacks' Holosoma keys (``holosoma/datapack_mapping.py``) as this env's stress; what it
+    cannot apply (terrain other than flat, link masses, control delay, a curriculum, motion clips) is a
+    ConfigError naming the datapack and key."""
+    stress, kp, kd = Stress(initial_joint_noise_rad=start_joint_noise_rad), None, None
+    for bundle in datapacks:
+        overrides = map_datapacks(bundle, uses_motion_clip=False)
+        source = ", ".join(getattr(bundle, "sources", {}).values()) or "<datapacks>"
+        if overrides.curriculum or bundle.motion_clips or overrides.terrain not in (None, "terrain_locomotion_plane"):
+            raise ConfigError(source, "curriculum / motion_clips / terrain",
+                              "the mjx humanoid couriers run on flat ground without a curriculum or clips")
+        rand = overrides.randomization
+        stress = Stress.from_overrides(rand, overrides.evaluation, {"push_randomizer_state": push_preset},
+                                       start_joint_noise_rad)
+        unsupported = [s for s in stress.ignored if not s.startswith("actuator_randomizer_state")]
+        if unsupported:
+            raise ConfigError(source, "domain_randomization", f"the mjx humanoid couriers cannot apply {unsupported}")
+        actuators = rand.get("actuator_randomizer_state", {})
+        kp, kd = (tuple(actuators[k]) if k in actuators else None for k in ("kp_range", "kd_range"))
+    return HumanoidStress(stress.friction_range, stress.payload_kg_range, stress.push_interval_s,
+                          stress.max_push_vel_m_per_s, stress.initial_joint_noise_rad, kp, kd)
+
+
+def check_humanoid_datapack(pack: Any, source: str) -> None:
+    """A datapack the humanoid couriers can apply (:func:`parse_humanoid_stress`), else its ConfigError."""
+    from econmotor.motor_backend.datapacks import DatapackBundle
+
+    bundle = DatapackBundle(task_id="<check>", datapack_ids=(pack.id,), motion_clips=tuple(pack.motion_clips or ()),
+                            domain_randomization=dict(pack.domain_randomization or {}),
+                            curriculum=dict(pack.curriculum or {}), sources={pack.id: source})
+    parse_humanoid_stress([bundle], {"push_interval_s": (1.0, 1.0), "max_push_vel": (0.0, 0.0)}, 0.0)
+
+
+def parse_locomotion(settings: MjxTaskSettings) -> tuple[float, dict[str, float], dict[str, dict[str, Any]]]:
+    """``(episode_s, weights, params)`` of the entry's ``locomotion`` mapping; errors name the catalog key."""
+    src, prefix = settings.source, f"backend_entries.mjx.{settings.task_id}.locomotion"
+    loco = settings.locomotion
+    check_keys(loco, LOCOMOTION_KEYS, src, prefix, required=LOCOMOTION_KEYS)
+    episode_s = as_float(loco["episode_s"], src, f"{prefix}.episode_s", min_value=1e-3)
+    rewards = require_mapping(loco["rewards"], src, f"{prefix}.rewards")
+    weights, params = {}, {}
+    for name, entry in rewards.items():
+        if name not in TERMS:
+            raise ConfigError(src, f"{prefix}.rewards.{name}", "unknown locomotion reward term", sorted(TERMS))
+        entry = dict(require_mapping(entry, src, f"{prefix}.rewards.{name}"))
+        weights[name] = as_float(entry.pop("weight"), src, f"{prefix}.rewards.{name}.weight", allow_negative=True)
+        params[name] = entry
+    return episode_s, weights, params
+
+
+def _like(new: dict[str, jax.Array], old: dict[str, jax.Array]) -> dict[str, jax.Array]:
+    """``new`` with ``old``'s dtypes (strong), so the step's carry keeps one type (no recompilation)."""
+    return {k: jnp.asarray(v, jnp.asarray(old[k]).dtype) for k, v in new.items()}
+
+
+def _rotate_inverse(quat_wxyz: jax.Array, v: jax.Array) -> jax.Array:
+    """``R(q)^T v``: a world vector in the body frame."""
+    w, u = quat_wxyz[0], quat_wxyz[1:]
+    return v * (2.0 * w * w - 1.0) - 2.0 * w * jnp.cross(u, v) + 2.0 * u * jnp.dot(u, v)
+
+
+class MjxHumanoidCourierEnv:
+    """A robot card's courier task as batched pure functions (module docstring).
+
+    Args: as :class:`~econmotor.motor_backend.mjx.env.MjxCourierEnv` (``task_id``: a catalog task
+    whose mjx entry names a ``robot``).
+    """
+
+    obs_layout_note = "holosoma_inference actor_obs of the robot card (econmotor/robots)"
+
+    def __init__(self, task_id: str, *, objective: EconomicObjectiveSpec | None = None,
+                 datapacks: Sequence[Any] = (), seed: int = 0, catalog: Any = None,
+                 keep_task_reward: bool = True, economics: bool = True) -> None:
+        catalog = catalog if catalog is not None else load_catalog()
+        spec = catalog.get(task_id)
+        self.task_id, self.seed = task_id, int(seed)
+        self.settings: MjxTaskSettings = parse_mjx_settings(spec)
+        s = self.settings
+        where = f"{s.source}: backend_entries.mjx.{task_id}"
+        self.card = c = robot_card(s.robot, where)
+        self.episode_s, self.weights, self.reward_params = parse_locomotion(s)
+        self.course = CourseSettings(**{"leg_m": s.leg_distance_m, **s.course})
+        self.stress = parse_humanoid_stress(datapacks, c.push_preset, s.start_joint_noise_rad)
+        self.mj_model: mujoco.MjModel = load_model(c, contacts="feet")
+        apply_model_options(self.mj_model, s.model_options, where)
+        self.model = mjx.put_model(self.mj_model)
+        m = self.mj_model
+        qadr, dadr, act = joint_indices(m, c)
+        self._qadr, self._dadr, self._act = (jnp.asarray(a) for a in (qadr, dadr, act))
+        self._torso = m.body(c.torso_body).id
+        self._feet = jnp.asarray([m.body(b).id for b in c.foot_bodies])
+        self._contact_points = jnp.asarray([m.body(b).id for b in c.foot_contact_bodies])
+        self._floor = m.geom("floor").id
+        self.physics_dt_s = float(m.opt.timestep)
+        self.control_dt_s = c.control_dt_s
+        if abs(self.physics_dt_s - c.physics_dt_s) > 1e-12:
+            raise ConfigError(where, "model_options", "the physics step is the robot card's")
+        self.max_episode_steps = round(self.episode_s / self.control_dt_s)
+        self.keep_task_reward, self.economics = bool(keep_task_reward), bool(economics)
+        self.action_size = c.num_dofs
+        self.action_low = np.full(c.num_dofs, -c.action_clip, np.float32)
+        self.action_high = np.full(c.num_dofs, c.action_clip, np.float32)
+        self.observation_size = c.obs_dim
+        ranges = c.command_ranges
+        self._vx_max, self._yaw_range = float(ranges["lin_vel_x"][1]), tuple(float(v) for v in ranges["ang_vel_yaw"])
+        # the overlay, as the other mjx couriers compile it (metering at the physics step)
+        scales = dict(compile_economic_overlay(objective)) if objective is not None and economics else {}
+        econ = spec.economics
+        refs = human_baseline_references(econ.mp_human_units_per_hour, econ.error_rate_human, s.idle_power_w,
+                                         self.episode_s) if s.overlay_normalization == "human_baseline" else {}
+        self.scales = scales
+        self.references = {k: v for k, v in refs.items() if k in scales}
+        self.factors = overlay_term_factors(self.scales, self.references, terms=HUMANOID_TERMS, backend="mjx")
+        self._constants = cf.MeterConstants(s.leg_distance_m, s.drivetrain_efficiency, s.idle_power_w,
+                                            self.physics_dt_s, s.tilt_margin_rad, s.fall_tilt_rad)
+        self._coefficients = cf.overlay_coefficients(self.factors, self.physics_dt_s)
+        self.metric_keys: tuple[str, ...] = BASE_METRIC_KEYS + tuple(f"overlay_{k}_raw" for k in self.scales) \
+            if economics else ("length_steps", "return", "fell")
+        self._template = mjx.make_data(self.model)
+        qpos0 = np.asarray(m.qpos0, np.float64).copy()
+        qpos0[0:3], qpos0[3:7] = c.init_pos, (1.0, 0.0, 0.0, 0.0)
+        qpos0[qadr] = c.default_dof_angles
+        self._qpos0 = jnp.asarray(qpos0, jnp.float32)
+        self._default = jnp.asarray(c.default_dof_angles, jnp.float32)
+        self._kp, self._kd = jnp.asarray(c.kp, jnp.float32), jnp.asarray(c.kd, jnp.float32)
+        self._limit = jnp.asarray(c.effort_limits, jnp.float32)
+
+    # ------------------------------------------------------------------ physics readouts
+    def has_fallen(self, qpos: jax.Array) -> jax.Array:
+        """The card's fall rule: tilt past ``fall_tilt_rad``, the root below its fall height, or a non-finite state."""
+        z = qpos[2]
+        tilt = root_tilt_rad(qpos, True, jnp)
+        return (tilt > self.card.fall_tilt_rad) | (z < self.card.min_base_z_m) | ~jnp.isfinite(z)
+
+    def _randomized_model(self, dr: Mapping[str, jax.Array]) -> Any:
+        m = self.model
+        if "friction" in dr:
+            mu = dr["friction"]
+            m = m.replace(geom_friction=m.geom_friction.at[self._floor, 0].set(mu),
+                          pair_friction=m.pair_friction.at[:, 0:2].set(mu))
+        if "payload_kg" in dr:
+            m = m.replace(body_mass=m.body_mass.at[self._torso].add(dr["payload_kg"]))
+        return m
+
+    def _draw(self, key: jax.Array, rng: tuple[float, float], shape: tuple[int, ...] = ()) -> jax.Array:
+        return jax.random.uniform(key, shape, minval=rng[0], maxval=rng[1])
+
+    def _observe(self, data: Any, robot: dict[str, jax.Array]) -> tuple[jax.Array, dict[str, jax.Array]]:
+        """The course's command for the next step, the gait clock advanced, and the observation."""
+        qpos = data.qpos
+        course = CourseState(robot["leg"], robot["dwell_left_s"], robot["legs_done"])
+        course, vx, yaw_rate = course_command(course, qpos[0], qpos[1], heading_yaw(qpos[3:7], jnp), self.course,
+                                              self.control_dt_s, self._vx_max, self._yaw_range, jnp)
+        lin = jnp.stack([vx, 0.0 * vx])
+        phase, standing = advance_phase(robot["phase"], robot["standing"], lin, yaw_rate, self.card, jnp)
+        obs = build_observation(self.card, jnp, quat_wxyz=qpos[3:7], ang_vel_body=data.qvel[3:6],
+                                q=qpos[self._qadr], qd=data.qvel[self._dadr], lin_vel_cmd=lin, ang_vel_cmd=yaw_rate,
+                                last_action=robot["last_action"], phase=phase)
+        robot = {**robot, "leg": course.leg, "dwell_left_s": course.dwell_left_s, "legs_done": course.legs_done,
+                 "command": jnp.stack([vx, 0.0 * vx, yaw_rate]), "phase": phase, "standing": standing}
+        return obs, robot
+
+    # ------------------------------------------------------------------ one env
+    def _reset_one(self, key: jax.Array):
+        st, n = self.stress, self.card.num_dofs
+        k_q, k_mu, k_pay, k_kp, k_kd, k_push = jax.random.split(key, 6)
+        qpos = self._qpos0
+        if st.start_joint_noise_rad > 0:
+            noise = st.start_joint_noise_rad
+            qpos = qpos.at[self._qadr].add(self._draw(k_q, (-noise, noise), (n,)))
+        dr: dict[str, jax.Array] = {}
+        if st.friction_range is not None:
+            dr["friction"] = self._draw(k_mu, st.friction_range)
+        if st.payload_kg_range is not None:
+            dr["payload_kg"] = self._draw(k_pay, st.payload_kg_range)
+        dr["kp_scale"] = self._draw(k_kp, st.kp_range, (n,)) if st.kp_range else jnp.ones(n)
+        dr["kd_scale"] = self._draw(k_kd, st.kd_range, (n,)) if st.kd_range else jnp.ones(n)
+        data = self._template.replace(qpos=qpos, qvel=jnp.zeros_like(self._template.qvel))
+        zero = jnp.zeros((), jnp.float32)
+        start = course_start(jnp)
+        robot = {"phase": jnp.asarray(initial_phase(np), jnp.float32), "standing": jnp.zeros((), bool),
+                 "last_action": jnp.zeros(n, jnp.float32), "command": jnp.zeros(3, jnp.float32),
+                 **{k: zero + v for k, v in start._asdict().items()}, "time_s": zero,
+                 "next_push_s": self._draw(k_push, st.push_interval_s) if st.push_interval_s else jnp.full((), jnp.inf)}
+        obs, observed = self._observe(data, robot)
+        episode = {k: zero for k in EPISODE_KEYS}
+        episode["best_x"] = episode["x0"] = qpos[0]
+        return data, obs, _like(observed, robot), episode, dr
+
+    def _step_one(self, data: Any, robot: dict[str, jax.Array], ep: dict[str, jax.Array],
+                  dr: dict[str, jax.Array], action: jax.Array, key: jax.Array):
+        c, st = self.card, self.stress
+        robot_in = robot
+        m = self._randomized_model(dr)
+        action = jnp.clip(action, -c.action_clip, c.action_clip)
+        if st.push_interval_s is not None:  # Holosoma's push: a base velocity kick every few seconds
+            k_dir, k_next = jax.random.split(key)
+            push = robot["time_s"] >= robot["next_push_s"]
+            kick = jax.random.uniform(k_dir, (2,), minval=-1.0, maxval=1.0) * jnp.asarray(st.max_push_vel_m_per_s)
+            data = data.replace(qvel=data.qvel.at[0:2].add(jnp.where(push, kick, 0.0)))
+            robot = {**robot, "next_push_s": jnp.where(push, robot["time_s"] + self._draw(k_next, st.push_interval_s),
+                                                       robot["next_push_s"])}
+        x_before = data.qpos[0]
+        target = self._default + c.action_scale * action
+        kp, kd = self._kp * dr["kp_scale"], self._kd * dr["kd_scale"]
+        sums0 = {k: ep[k] for k in _METER_KEYS}
+
+        def physics_step(_, carry):
+            d, sums, alive = carry
+            q, qd = d.qpos[self._qadr], d.qvel[self._dadr]
+            tau = jnp.clip(kp * (target - q) - kd * qd, -self._limit, self._limit)
+            d = mjx.step(m, d.replace(ctrl=d.ctrl.at[self._act].set(tau)))
+            fell = self.has_fallen(d.qpos)
+            if self.economics:  # the evaluator's meter, frozen once the robot is down
+                reading = cf.StepReading(x_m=d.qpos[0], mechanical_w=cf.mechanical_power_w(
+                    d.qfrc_actuator[self._dadr], d.qvel[self._dadr], jnp),
+                    tilt_rad=root_tilt_rad(d.qpos, True, jnp), fell=fell)
+                metered = cf.MeterSums(**sums)
+                cf.meter_step(metered, reading, self._constants, jnp)
+                sums = {k: jnp.where(alive, jnp.asarray(getattr(metered, k), jnp.float32), sums[k]) for k in sums}
+            return d, sums, alive & ~fell
+
+        data, sums, alive = jax.lax.fori_loop(0, c.decimation, physics_step, (data, sums0, jnp.ones((), bool)))
+        fell = ~alive
+        qpos, qvel = data.qpos, data.qvel
+        quat = qpos[3:7]
+        reading = LocomotionReading(
+            command=robot["command"], lin_vel_body=_rotate_inverse(quat, qvel[0:3]), ang_vel_body=qvel[3:6],
+            gravity_body=projected_gravity(quat, jnp), action=action, last_action=robot["last_action"],
+            q=qpos[self._qadr], default_q=self._default, phase=robot["phase"],
+            foot_z=data.xpos[self._contact_points, 2], feet_xy=data.xpos[self._feet, 0:2],
+            feet_gravity_xy=-data.xmat[self._feet, 2, 0:2], base_yaw=heading_yaw(quat, jnp))
+        task_r, _ = locomotion_reward(reading, self.weights, self.reward_params, self.control_dt_s, jnp)
+        course_done = course_finished(CourseState(robot["leg"], robot["dwell_left_s"], robot["legs_done"]),
+                                      self.course, jnp)
+        walking = robot["command"][0] > 0.0
+        new = {**ep, **sums, "control_steps": ep["control_steps"] + 1.0, "task_return": ep["task_return"] + task_r,
+               "walk_s": ep["walk_s"] + jnp.where(walking, self.control_dt_s, 0.0),
+               "walk_m": ep["walk_m"] + jnp.where(walking, qpos[0] - x_before, 0.0),
+               "max_lateral_m": jnp.maximum(ep["max_lateral_m"], jnp.abs(qpos[1]))}
+        robot = {**robot, "last_action": action, "time_s": robot["time_s"] + self.control_dt_s}
+        obs, robot = self._observe(data, robot)
+        new["legs_done"] = robot["legs_done"]
+        reward = task_r if self.keep_task_reward else 0.0
+        if self.economics:
+            j = jnp.asarray(cf.overlay_potential(cf.MeterSums(**sums), self._coefficients, jnp), jnp.float32)
+            new["overlay_j"] = j
+            reward = reward + j - ep["overlay_j"]
+        return data, obs, _like(robot, robot_in), jnp.asarray(reward, jnp.float32), fell, course_done, _like(new, ep)
+
+    def _episode_metrics(self, ep: dict[str, jax.Array], fell: jax.Array, course_done: jax.Array) -> dict[str, Any]:
+        if not self.economics:
+            return {"length_steps": ep["control_steps"], "return": ep["task_return"], "fell": fell.astype(jnp.float32)}
+        metrics = cf.running_metrics(cf.MeterSums(**{k: ep[k] for k in _METER_KEYS}), self.physics_dt_s, jnp)
+        length_s = ep["steps"] * self.physics_dt_s
+        out = {
+            "units_completed": ep["units"], "units_attempted": ep["units"] + ep["errors"], "errors": ep["errors"],
+            "episode_length_s": length_s, "length_steps": ep["control_steps"], "energy_wh": ep["energy_wh"],
+            "risk_score": metrics.risk_score, "novelty_score": jnp.zeros(()), "return": ep["task_return"],
+            "forward_distance_m": ep["best_x"] - ep["x0"], "fell": fell.astype(jnp.float32),
+            "overlay_return": ep["overlay_j"], "legs_reached": ep["legs_done"],
+            "achieved_speed_m_per_s": cf.safe_div(ep["walk_m"], ep["walk_s"], jnp), "walking_s": ep["walk_s"],
+            "max_lateral_m": ep["max_lateral_m"],
+            "mean_power_w": cf.safe_div(ep["energy_wh"] * cf.SECONDS_PER_HOUR, length_s, jnp),
+            "course_done": course_done.astype(jnp.float32),
+        }
+        for k in self.scales:
+            out[f"overlay_{k}_raw"] = jnp.asarray(getattr(metrics, k), jnp.float32)
+        return {k: jnp.asarray(v, jnp.float32) for k, v in out.items()}
+
+    # ------------------------------------------------------------------ the batched API
+    def reset(self, key: jax.Array, num_envs: int) -> HumanoidEnvState:
+        """``num_envs`` fresh episodes (pure; jit with ``num_envs`` static)."""
+        keys = jax.random.split(key, 2 * num_envs)
+        data, obs, robot, episode, dr = jax.vmap(self._reset_one)(keys[num_envs:])
+        zeros = jnp.zeros((num_envs,), jnp.float32)
+        finished = {k: zeros for k in self.metric_keys}
+        return HumanoidEnvState(data, obs, zeros, zeros, zeros, episode, finished, keys[:num_envs], robot, dr)
+
+    def step(self, state: HumanoidEnvState, action: jax.Array) -> HumanoidEnvState:
+        """One control step of every env, auto-resetting the ones whose episode ended (pure)."""
+        keys = jax.vmap(lambda k: jax.random.split(k, 3))(state.key)
+        env_keys, step_keys, reset_keys = keys[:, 0], keys[:, 1], keys[:, 2]
+        data, obs, robot, reward, fell, course_done, episode = jax.vmap(self._step_one)(
+            state.data, state.robot, state.episode, state.randomization, action, step_keys)
+        finished = jax.vmap(self._episode_metrics)(episode, fell, course_done)
+        truncated = (episode["control_steps"] >= self.max_episode_steps) | course_done
+        truncated = truncated & ~fell
+        done = fell | truncated
+
+        def reset_done(carry):
+            fresh = jax.vmap(self._reset_one)(reset_keys)
+
+            def pick(new, old):
+                return jnp.where(done.reshape(done.shape + (1,) * (old.ndim - 1)), new, old)
+
+            return jax.tree_util.tree_map(pick, fresh, carry)
+
+        carry = (data, obs, robot, episode, state.randomization)
+        data, obs, robot, episode, dr = jax.lax.cond(jnp.any(done), reset_done, lambda c: c, carry)
+        return HumanoidEnvState(data, obs, reward, done.astype(jnp.float32), truncated.astype(jnp.float32), episode,
+                                finished, env_keys, robot, dr)
+
+    # ------------------------------------------------------------------ host side
+    def finished_to_dicts(self, finished: Mapping[str, Any]) -> list[dict[str, Any]]:
+        """Rows of finished episodes -> raw-episode dicts (the sim-to-sim evaluator's keys, plus the overlay's)."""
+        if not self.economics:
+            raise ValueError("an env built with economics=False has no raw economic metrics")
+        cols = {k: np.asarray(v, dtype=np.float64).reshape(-1) for k, v in finished.items()}
+        rows = []
+        for i in range(len(cols["fell"])):
+            row = {k: float(cols[k][i]) for k in BASE_METRIC_KEYS if k not in ("fell", "course_done")}
+            row["control_dt_s"] = self.control_dt_s
+            row["termination_reason"] = "fall" if cols["fell"][i] > 0.5 else \
+                "course_done" if cols["course_done"][i] > 0.5 else "time_out"
+            row["total_return"] = row["return"] + row["overlay_return"]
+            for k in self.scales:
+                raw = float(cols[f"overlay_{k}_raw"][i])
+                row[f"overlay_{k}_raw"] = raw
+                row[f"overlay_{k}_weighted"] = self.factors[k] * raw
+            rows.append(row)
+        return rows
+
