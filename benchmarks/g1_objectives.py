@@ -13,7 +13,9 @@ interval over episodes, falls; then the paired difference energy_saver - through
 objectives ask for is energy_saver's Wh per leg below throughput's; it is shown when the paired
 interval lies below 0.
 
-Run: ``OMP_NUM_THREADS=1 .venv/bin/python benchmarks/g1_objectives.py [--steps 20000] [--episodes 20]``.
+Run: ``OMP_NUM_THREADS=1 .venv/bin/python benchmarks/g1_objectives.py [--steps 20000] [--episodes 20]``;
+``--onnx throughput=runs/a/policy.onnx --onnx energy_saver=runs/b/policy.onnx`` prices two runs already
+trained (``econmotor train ... --init-policy holosoma:g1_29dof/ppo --objective-preset <preset>``).
 """
 
 from __future__ import annotations
@@ -57,11 +59,13 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=20, help="sim-to-sim episodes per policy")
     parser.add_argument("--num-envs", type=int, default=16)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--onnx", action="append", default=[], metavar="PRESET=PATH",
+                        help="a trained run's policy.onnx for a preset (no training for it)")
     args = parser.parse_args()
     out = Path(tempfile.mkdtemp(prefix="g1-objectives-"))
+    policies: dict[str, str] = dict(item.split("=", 1) for item in args.onnx)
     mjx = MjxBackend(runs_dir=out)
-    policies: dict[str, str] = {}
-    for preset in PRESETS:
+    for preset in (p for p in PRESETS if p not in policies):
         started = time.perf_counter()
         objective = objective_from_vector(ObjectiveVector.from_preset(preset), name=preset)
         result = mjx.train_policy(TASK, objective, [], args.num_envs, args.steps, args.seed, output_dir=out / preset,
@@ -84,7 +88,7 @@ def main() -> None:
         hours = np.array([e["episode_length_s"] for e in ev.episodes]) / 3600.0
         rows[name] = (wh, legs, hours, sum(e["errors"] for e in ev.episodes))
         print(f"evaluated {name} ({args.episodes} episodes, {time.perf_counter() - started:.0f} s)", flush=True)
-    print(f"\n{TASK}: fine-tuned {args.steps:,} env steps from {SHIPPED} (seed {args.seed}); "
+    print(f"\n{TASK}: fine-tuned from {SHIPPED} ({args.steps:,} env steps, seed {args.seed}, unless --onnx); "
           f"{args.episodes} sim-to-sim episodes each, seeds {EVAL_SEED}-{EVAL_SEED + args.episodes - 1}, "
           f"datapack {STRESS.stem}")
     print(f"{'policy':<14}{'legs/h':>9}{'Wh/leg':>9}{'90% interval':>18}{'falls':>7}")
