@@ -18,10 +18,10 @@ naming the node it stopped at.
 observation normalisation), checks the ONNX's observation and action against the env's (width,
 joint order, PD gains: a mismatch names both sides), and returns the learner to start from: the
 actor's weights converted (so before any update its deterministic actions are the ONNX's), a
-fresh critic of the same shape, the exploration noise ``exp(log_std)`` of
-:data:`WARM_START_LOG_STD` unless the run's hyperparameters set ``init_log_std``, and
-:data:`WARM_START_CRITIC_ITERATIONS` value-only iterations first (``ppo.py``) unless they set
-``critic_warmup_iterations``.
+fresh critic of the same shape, and, unless the run's hyperparameters set them, the exploration
+noise ``exp(log_std)`` of :data:`WARM_START_LOG_STD`, :data:`WARM_START_CRITIC_ITERATIONS`
+value-only iterations first (``ppo.py``), a learning rate :data:`WARM_START_LR_FACTOR` times the
+catalog's and no entropy bonus.
 
 A shipped name resolves to its file with the holosoma backend's rules
 (``policy_import.parse_policy_name``; :func:`policy_file`): in this interpreter's
@@ -43,11 +43,16 @@ from econmotor.errors import ConfigError
 from econmotor.motor_backend.mjx import networks as nets
 from econmotor.motor_backend.mjx import ppo
 
-#: exploration noise of a warm-started actor: std 0.2 on an action scaled by 0.25 is ~0.05 rad at a joint
+#: exploration noise of a warm-started actor: std 0.1 on an action scaled by 0.25 is ~0.025 rad at a joint
 #: (a fresh actor's std 1 would throw a walker that exists off its feet before the critic knows it)
-WARM_START_LOG_STD = float(np.log(0.2))
+WARM_START_LOG_STD = float(np.log(0.1))
 #: value-only iterations before the actor moves
-WARM_START_CRITIC_ITERATIONS = 10
+WARM_START_CRITIC_ITERATIONS = 30
+#: fine-tuning's learning rate is the catalog's times this, and it adds no entropy bonus. Measured on the
+#: G1 (CPU, 16 envs): at the catalog's 3e-4 with entropy 0.01, std 0.2 and 10 warm-up iterations the
+#: shipped walker's episodes fell from 7.1 s to 0.27 s within 13,000 actor steps (PPO without a KL
+#: target takes 128 Adam steps an iteration; rsl_rl, which trained it, shrinks its rate on KL)
+WARM_START_LR_FACTOR = 0.1
 #: an imported normaliser counts as this many observations, so fine-tuning's observations move it slowly
 IMPORTED_STATS_COUNT = 1e6
 _ACTIVATION_OPS = {"Elu": "elu", "Tanh": "tanh", "Relu": "relu"}
@@ -234,7 +239,8 @@ def warm_start(actor: ImportedActor, env: Any, cfg: ppo.PPOConfig, requested: Ma
                               f"{actor.source}, whose actor has {key} {value!r}")
     notes = [f"{key} {getattr(cfg, key)!r} -> {value!r}" for key, value in changes.items()
              if getattr(cfg, key) != value]
-    defaults = {"init_log_std": WARM_START_LOG_STD, "critic_warmup_iterations": WARM_START_CRITIC_ITERATIONS}
+    defaults = {"init_log_std": WARM_START_LOG_STD, "critic_warmup_iterations": WARM_START_CRITIC_ITERATIONS,
+                "learning_rate": cfg.learning_rate * WARM_START_LR_FACTOR, "entropy_cost": 0.0}
     changes.update({k: v for k, v in defaults.items() if k not in requested})
     if normalised and actor.clip_obs is not None:
         changes["clip_obs"] = actor.clip_obs
@@ -252,5 +258,5 @@ def warm_start(actor: ImportedActor, env: Any, cfg: ppo.PPOConfig, requested: Ma
     optimizer_state = ppo.make_optimizer(cfg).init(params)
     notes.append(f"started from {actor.source}: actor {actor.obs_dim} -> {' -> '.join(map(str, actor.hidden_sizes))}"
                  f" -> {actor.action_dim} ({actor.activation}); exploration std {np.exp(cfg.init_log_std):.2g}; "
-                 f"{cfg.critic_warmup_iterations} critic-only iterations first")
+                 f"{cfg.critic_warmup_iterations} critic-only iterations first; learning rate {cfg.learning_rate:g}")
     return cfg, ppo.Learner(params, optimizer_state, stats), notes
