@@ -237,8 +237,9 @@ def warm_start(actor: ImportedActor, env: Any, cfg: ppo.PPOConfig, requested: Ma
                                                                  and tuple(requested[key]) == value):
             raise ConfigError("<hyperparameters>", key, f"{requested[key]!r} does not fit --init-policy "
                               f"{actor.source}, whose actor has {key} {value!r}")
-    notes = [f"{key} {getattr(cfg, key)!r} -> {value!r}" for key, value in changes.items()
-             if getattr(cfg, key) != value]
+    changed = [f"{key} {getattr(cfg, key)!r} -> {value!r}" for key, value in changes.items()
+               if getattr(cfg, key) != value]
+    notes = [f"the network is shaped as {actor.source}'s: {', '.join(changed)}"] if changed else []
     defaults = {"init_log_std": WARM_START_LOG_STD, "critic_warmup_iterations": WARM_START_CRITIC_ITERATIONS,
                 "learning_rate": cfg.learning_rate * WARM_START_LR_FACTOR, "entropy_cost": 0.0}
     changes.update({k: v for k, v in defaults.items() if k not in requested})
