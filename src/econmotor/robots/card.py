@@ -50,8 +50,17 @@ class ObservationConvention:
 #: holosoma_inference's locomotion ``actor_obs`` terms, sorted: the order it concatenates them in
 LOCOMOTION_TERMS = tuple(sorted(("base_ang_vel", "projected_gravity", "command_lin_vel", "command_ang_vel", "dof_pos",
                                  "dof_vel", "actions", "sin_phase", "cos_phase")))
-#: the shipped walkers' command ranges (their ONNX metadata; holosoma's locomotion command preset)
-LOCOMOTION_COMMAND_RANGES = {"lin_vel_x": (-1.0, 1.0), "lin_vel_y": (-1.0, 1.0), "ang_vel_yaw": (-1.0, 1.0)}
+#: what Holosoma's two locomotion robots share (G1 and T1: the same simulator rates, action
+#: convention, command ranges, push preset and collision filter), and econmotor's fall rule
+HOLOSOMA_LOCOMOTION = {
+    "mjcf_package": "holosoma", "mjcf_install": "pip install --no-deps holosoma==0.0.3",
+    "action_scale": 0.25, "action_clip": 100.0, "physics_dt_s": 1.0 / 200.0, "decimation": 4,
+    "self_collisions": False, "fall_tilt_rad": 0.8, "fall_height_fraction": 0.5,
+    # the shipped walkers' command ranges (their ONNX metadata; holosoma's locomotion command preset)
+    "command_ranges": {"lin_vel_x": (-1.0, 1.0), "lin_vel_y": (-1.0, 1.0), "ang_vel_yaw": (-1.0, 1.0)},
+    "push_preset": {"push_interval_s": (5.0, 10.0), "max_push_vel": (1.0, 1.0)},
+    "foot_contact_bodies": ("left_foot_contact_point", "right_foot_contact_point"),
+}
 
 
 def locomotion_observation(num_dofs: int, scales: Mapping[str, float], gait_period_s: float = 1.0,

@@ -14,13 +14,12 @@ Sources (``tests/integration/test_robot_cards.py`` holds every value to them):
 
 from __future__ import annotations
 
-from econmotor.robots.card import LOCOMOTION_COMMAND_RANGES, RobotCard, locomotion_observation
+from econmotor.robots.card import HOLOSOMA_LOCOMOTION, RobotCard, locomotion_observation
 
 CARD = RobotCard(
+    **HOLOSOMA_LOCOMOTION,
     name="g1_29dof",
-    mjcf_package="holosoma",
     mjcf_file="data/robots/g1/g1_29dof.xml",
-    mjcf_install="pip install --no-deps holosoma==0.0.3",
     dof_names=(
         "left_hip_pitch_joint", "left_hip_roll_joint", "left_hip_yaw_joint", "left_knee_joint",
         "left_ankle_pitch_joint", "left_ankle_roll_joint",
@@ -60,24 +59,14 @@ CARD = RobotCard(
         25.0, 25.0, 25.0, 25.0, 25.0, 5.0, 5.0,
         25.0, 25.0, 25.0, 25.0, 25.0, 5.0, 5.0,
     ),
-    action_scale=0.25,
-    action_clip=100.0,
-    physics_dt_s=1.0 / 200.0,
-    decimation=4,
     init_pos=(0.0, 0.0, 0.8),
     root_body="pelvis",
     torso_body="torso_link",
     foot_bodies=("left_ankle_roll_link", "right_ankle_roll_link"),
     foot_geoms=tuple(f"{side}_foot{i}_collision" for side in ("left", "right") for i in range(1, 8)),
-    foot_contact_bodies=("left_foot_contact_point", "right_foot_contact_point"),
-    fall_tilt_rad=0.8,
-    fall_height_fraction=0.5,
-    self_collisions=False,
-    command_ranges=LOCOMOTION_COMMAND_RANGES,
     observation=locomotion_observation(29, scales={
         "actions": 1.0, "base_ang_vel": 0.25, "command_ang_vel": 1.0, "command_lin_vel": 1.0, "cos_phase": 1.0,
         "dof_pos": 1.0, "dof_vel": 0.05, "projected_gravity": 1.0, "sin_phase": 1.0}),
-    push_preset={"push_interval_s": (5.0, 10.0), "max_push_vel": (1.0, 1.0)},
     holosoma_experiment="g1_29dof",
     inference_preset="g1-29dof-loco",
     sources={"robot": "holosoma 0.0.3 config_values/robot.py g1_29dof",

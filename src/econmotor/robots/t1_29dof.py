@@ -13,13 +13,12 @@ Sources (``tests/integration/test_robot_cards.py`` holds every value to them):
 
 from __future__ import annotations
 
-from econmotor.robots.card import LOCOMOTION_COMMAND_RANGES, RobotCard, locomotion_observation
+from econmotor.robots.card import HOLOSOMA_LOCOMOTION, RobotCard, locomotion_observation
 
 CARD = RobotCard(
+    **HOLOSOMA_LOCOMOTION,
     name="t1_29dof",
-    mjcf_package="holosoma",
     mjcf_file="data/robots/t1/t1_29dof.xml",
-    mjcf_install="pip install --no-deps holosoma==0.0.3",
     dof_names=(
         "AAHead_yaw", "Head_pitch",
         "Left_Shoulder_Pitch", "Left_Shoulder_Roll", "Left_Elbow_Pitch", "Left_Elbow_Yaw", "Left_Wrist_Pitch",
@@ -63,24 +62,14 @@ CARD = RobotCard(
         45.0, 30.0, 30.0, 60.0, 12.0, 12.0,
         45.0, 30.0, 30.0, 60.0, 12.0, 12.0,
     ),
-    action_scale=0.25,
-    action_clip=100.0,
-    physics_dt_s=1.0 / 200.0,
-    decimation=4,
     init_pos=(0.0, 0.0, 0.68),
     root_body="Trunk",
     torso_body="Trunk",
     foot_bodies=("left_foot_link", "right_foot_link"),
     foot_geoms=tuple(f"{side}_rail_{i}" for side in ("L", "R") for i in range(1, 8)),
-    foot_contact_bodies=("left_foot_contact_point", "right_foot_contact_point"),
-    fall_tilt_rad=0.8,
-    fall_height_fraction=0.5,
-    self_collisions=False,
-    command_ranges=LOCOMOTION_COMMAND_RANGES,
     observation=locomotion_observation(29, scales={
         "actions": 1.0, "base_ang_vel": 1.0, "command_ang_vel": 1.0, "command_lin_vel": 1.0, "cos_phase": 1.0,
         "dof_pos": 1.0, "dof_vel": 0.1, "projected_gravity": 1.0, "sin_phase": 1.0}),
-    push_preset={"push_interval_s": (5.0, 10.0), "max_push_vel": (1.0, 1.0)},
     holosoma_experiment="t1_29dof",
     inference_preset="t1-29dof-loco",
     sources={"robot": "holosoma 0.0.3 config_values/robot.py t1_29dof_waist_wrist",

@@ -126,6 +126,40 @@ def parse_mjx_randomization(datapacks: Sequence[Any]) -> DomainRandomization:
     return randomization
 
 
+def auto_reset(done: jax.Array, reset_one: Any, reset_keys: jax.Array, carry: Any) -> Any:
+    """``carry`` (a pytree of per-env arrays) with the envs where ``done`` replaced by
+    ``vmap(reset_one)(reset_keys)``, which is computed only when some episode ended."""
+    def reset_done(c: Any) -> Any:
+        fresh = jax.vmap(reset_one)(reset_keys)
+
+        def pick(new: jax.Array, old: jax.Array) -> jax.Array:
+            return jnp.where(done.reshape(done.shape + (1,) * (old.ndim - 1)), new, old)
+
+        return jax.tree_util.tree_map(pick, fresh, c)
+
+    return jax.lax.cond(jnp.any(done), reset_done, lambda c: c, carry)
+
+
+def with_overlay_columns(row: dict[str, Any], cols: Mapping[str, np.ndarray], i: int,
+                         factors: Mapping[str, float]) -> dict[str, Any]:
+    """A finished episode's row with ``total_return`` and each overlay term's ``overlay_<key>_raw``
+    (episode ``i`` of ``cols``) and ``overlay_<key>_weighted`` (times its factor)."""
+    row["total_return"] = row["return"] + row["overlay_return"]
+    for k, factor in factors.items():
+        raw = float(cols[f"overlay_{k}_raw"][i])
+        row[f"overlay_{k}_raw"] = raw
+        row[f"overlay_{k}_weighted"] = factor * raw
+    return row
+
+
+def task_settings(task_id: str, catalog: Any = None) -> tuple[Any, MjxTaskSettings, str]:
+    """``(task spec, its validated mjx settings, "<file>: backend_entries.mjx.<task>")`` (the shipped
+    catalog unless ``catalog`` is given): what every mjx env starts from."""
+    spec = (catalog if catalog is not None else load_catalog()).get(task_id)
+    settings = parse_mjx_settings(spec)
+    return spec, settings, f"{settings.source}: backend_entries.mjx.{task_id}"
+
+
 def env_class(settings: MjxTaskSettings) -> type:
     """The env a task's mjx entry asks for: a robot card's courier (``robot:``) or a Gymnasium body's."""
     if settings.robot is not None:
@@ -153,12 +187,9 @@ class MjxCourierEnv:
     def __init__(self, task_id: str, *, objective: EconomicObjectiveSpec | None = None,
                  datapacks: Sequence[Any] = (), seed: int = 0, catalog: Any = None,
                  keep_task_reward: bool = True, economics: bool = True) -> None:
-        catalog = catalog if catalog is not None else load_catalog()
-        spec = catalog.get(task_id)
-        self.task_id, self.seed = task_id, int(seed)
-        self.settings: MjxTaskSettings = parse_mjx_settings(spec)
+        spec, self.settings, where = task_settings(task_id, catalog)
         s = self.settings
-        where = f"{s.source}: backend_entries.mjx.{task_id}"
+        self.task_id, self.seed = task_id, int(seed)
         self.robot: RobotSpec = robot_spec(s.env_id, s.env_kwargs, where)
         self.mj_model: mujoco.MjModel = load_model(self.robot, s.model_options, where)
         self.model = mjx.put_model(self.mj_model)
@@ -365,16 +396,8 @@ class MjxCourierEnv:
         truncated = jnp.logical_and(episode["steps"] >= self.max_episode_steps, jnp.logical_not(fell))
         done = jnp.logical_or(fell, truncated)
 
-        def reset_done(carry):
-            fresh = jax.vmap(self._reset_one)(reset_keys)
-
-            def pick(new, old):
-                return jnp.where(done.reshape(done.shape + (1,) * (old.ndim - 1)), new, old)
-
-            return jax.tree_util.tree_map(pick, fresh, carry)
-
-        carry = (data, obs, episode, state.randomization)
-        data, obs, episode, dr = jax.lax.cond(jnp.any(done), reset_done, lambda c: c, carry)
+        data, obs, episode, dr = auto_reset(done, self._reset_one, reset_keys,
+                                            (data, obs, episode, state.randomization))
         return EnvState(data, obs, reward.astype(jnp.float32), done.astype(jnp.float32),
                         truncated.astype(jnp.float32), episode, finished, env_keys, counts, dr)
 
@@ -394,10 +417,5 @@ class MjxCourierEnv:
             row = {k: float(cols[k][i]) for k in BASE_METRIC_KEYS if k != "fell"}
             row["control_dt_s"] = self.control_dt_s
             row["termination_reason"] = "fall" if cols["fell"][i] > 0.5 else "max_steps"
-            row["total_return"] = row["return"] + row["overlay_return"]
-            for k in self.scales:
-                raw = float(cols[f"overlay_{k}_raw"][i])
-                row[f"overlay_{k}_raw"] = raw
-                row[f"overlay_{k}_weighted"] = self.factors[k] * raw
-            rows.append(row)
+            rows.append(with_overlay_columns(row, cols, i, self.factors))
         return rows

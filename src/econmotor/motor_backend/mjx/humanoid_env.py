@@ -60,13 +60,13 @@ from econmotor.motor_backend.holosoma.datapack_mapping import map_datapacks
 from econmotor.motor_backend.holosoma.sim2sim import Stress
 from econmotor.motor_backend.mjx._mjx import mjx
 from econmotor.motor_backend.mjx.assets import apply_model_options
+from econmotor.motor_backend.mjx.env import auto_reset, task_settings, with_overlay_columns
 from econmotor.motor_backend.mjx.locomotion_rewards import TERMS, LocomotionReading, locomotion_reward
-from econmotor.motor_backend.mjx.settings import MjxTaskSettings, parse_mjx_settings
+from econmotor.motor_backend.mjx.settings import MjxTaskSettings
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
 from econmotor.robots import card as robot_card
 from econmotor.robots.model import joint_indices, load_model
 from econmotor.robots.observation import advance_phase, build_observation, initial_phase, projected_gravity
-from econmotor.tasks import load_catalog
 
 #: overlay keys a humanoid courier can weight (no novelty table, no pose tracking)
 HUMANOID_TERMS = ("mpl_per_hour", "error_rate", "energy_kwh", "risk_score")
@@ -99,14 +99,9 @@ class HumanoidEnvState(NamedTuple):
 
 
 @dataclasses.dataclass(frozen=True)
-class HumanoidStress:
-    """The datapacks' stress as this env applies it (None / 0: off)."""
+class HumanoidStress(Stress):
+    """The evaluator's :class:`Stress` plus the PD gains' per-joint scale ranges (None: off)."""
 
-    friction_range: tuple[float, float] | None = None
-    payload_kg_range: tuple[float, float] | None = None
-    push_interval_s: tuple[float, float] | None = None
-    max_push_vel_m_per_s: tuple[float, float] | None = None
-    start_joint_noise_rad: float = 0.0
     kp_range: tuple[float, float] | None = None
     kd_range: tuple[float, float] | None = None
 
@@ -131,8 +126,8 @@ def parse_humanoid_stress(datapacks: Sequence[Any], push_preset: Mapping[str, An
             raise ConfigError(source, "domain_randomization", f"the mjx humanoid couriers cannot apply {unsupported}")
         actuators = rand.get("actuator_randomizer_state", {})
         kp, kd = (tuple(actuators[k]) if k in actuators else None for k in ("kp_range", "kd_range"))
-    return HumanoidStress(stress.friction_range, stress.payload_kg_range, stress.push_interval_s,
-                          stress.max_push_vel_m_per_s, stress.initial_joint_noise_rad, kp, kd)
+    return HumanoidStress(**{f.name: getattr(stress, f.name) for f in dataclasses.fields(Stress)},
+                          kp_range=kp, kd_range=kd)
 
 
 def check_humanoid_datapack(pack: Any, source: str) -> None:
@@ -185,12 +180,9 @@ class MjxHumanoidCourierEnv:
     def __init__(self, task_id: str, *, objective: EconomicObjectiveSpec | None = None,
                  datapacks: Sequence[Any] = (), seed: int = 0, catalog: Any = None,
                  keep_task_reward: bool = True, economics: bool = True) -> None:
-        catalog = catalog if catalog is not None else load_catalog()
-        spec = catalog.get(task_id)
-        self.task_id, self.seed = task_id, int(seed)
-        self.settings: MjxTaskSettings = parse_mjx_settings(spec)
+        spec, self.settings, where = task_settings(task_id, catalog)
         s = self.settings
-        where = f"{s.source}: backend_entries.mjx.{task_id}"
+        self.task_id, self.seed = task_id, int(seed)
         self.card = c = robot_card(s.robot, where)
         self.episode_s, self.weights, self.reward_params = parse_locomotion(s)
         self.course = CourseSettings(**{"leg_m": s.leg_distance_m, **s.course})
@@ -279,8 +271,8 @@ class MjxHumanoidCourierEnv:
         st, n = self.stress, self.card.num_dofs
         k_q, k_mu, k_pay, k_kp, k_kd, k_push = jax.random.split(key, 6)
         qpos = self._qpos0
-        if st.start_joint_noise_rad > 0:
-            noise = st.start_joint_noise_rad
+        if st.initial_joint_noise_rad > 0:
+            noise = st.initial_joint_noise_rad
             qpos = qpos.at[self._qadr].add(self._draw(k_q, (-noise, noise), (n,)))
         dr: dict[str, jax.Array] = {}
         if st.friction_range is not None:
@@ -402,16 +394,8 @@ class MjxHumanoidCourierEnv:
         truncated = truncated & ~fell
         done = fell | truncated
 
-        def reset_done(carry):
-            fresh = jax.vmap(self._reset_one)(reset_keys)
-
-            def pick(new, old):
-                return jnp.where(done.reshape(done.shape + (1,) * (old.ndim - 1)), new, old)
-
-            return jax.tree_util.tree_map(pick, fresh, carry)
-
-        carry = (data, obs, robot, episode, state.randomization)
-        data, obs, robot, episode, dr = jax.lax.cond(jnp.any(done), reset_done, lambda c: c, carry)
+        data, obs, robot, episode, dr = auto_reset(done, self._reset_one, reset_keys,
+                                                   (data, obs, robot, episode, state.randomization))
         return HumanoidEnvState(data, obs, reward, done.astype(jnp.float32), truncated.astype(jnp.float32), episode,
                                 finished, env_keys, robot, dr)
 
@@ -427,11 +411,6 @@ class MjxHumanoidCourierEnv:
             row["control_dt_s"] = self.control_dt_s
             row["termination_reason"] = "fall" if cols["fell"][i] > 0.5 else \
                 "course_done" if cols["course_done"][i] > 0.5 else "time_out"
-            row["total_return"] = row["return"] + row["overlay_return"]
-            for k in self.scales:
-                raw = float(cols[f"overlay_{k}_raw"][i])
-                row[f"overlay_{k}_raw"] = raw
-                row[f"overlay_{k}_weighted"] = self.factors[k] * raw
-            rows.append(row)
+            rows.append(with_overlay_columns(row, cols, i, self.factors))
         return rows
 

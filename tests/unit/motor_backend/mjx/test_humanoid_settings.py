@@ -1,0 +1,59 @@
+"""The humanoid couriers' settings without compiling a step: stress datapacks, reward terms, catalog entries."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from econmotor.errors import ConfigError
+from econmotor.motor_backend.datapacks import DatapackBundle, load_datapack_configs
+from econmotor.motor_backend.mjx import locomotion_rewards as lr
+from econmotor.motor_backend.mjx.humanoid_env import MjxHumanoidCourierEnv, parse_humanoid_stress, parse_locomotion
+from econmotor.robots import G1_29DOF
+from econmotor.tasks import load_catalog
+
+from .conftest import catalog_with_mjx_entry
+
+REPO_DATAPACKS = "configs/datapacks"
+
+
+def bundle(**dr) -> DatapackBundle:
+    return DatapackBundle(task_id="humanoid_locomotion_g1", datapack_ids=("p",), domain_randomization=dr,
+                          sources={"p": "packs/p.yaml"})
+
+
+def test_the_stress_datapack_is_drawn_as_the_evaluator_draws_it() -> None:
+    [pack] = load_datapack_configs([f"{REPO_DATAPACKS}/humanoid_stress.yaml"])
+    stress = parse_humanoid_stress([bundle(**pack.domain_randomization)], G1_29DOF.push_preset, 0.05)
+    assert stress.friction_range == (0.4, 1.0) and stress.payload_kg_range == (2.0, 5.0)
+    assert stress.push_interval_s == G1_29DOF.push_preset["push_interval_s"]  # "pushes: true": Holosoma's interval
+    assert stress.max_push_vel_m_per_s == (0.5, 0.5) and stress.initial_joint_noise_rad == 0.05
+    gains = parse_humanoid_stress([bundle(kp_range=[0.9, 1.1], kd_range=[0.8, 1.2])], G1_29DOF.push_preset, 0.0)
+    assert (gains.kp_range, gains.kd_range, gains.friction_range) == ((0.9, 1.1), (0.8, 1.2), None)
+    with pytest.raises(ConfigError, match="packs/p.yaml.*mass_randomizer"):
+        parse_humanoid_stress([bundle(link_mass_range=[0.9, 1.1])], G1_29DOF.push_preset, 0.0)
+    with pytest.raises(ConfigError, match="packs/p.yaml.*flat ground"):
+        parse_humanoid_stress([bundle(terrain="rough")], G1_29DOF.push_preset, 0.0)
+
+
+def test_expected_foot_height_rises_to_the_swing_height_and_back() -> None:
+    phases = np.array([-math.pi, -math.pi / 2, 0.0, math.pi / 2, math.pi])
+    heights = lr.expected_foot_height(phases, 0.09, np)
+    np.testing.assert_allclose(heights, [0.0, 0.045, 0.09, 0.045, 0.0], atol=1e-12)
+
+
+def test_an_unknown_reward_term_or_missing_key_names_the_catalog_key() -> None:
+    task = "humanoid_locomotion_g1"
+    loco = load_catalog().get(task).backends["mjx"]["locomotion"]
+    catalog = catalog_with_mjx_entry(task, source="my_mjx.yaml",
+                                     locomotion={**loco, "rewards": {**loco["rewards"], "moonwalk": {"weight": 1.0}}})
+    with pytest.raises(ConfigError, match=r"my_mjx.yaml.*locomotion.rewards.moonwalk.*tracking_lin_vel"):
+        MjxHumanoidCourierEnv(task, catalog=catalog)
+    env = MjxHumanoidCourierEnv(task)
+    episode_s, weights, params = parse_locomotion(env.settings)
+    assert episode_s == loco["episode_s"] and weights["feet_phase"] == 5.0 and params["feet_phase"]["swing_height"]
+    with pytest.raises(ConfigError, match="episode_s"):
+        parse_locomotion(replace(env.settings, locomotion={"rewards": {}}))
