@@ -32,10 +32,12 @@ from econmotor.cli._app import (
 )
 from econmotor.cli._interrupts import set_deadline_note
 from econmotor.cli.train import (
+    INIT_POLICY_OPTION,
     SELECT_EPISODES_OPTION,
     SELECT_EVERY_OPTION,
     TRAINING_EVAL_EPISODES,
     UNTIL_DEPLOYABLE_OPTION,
+    init_policy_options,
     interrupted_note,
     selection_options,
     training_eval_episodes,
@@ -69,7 +71,14 @@ from econmotor.report.pipeline import (
     train_and_record,
     with_objective_name,
 )
-from econmotor.report.render import INTERVAL_COLUMN, headline, imported_policy_text, selection_text, table_rows
+from econmotor.report.render import (
+    INTERVAL_COLUMN,
+    headline,
+    imported_policy_text,
+    selection_text,
+    started_from_text,
+    table_rows,
+)
 from econmotor.store.registry import DB_URL_ENV, Registry, registry_exists
 from econmotor.tasks import load_catalog
 from econmotor.valuation import default_objective_vector
@@ -145,6 +154,8 @@ def show_outcome(outcome: ReportOutcome) -> None:
     console.print(headline(doc), highlight=False)
     if doc.get("selection"):
         console.print(f"policy kept: {selection_text(doc['selection'])}", highlight=False)
+    if doc.get("started_from"):
+        console.print(f"started from: {started_from_text(doc['started_from'])}", highlight=False)
     title = "diagnostics (not a price)" if not verdict["deployable"] else "pricing"
     table = Table(title=f"{doc['task']['task_id']} on {doc['backend']}: objective {doc['objective']['name']}, "
                         f"spread share {doc['pricing']['spread_share']:g}; {title}")
@@ -229,6 +240,7 @@ def report_command(
     imported_policy: str = typer.Option(None, "--policy", help="Price a policy trained elsewhere: an ONNX file "
                                         "or a shipped name (holosoma:g1_29dof/ppo); nothing is trained, "
                                         "--eval-episodes N episodes are evaluated."),
+    init_policy: str = INIT_POLICY_OPTION,
 ) -> None:
     """Train (or reuse) a policy for a task, price its labour, write JSON, Markdown and HTML reports."""
     set_cpu_threads()
@@ -250,6 +262,11 @@ def report_command(
         raise ConfigError("--run-id", None, "--run-id reports a recorded run: use it with --motor-backend none")
     selecting = selection_options(motor_backend, until_deployable, select_every, select_episodes) \
         if motor_backend != NO_BACKEND else {}
+    if init_policy is not None and (imported_policy is not None or motor_backend == NO_BACKEND):
+        raise ConfigError("--init-policy", init_policy, "starts a training run from a policy; --policy and "
+                          "--motor-backend none price without training")
+    if motor_backend != NO_BACKEND:
+        selecting.update(init_policy_options(motor_backend, init_policy))
     objective = resolve_objective(objective_config, objective_name)
     packs = resolve_datapacks(split_datapack_values([*datapacks, *(more_datapacks or [])]), url)
     out_dir = check_output_dir("--output-dir", output_dir or Path("reports") / task_id)
@@ -293,6 +310,8 @@ def report_command(
         return
     defaults = backend_class(motor_backend).defaults
     backend = make_backend(motor_backend, tasks_file)
+    if init_policy is not None:
+        backend.check_init_policy(init_policy, task_id)
     run_dir = backend.run_dir(None, task_id, seed)
     announce_device(backend)
     announce_num_envs(backend, task_id, num_envs)

@@ -110,6 +110,24 @@ SELECT_EPISODES_OPTION = typer.Option(None, "--select-episodes", help="Episodes 
                                       "(default 80).")
 
 
+INIT_POLICY_OPTION = typer.Option(
+    None, "--init-policy", help="Start from a walker that exists: an ONNX file in Holosoma's format or a shipped "
+    "name (holosoma:g1_29dof/ppo); its actor is fine-tuned for the objective after a critic warm-up.")
+
+
+def init_policy_options(backend: str, init_policy: str | None, resume: bool = False) -> dict[str, Any]:
+    """The backend option of ``--init-policy``; an error for a backend that cannot start from one."""
+    if init_policy is None:
+        return {}
+    if not backend_class(backend).capabilities.init_policies:
+        raise ConfigError("--init-policy", init_policy, f"backend '{backend}' cannot start from a policy trained "
+                          "elsewhere", [b for b in known_backends() if backend_class(b).capabilities.init_policies])
+    if resume:
+        raise ConfigError("--init-policy", init_policy, "starts a new run; --resume continues one from its "
+                          "checkpoints (the run records what it started from)")
+    return {"init_policy": init_policy}
+
+
 #: episodes the backend evaluates right after training, unless asked otherwise
 TRAINING_EVAL_EPISODES = 5
 
@@ -197,6 +215,7 @@ def train_command(
     until_deployable: bool = UNTIL_DEPLOYABLE_OPTION,
     select_every: int = SELECT_EVERY_OPTION,
     select_episodes: int = SELECT_EPISODES_OPTION,
+    init_policy: str = INIT_POLICY_OPTION,
     db_url: str = typer.Option(None, "--db-url", help="Registry URL (default $ECONMOTOR_DB_URL or "
                                "sqlite:///./.econmotor/registry.sqlite)."),
     json_out: Path = JSON_OPTION,
@@ -226,6 +245,7 @@ def train_command(
     spec = load_catalog().get(task)
     check_task_backend(spec, backend)
     extra: dict[str, Any] = selection_options(backend, until_deployable, select_every, select_episodes)
+    extra.update(init_policy_options(backend, init_policy, resume))
     if resume:
         extra["resume"] = True
     if algorithm:
@@ -239,6 +259,8 @@ def train_command(
                           "(a new --output-dir, or none for a fresh directory).", highlight=False)
             return
     motor = make_backend(backend, **({"vec_env": vec_env} if vec_env else {}))
+    if init_policy is not None:
+        motor.check_init_policy(init_policy, task)
     announce_device(motor)
     announce_num_envs(motor, task, num_envs)
     url = check_db_url(db_url)

@@ -263,6 +263,9 @@ class BackendCapabilities:
         records_clips: ``record_clip(policy_id, path, num_steps, seed)`` saves a motion clip.
         evaluation_driven: held-out evaluations choose the checkpoint a run keeps, and training can
             stop once deployable (``motor_backend/selection.py``; ``--until-deployable``).
+        init_policies: ``train_policy(..., init_policy=...)`` starts a new run's actor from a policy
+            trained elsewhere (an ONNX file in Holosoma's format or a shipped name such as
+            ``holosoma:g1_29dof/ppo``; ``--init-policy``) and fine-tunes it for the objective.
     """
 
     resume: bool = False
@@ -271,6 +274,7 @@ class BackendCapabilities:
     imported_policies: bool = False
     records_clips: bool = False
     evaluation_driven: bool = False
+    init_policies: bool = False
 
 
 @dataclass(frozen=True)
@@ -375,6 +379,12 @@ class MotorBackendBase:
     def check_policy(self, policy_id: str) -> None:
         """Raise a ConfigError when ``policy_id`` cannot be evaluated by this backend, before any run is
         recorded (the base checks nothing; a backend with ``imported_policies`` checks files and names)."""
+
+    def check_init_policy(self, policy: str, task_id: str) -> None:
+        """Raise a ConfigError when ``policy`` (``--init-policy``) cannot start a run of ``task_id``, before any
+        run is recorded. The base refuses: only a backend with ``capabilities.init_policies`` starts from one."""
+        raise ConfigError("--init-policy", policy, f"the '{self.name}' backend cannot start from a policy trained "
+                          "elsewhere")
 
     # --- the three operations (spec: motor_backends.md); a subclass implements each ---------------
     def train_policy(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str],

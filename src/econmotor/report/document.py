@@ -25,6 +25,9 @@ Schema ``econmotor.task_pricing_report`` version :data:`REPORT_SCHEMA_VERSION`::
                   evaluation_cost {count, episodes, env_steps, wall_s}, held_out_seeds [first, end),
                   priced_seeds [first, end) | null, fresh_seeds}: which checkpoint was kept and why, and
                  whether the priced episodes are apart from the held-out ones the checkpoint was chosen on
+    started_from: null, or what the training run's actor started from (``--init-policy``, the mjx
+                 backend's ``init_policy`` record): {policy, sha256, hidden_sizes, activation,
+                 critic_warmup_iterations}
     registry:    {db_url, report_id}
 
 JSON has no infinity: non-finite numbers are written as ``null`` (a robot that
@@ -142,6 +145,15 @@ def selection_facts(train_run: Any, priced: Any, num_episodes: int) -> dict[str,
             "priced_seeds": priced_seeds, "fresh_seeds": fresh}
 
 
+def started_from(train_run: Any) -> dict[str, Any] | None:
+    """The document's ``started_from`` (module docstring) from the training run's recorded config."""
+    config = (getattr(train_run, "config", None) or {}).get("backend_config") or {}
+    init = config.get("init_policy")
+    if not init:
+        return None
+    return {k: init.get(k) for k in ("policy", "sha256", "hidden_sizes", "activation", "critic_warmup_iterations")}
+
+
 def recommendation(verdict: Verdict, uncertainty: Uncertainty, spread_share: float) -> dict[str, Any] | None:
     """The price to charge, at the unfavourable end of the intervals; ``None`` when not deployable."""
     if not verdict.deployable:
@@ -209,6 +221,7 @@ def build_document(ctx: ReportContext, generated_at: dt.datetime | None = None) 
                      for ep, j in zip(ctx.episodes, js, strict=True)],
         "training_curve": list(ctx.training_curve),
         "selection": selection_facts(ctx.train_run, priced, len(ctx.episodes)),
+        "started_from": started_from(ctx.train_run),
         "registry": {"db_url": ctx.db_url, "report_id": None},
     }
     return json_ready(doc)

@@ -205,6 +205,15 @@ def selection_text(selection: Mapping[str, Any] | None) -> str | None:
     return text
 
 
+def started_from_text(start: Mapping[str, Any] | None) -> str | None:
+    """What the training run's actor started from (``--init-policy``), or None for a fresh actor."""
+    if not start:
+        return None
+    sizes = " -> ".join(str(h) for h in start.get("hidden_sizes") or [])
+    return (f"{start['policy']} (sha256 {str(start.get('sha256'))[:12]}; actor {sizes}, {start.get('activation')}), "
+            f"fine-tuned for this objective after {start.get('critic_warmup_iterations')} critic-only iterations")
+
+
 def imported_policy_text(eval_run: Mapping[str, Any] | None) -> str:
     """How a sim-to-sim evaluation's figures were made (imported or not; speed achieved vs commanded), or ""."""
     config = ((eval_run or {}).get("config") or {}).get("backend_config") or {}
@@ -234,6 +243,9 @@ def _sections(doc: Mapping[str, Any]) -> dict[str, Any]:
     kept = selection_text(doc.get("selection"))
     if kept:
         facts.insert(facts.index(("training run", _run_line(doc["runs"]["train"]))) + 1, ("policy kept", kept))
+    start = started_from_text(doc.get("started_from"))
+    if start:
+        facts.insert(facts.index(("training run", _run_line(doc["runs"]["train"]))) + 1, ("started from", start))
     if doc.get("notes"):
         facts.insert(0, ("notes", doc["notes"]))
     inputs = [(r["name"], fmt(r["value"]), r["unit"], r["source"]) for r in doc["inputs"]]

@@ -26,6 +26,7 @@ from econmotor.report.render import (
     headline,
     render_html,
     render_markdown,
+    started_from_text,
     table_rows,
     write_report,
 )
@@ -136,3 +137,30 @@ def test_write_report_lands_all_files_readable_and_leaves_no_temporaries(tmp_pat
     leftovers = [p for p in tmp_path.rglob("*") if p.name.endswith(".tmp")]
     assert leftovers == []
     assert Path(files["html"]).stat().st_mode & stat.S_IRGRP  # not the 0600 of a temporary file
+
+
+def test_a_run_started_from_a_walker_says_so_in_the_document_and_the_report():
+    from econmotor.store.records import RunRecord
+
+    init = {"policy": "holosoma:g1_29dof/ppo", "sha256": "ab12cd34ef56" + "0" * 52, "hidden_sizes": [512, 256, 128],
+            "activation": "elu", "critic_warmup_iterations": 10, "onnx_path": "/x/ppo_g1_29dof.onnx"}
+    train = RunRecord(id=4, kind="train", task_id="dishwashing", backend="mjx", status="completed",
+                      objective_name="obj", objective={}, datapack_ids=(), config={"backend_config": {
+                          "init_policy": init}}, seed=0, num_envs=16, max_steps=32000, policy_path="runs/g1",
+                      raw_metrics={}, econ_metrics={}, training_curve=[], artifacts={}, notes="", error=None,
+                      parent_run_id=None, robot_id=None, created_at=None, finished_at=None)
+    doc = make_doc()
+    task = get_task("dishwashing")
+    raw, econ, episodes = summarize_episodes(RAW, task.economics)
+    ctx = ReportContext(task=task, backend="mjx", objective=EconomicObjectiveSpec(name="obj"), datapack_ids=(),
+                        pricing=price_evaluation(task.economics, econ, episodes, PricingPolicy(0.5)),
+                        raw_metrics=raw, econ_metrics=econ, episodes=episodes, training_curve=[], notes="",
+                        db_url="sqlite:///x", train_run=train)
+    started = build_document(ctx)["started_from"]
+    assert started == {k: init[k] for k in ("policy", "sha256", "hidden_sizes", "activation",
+                                            "critic_warmup_iterations")}
+    assert doc["started_from"] is None  # a fresh actor: nothing to say
+    assert started_from_text(started) == ("holosoma:g1_29dof/ppo (sha256 ab12cd34ef56; actor 512 -> 256 -> 128, "
+                                          "elu), fine-tuned for this objective after 10 critic-only iterations")
+    md = render_markdown(build_document(ctx), {})
+    assert "| started from | holosoma:g1_29dof/ppo (sha256 ab12cd34ef56; actor 512 -&gt; 256" in md

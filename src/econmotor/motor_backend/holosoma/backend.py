@@ -61,6 +61,7 @@ from econmotor.motor_backend.base import (
     summarize_episodes,
     write_run_config,
 )
+from econmotor.motor_backend.couriers.onnx_policy import ECONMOTOR_PREFIX, econmotor_metadata, json_or_text
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.motor_backend.holosoma.datapack_mapping import map_datapacks
 from econmotor.motor_backend.holosoma.econ_formulas import OVERLAY_TERM_KEYS
@@ -76,11 +77,10 @@ from econmotor.motor_backend.holosoma.plan import (
     task_settings,
 )
 from econmotor.motor_backend.holosoma.policy_import import (
-    ALGO_FILE_PREFIX,
     NAME_PREFIX,
     is_imported_policy,
     model_text,
-    parse_policy_name,
+    shipped_policy_path,
 )
 from econmotor.motor_backend.holosoma.recording_metrics import episodes_from_recording
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
@@ -132,9 +132,8 @@ class HolosomaPolicyHandle(StepAlias):
         options.inter_op_num_threads = 1
         self.session = ort.InferenceSession(self.onnx_path, options, providers=["CPUExecutionProvider"])
         raw = self.session.get_modelmeta().custom_metadata_map
-        decoded = {k: _json_or_text(v) for k, v in raw.items()}
-        self.holosoma_metadata = {k: v for k, v in decoded.items() if not k.startswith("econmotor_")}
-        self.econmotor_metadata = {k[len("econmotor_"):]: v for k, v in decoded.items() if k.startswith("econmotor_")}
+        self.holosoma_metadata = {k: json_or_text(v) for k, v in raw.items() if not k.startswith(ECONMOTOR_PREFIX)}
+        self.econmotor_metadata = econmotor_metadata(raw)
         self.dof_names: list[str] = list(self.holosoma_metadata.get("dof_names", []))
         self.kp = self.holosoma_metadata.get("kp")
         self.kd = self.holosoma_metadata.get("kd")
@@ -164,24 +163,17 @@ class HolosomaPolicyHandle(StepAlias):
         return out[0] if single else out
 
 
-def _json_or_text(value: str) -> Any:
-    try:
-        return json.loads(value)
-    except (json.JSONDecodeError, TypeError):
-        return value
-
-
 def attach_econmotor_metadata(onnx_path: str | Path, metadata: dict[str, Any]) -> None:
     """Add ``econmotor_<key>`` entries (JSON values) to an ONNX file's metadata, replacing old ones."""
     import onnx
 
     model = onnx.load(str(onnx_path))
-    keep = [p for p in model.metadata_props if not p.key.startswith("econmotor_")]
+    keep = [p for p in model.metadata_props if not p.key.startswith(ECONMOTOR_PREFIX)]
     del model.metadata_props[:]
     model.metadata_props.extend(keep)
     for key, value in metadata.items():
         entry = model.metadata_props.add()
-        entry.key, entry.value = f"econmotor_{key}", json.dumps(value, default=str)
+        entry.key, entry.value = f"{ECONMOTOR_PREFIX}{key}", json.dumps(value, default=str)
     tmp = Path(str(onnx_path) + ".tmp")
     onnx.save(model, str(tmp))
     tmp.replace(onnx_path)
@@ -485,7 +477,7 @@ class HolosomaBackend(MotorBackendBase):
     def deploy_policy_handle(self, policy_id: str) -> HolosomaPolicyHandle:
         """An onnxruntime handle for a trained run directory, an ONNX file or a shipped policy name."""
         if str(policy_id).startswith(NAME_PREFIX):
-            onnx_path = shipped_policy_file(self.python, str(policy_id))
+            onnx_path = shipped_policy_path(str(policy_id), self.python)
         else:
             path = Path(policy_id)
             onnx_path = path if path.suffix == ".onnx" else Path(self._run_config(policy_id)["onnx"])
@@ -497,7 +489,7 @@ class HolosomaBackend(MotorBackendBase):
         """An imported policy must be a shipped name this .venv-holosoma has or an existing ONNX file; a run
         directory must hold its ``run_config.json`` (ConfigErrors, before any job starts)."""
         if str(policy_id).startswith(NAME_PREFIX):
-            shipped_policy_file(self.python, str(policy_id))
+            shipped_policy_path(str(policy_id), self.python)
         elif str(policy_id).endswith(".onnx"):
             if not Path(policy_id).is_file():
                 raise ConfigError("--policy", str(policy_id), "no such ONNX file")
@@ -510,17 +502,3 @@ class HolosomaBackend(MotorBackendBase):
         if not (Path(policy_id) / RUN_CONFIG_FILE).is_file() and legacy.is_file():
             return json.loads(legacy.read_text(encoding="utf-8"))
         return read_run_config(policy_id, self.name, check_backend=True)
-
-
-def shipped_policy_file(python: Path, name: str) -> Path:
-    """The ONNX file of a shipped policy name in the Holosoma interpreter's holosoma_inference (no import)."""
-    robot, algo = parse_policy_name(name)
-    file = f"{ALGO_FILE_PREFIX[algo]}_{robot}.onnx"
-    site = python.parent.parent / "lib"
-    loco = "python3*/site-packages/holosoma_inference/models/loco"
-    found = sorted(site.glob(f"{loco}/{robot}/{file}"))
-    if not found:
-        shipped = sorted(f"{NAME_PREFIX}{p.parent.name}/{p.stem.split('_', 1)[0]}"
-                         for p in site.glob(f"{loco}/*/*.onnx"))
-        raise ConfigError("--policy", name, f"holosoma_inference in {python.parent.parent} ships no {file}", shipped)
-    return found[0]

@@ -11,9 +11,19 @@ A policy is named by an ONNX file in Holosoma's export format (metadata ``dof_na
    default pose, action scale and clip, effort limits, torso, fall rule, collision filter, physics
    rate and decimation, and the observation convention (terms, scales, order, gait phase).
 
-Name parsing (:func:`parse_policy_name`, :func:`is_imported_policy`) imports nothing and runs in
-the main interpreter; :func:`resolve_contract` runs in either (a shipped name needs
+Name parsing (:func:`parse_policy_name`, :func:`is_imported_policy`), finding a shipped file
+(:func:`shipped_policy_path`, without importing holosoma_inference) and the metadata a policy
+trained here is exported with (:func:`holosoma_export_metadata`) import nothing and run in the
+main interpreter; :func:`resolve_contract` runs in either (a shipped name needs
 holosoma_inference's files: .venv-holosoma).
+
+The export format (Holosoma 0.0.3's ``PPO.export``): input ``actor_obs``, output ``action``, and
+JSON metadata entries ``dof_names``, ``kp``, ``kd``, ``action_scale``, ``command_ranges``,
+``observation_layout`` (one entry per term in concatenation order: ``group``, ``name``, ``func``,
+``dim``, ``history_length``, ``scale``, ``clip``, ``params``) and ``observation_clip``; the
+shipped walkers, exported by an older Holosoma, carry the first four only. Holosoma's exporter
+also writes its training configuration and URDF (``experiment_config``, ``robot_urdf``), which a
+policy trained here does not have; holosoma_inference's locomotion policies read neither.
 """
 
 from __future__ import annotations
@@ -34,6 +44,22 @@ _NAME = re.compile(r"^holosoma:([A-Za-z0-9_]+)/([A-Za-z0-9_]+)$")
 #: algorithm spellings -> the file prefix under holosoma_inference/models/loco/<robot>/
 ALGO_FILE_PREFIX = {"ppo": "ppo", "fastsac": "fastsac", "fast_sac": "fastsac"}
 REQUIRED_METADATA = ("dof_names", "kp", "kd")
+#: the module of Holosoma's locomotion observation terms (``ObsTermCfg.func`` is ``<module>:<term>``)
+LOCO_TERMS_MODULE = "holosoma.managers.observation.terms.locomotion"
+
+
+def holosoma_export_metadata(card: Any, observation_clip: float | None = None) -> dict[str, Any]:
+    """Holosoma's export metadata (module docstring) of a robot card (``econmotor.robots``): joints, PD
+    gains, action scale, command ranges and the ``actor_obs`` layout. ``observation_clip``: the clip the
+    observations were trained with (None: not clipped)."""
+    conv = card.observation
+    layout = [{"group": "actor_obs", "name": term, "func": f"{LOCO_TERMS_MODULE}:{term}", "dim": int(conv.dims[term]),
+               "history_length": int(conv.history_length), "scale": float(conv.scales[term]), "clip": None,
+               "params": {}} for term in conv.terms]
+    return {"dof_names": list(card.dof_names), "kp": [float(v) for v in card.kp], "kd": [float(v) for v in card.kd],
+            "action_scale": float(card.action_scale),
+            "command_ranges": {k: [float(v) for v in r] for k, r in card.command_ranges.items()},
+            "observation_layout": layout, "observation_clip": observation_clip}
 
 
 def is_imported_policy(policy_id: str) -> bool:
@@ -41,11 +67,12 @@ def is_imported_policy(policy_id: str) -> bool:
     return str(policy_id).startswith(NAME_PREFIX) or str(policy_id).endswith(".onnx")
 
 
-def parse_policy_name(name: str) -> tuple[str, str]:
-    """``holosoma:<robot>/<algo>`` -> ``(robot, algo)``; a ConfigError shows the form and the algorithms."""
+def parse_policy_name(name: str, flag: str = "--policy") -> tuple[str, str]:
+    """``holosoma:<robot>/<algo>`` -> ``(robot, algo)``; a ConfigError (naming ``flag``) shows the form and
+    the algorithms."""
     match = _NAME.match(name)
     if not match or match.group(2) not in ALGO_FILE_PREFIX:
-        raise ConfigError("--policy", name, "a shipped policy is named holosoma:<robot>/<algo>",
+        raise ConfigError(flag, name, "a shipped policy is named holosoma:<robot>/<algo>",
                           [f"holosoma:{r}/{a}" for r in ("g1_29dof", "t1_29dof") for a in ("ppo", "fastsac")])
     return match.group(1), match.group(2)
 
@@ -103,17 +130,31 @@ class PolicyContract:
                 "fall_tilt_rad": c.fall_tilt_rad, "min_base_z_m": c.min_base_z_m}
 
 
-def shipped_policy_path(name: str) -> Path:
-    """The ONNX file of ``holosoma:<robot>/<algo>`` in the installed holosoma_inference."""
-    import holosoma_inference
+def shipped_policy_path(name: str, python: str | Path | None = None, flag: str = "--policy") -> Path:
+    """The ONNX file of ``holosoma:<robot>/<algo>`` under holosoma_inference's ``models/loco/``, found
+    without importing it: in the interpreter ``python``'s site-packages (the holosoma backend passes
+    .venv-holosoma's), or with ``python`` None in this interpreter's. A ConfigError naming ``flag``
+    lists the shipped names found, or says holosoma_inference is not installed there."""
+    import importlib.util
 
-    robot, algo = parse_policy_name(name)
-    loco = Path(holosoma_inference.__file__).parent / "models" / "loco"
-    path = loco / robot / f"{ALGO_FILE_PREFIX[algo]}_{robot}.onnx"
-    if not path.is_file():
-        shipped = sorted(f"holosoma:{p.parent.name}/{p.stem.split('_', 1)[0]}" for p in loco.glob("*/*.onnx"))
-        raise ConfigError("--policy", name, f"holosoma_inference ships no {path.name} for robot '{robot}'", shipped)
-    return path
+    robot, algo = parse_policy_name(name, flag)
+    file = f"{ALGO_FILE_PREFIX[algo]}_{robot}.onnx"
+    if python is None:
+        spec = importlib.util.find_spec("holosoma_inference")
+        roots = [Path(p) / "models" / "loco" for p in (spec.submodule_search_locations or ())] if spec else []
+        where = "this interpreter"
+    else:
+        venv = Path(python).parent.parent
+        roots = sorted((venv / "lib").glob("python3*/site-packages/holosoma_inference/models/loco"))
+        where = str(venv)
+    found = [root / robot / file for root in roots if (root / robot / file).is_file()]
+    if not found:
+        shipped = sorted(f"{NAME_PREFIX}{p.parent.name}/{p.stem.split('_', 1)[0]}"
+                         for root in roots for p in root.glob("*/*.onnx"))
+        why = f"holosoma_inference in {where} ships no {file}" if roots else \
+            f"holosoma_inference (the shipped policies) is not installed in {where}"
+        raise ConfigError(flag, name, why, shipped or None)
+    return found[0]
 
 
 def onnx_metadata(path: str | Path) -> dict[str, Any]:

@@ -11,6 +11,13 @@ On a CPU ``num_envs`` is capped at the task's ``cpu_num_envs_cap`` (64 by defaul
 CPU runs a batch of envs about as fast per env as a few, and compiles slower with more); the
 result config records the request, the value used and why (``num_envs_note``).
 
+A new run may start from a walker that exists (``init_policy``: an ONNX file in Holosoma's
+format or a shipped name, ``mjx/onnx_import.py``): the actor's weights converted, the network
+shaped as the ONNX's, the critic warmed up before the actor moves; ``run_config.json`` (and the
+exported ONNX) record ``init_policy``. A task on a real robot (an env with a robot card) exports
+in Holosoma's format (``export.py``), so Holosoma's inference stack and the sim-to-sim evaluator
+run what was trained here.
+
 XLA compiles each jitted function once per process; a persistent compilation cache
 (``compilation_cache_dir``, default ``~/.cache/econmotor/jax``; the CLI passes
 ``$ECONMOTOR_JAX_CACHE_DIR`` when set, see :attr:`MjxBackend.environment_options`) lets later
@@ -42,8 +49,11 @@ from econmotor.motor_backend.base import (
     summarize_episodes,
 )
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
+from econmotor.motor_backend.holosoma.backend import VENV_ENV
+from econmotor.motor_backend.holosoma.policy_import import holosoma_export_metadata
 from econmotor.motor_backend.mjx import ppo
 from econmotor.motor_backend.mjx.export import MjxOnnxPolicyHandle, export_onnx
+from econmotor.motor_backend.mjx.onnx_import import policy_file, read_actor, warm_start
 from econmotor.motor_backend.mjx.settings import MjxTaskSettings, parse_mjx_settings
 from econmotor.motor_backend.mjx.training import (
     RUN_CONFIG_FILE,
@@ -54,10 +64,11 @@ from econmotor.motor_backend.mjx.training import (
 )
 from econmotor.motor_backend.selection import DEFAULT_SELECT_EPISODES, DEFAULT_SELECT_EVERY, selection_for
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
+from econmotor.robots import card as robot_card
 
 ONNX_FILE = "policy.onnx"
 ONNX_METADATA_KEYS = ("task_id", "overlay", "overlay_references", "objective", "datapack_ids", "economics",
-                      "algorithm", "obs_layout", "action_layout", "seed")
+                      "algorithm", "obs_layout", "action_layout", "seed", "init_policy")
 CACHE_ENV = "ECONMOTOR_JAX_CACHE_DIR"
 
 
@@ -86,28 +97,34 @@ class MjxBackend(MotorBackendBase):
         runs_dir: where new run directories go when ``output_dir`` is not given.
         eval_batch: episodes evaluated at once (a fixed batch: one compiled evaluation).
         compilation_cache_dir: JAX's persistent compilation cache ("" or None: off).
+        holosoma_venv: where shipped policies (``--init-policy holosoma:<robot>/<algo>``) are found when this
+            interpreter has no holosoma_inference (default: ``find_holosoma_python``'s search; the CLI passes
+            $ECONMOTOR_HOLOSOMA_VENV).
     """
 
     name = "mjx"
-    capabilities = BackendCapabilities(resume=True, algorithms=("ppo",), evaluation_driven=True)
+    capabilities = BackendCapabilities(resume=True, algorithms=("ppo",), evaluation_driven=True, init_policies=True)
     defaults = RunSize(num_envs=0, max_steps=10_000_000)
     # the integration tests' size: 8 envs x unroll 20, so XLA's cache serves every CPU test
     smoke_run = RunSize(num_envs=8, max_steps=320, task_id="hopper_courier")
     max_num_envs = 1 << 20  # one batch on one accelerator; a CPU caps far lower (num_envs_note)
     final_policy_file = "policy.npz"
     checkpoint_glob = "ckpt_*_steps.npz"
-    environment_options: ClassVar[Mapping[str, str]] = {CACHE_ENV: "compilation_cache_dir"}
+    environment_options: ClassVar[Mapping[str, str]] = {CACHE_ENV: "compilation_cache_dir",
+                                                        VENV_ENV: "holosoma_venv"}
 
     def __init__(self, *, task_files: Sequence[str | Path] = (), runs_dir: str | Path = "runs",
                  datapack_provider: DatapackProvider | None = None, keep_task_reward: bool = True,
                  eval_batch: int = 10,
-                 compilation_cache_dir: str | Path | None = Path.home() / ".cache" / "econmotor" / "jax") -> None:
+                 compilation_cache_dir: str | Path | None = Path.home() / ".cache" / "econmotor" / "jax",
+                 holosoma_venv: str | Path | None = None) -> None:
         if eval_batch < 1:
             raise ConfigError("<mjx backend>", "eval_batch", "must be >= 1")
         super().__init__(task_files=task_files, runs_dir=runs_dir)
         self.provider = datapack_provider or DatapackProvider()
         self.keep_task_reward = keep_task_reward
         self.eval_batch = int(eval_batch)
+        self.holosoma_venv = holosoma_venv
         enable_compilation_cache(compilation_cache_dir or None)
         self._envs: dict[str, Any] = {}
         self._evaluators: dict[tuple[int, str], Any] = {}
@@ -206,6 +223,10 @@ class MjxBackend(MotorBackendBase):
         cfg = ppo.PPOConfig.from_mapping({"normalize_obs": settings.normalize_obs, **settings.ppo}, source)
         return ppo.PPOConfig.from_mapping({**cfg.to_dict(), **overrides}, "<hyperparameters>") if overrides else cfg
 
+    def check_init_policy(self, policy: str, task_id: str) -> None:
+        """The ONNX file (or shipped name) exists and its actor is an architecture the mjx actor has."""
+        read_actor(policy_file(policy, self.holosoma_venv), policy)
+
     # --- the MotorBackendBase contract ------------------------------------------------------
     def train_policy(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str],
                      num_envs: int, max_steps: int, seed: int, *,
@@ -215,13 +236,14 @@ class MjxBackend(MotorBackendBase):
                      hyperparameters: dict[str, Any] | None = None,
                      checkpoint_every_steps: int | None = None, select_every_steps: int = DEFAULT_SELECT_EVERY,
                      select_episodes: int = DEFAULT_SELECT_EPISODES,
-                     until_deployable: bool = False) -> MotorTrainingResult:
+                     until_deployable: bool = False, init_policy: str | None = None) -> MotorTrainingResult:
         """Train with JAX PPO, export ONNX, evaluate ``eval_episodes`` deterministic episodes.
 
         ``num_envs <= 0`` uses the catalog's default (capped on a CPU); ``resume=True`` continues
         the run in ``output_dir`` from its newest checkpoint up to ``max_steps`` total env steps.
         Evaluation-driven training and ``until_deployable`` as the mujoco backend's
         (``motor_backend/selection.py``; held-out episodes ``eval_batch`` at a time).
+        ``init_policy``: start the actor from this ONNX file or shipped name (module docstring).
         """
         if algorithm not in (None, "ppo"):
             raise ConfigError("<train>", "algorithm", f"the mjx backend trains PPO only, not '{algorithm}'", ["ppo"])
@@ -234,12 +256,26 @@ class MjxBackend(MotorBackendBase):
         cfg, note = self.fit_minibatches(cfg, used_envs, note, hyperparameters)
         if output_dir is None and resume:
             raise ConfigError("<train>", "output_dir", "resume needs the run directory to continue")
+        extra = {"device": device_description(), "num_envs_requested": int(num_envs), "num_envs_note": note}
+        card = getattr(env, "card", None)
+        if card is not None:
+            extra["robot"] = card.name  # exported in Holosoma's format (_export)
+        initial = None
+        if init_policy is not None:
+            if resume:
+                raise ConfigError("<train>", "init_policy", "--init-policy starts a new run; --resume continues one "
+                                  "from its checkpoints (the run records what it started from)")
+            actor = read_actor(policy_file(init_policy, self.holosoma_venv), init_policy)
+            cfg, initial, notes = warm_start(actor, env, cfg, hyperparameters, seed)
+            for text in notes:
+                progress(f"mjx: {text}", 1.0, 1.0)
+            extra["init_policy"] = {**actor.describe(), "init_log_std": cfg.init_log_std,
+                                    "critic_warmup_iterations": cfg.critic_warmup_iterations, "notes": notes}
         run = MjxTrainingRun(
             run_dir=self.run_dir(output_dir, task_id, seed), env=env, described=described, cfg=cfg,
             requested_hyperparameters=hyperparameters, num_envs=used_envs, max_steps=int(max_steps), seed=int(seed),
             checkpoint_every_steps=int(checkpoint_every_steps or settings.checkpoint_every_steps),
-            extra_config={"device": device_description(), "num_envs_requested": int(num_envs),
-                          "num_envs_note": note},
+            extra_config=extra, initial=initial,
             selection=selection_for(self.catalog.get(task_id), objective, select_every_steps, select_episodes,
                                     until_deployable, seed))
         run.held_out = lambda learner, n, first_seed, stop: evaluate_episodes(
@@ -291,5 +327,6 @@ class MjxBackend(MotorBackendBase):
         stats = (learner.stats.mean, learner.stats.var) if cfg.normalize_obs else None
         metadata = {key: config.get(key) for key in ONNX_METADATA_KEYS}
         action = config["action_layout"]
+        holosoma = holosoma_export_metadata(robot_card(config["robot"])) if config.get("robot") else None
         return export_onnx(learner.params, stats, cfg.clip_obs, action["low"], action["high"],
-                           run_dir / ONNX_FILE, metadata)
+                           run_dir / ONNX_FILE, metadata, activation=cfg.activation, holosoma=holosoma)

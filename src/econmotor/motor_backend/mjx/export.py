@@ -4,13 +4,23 @@ The graph computes, for observations ``obs`` [batch, obs_dim] (float32), exactly
 ``ppo.deterministic_action``::
 
     x = clip((obs - mean) / sqrt(var + eps), -clip_obs, clip_obs)   # Sub, Div, Clip (if normalised)
-    h = tanh(x W1 + b1) ... tanh(h W_{k-1} + b_{k-1})                 # MatMul, Add, Tanh
+    h = f(x W1 + b1) ... f(h W_{k-1} + b_{k-1})                       # MatMul, Add, f: Tanh | Elu | Relu |
+                                                                      #   Sigmoid * x (silu)
     action = min(max(h W_k + b_k, low), high)                         # the Gaussian's mean, clipped
 
-The batch axis is dynamic. The ``econmotor`` metadata entry is the same JSON the mujoco
-backend writes (task id, compiled overlay, datapack ids, economic assumptions, observation /
-action layout, ...). The handle is the couriers' onnxruntime handle with ``step`` as an
-alias of ``act``.
+The batch axis is dynamic. Two formats:
+
+- econmotor's (the couriers'): input ``obs``, output ``action``, one ``econmotor`` metadata entry,
+  the same JSON the mujoco backend writes (task id, compiled overlay, datapack ids, economic
+  assumptions, observation / action layout, ...);
+- Holosoma's (``holosoma=`` the robot's export metadata, ``policy_import.holosoma_export_metadata``):
+  input ``actor_obs``, output ``action``, opset 13, Holosoma's entries (``dof_names``, ``kp``, ``kd``,
+  ``action_scale``, ``command_ranges``, ``observation_layout``, ...) each JSON-encoded as Holosoma's
+  exporter writes them, and ours as ``econmotor_<key>`` entries (JSON, as the holosoma backend
+  attaches them): holosoma_inference's loader, which ``json.loads`` every entry, and the sim-to-sim
+  evaluator's importer both read the file.
+
+The handle is the couriers' onnxruntime handle with ``step`` as an alias of ``act``.
 """
 
 from __future__ import annotations
@@ -23,15 +33,26 @@ from typing import Any
 
 import numpy as np
 
-from econmotor.motor_backend.couriers.onnx_policy import METADATA_KEY, OnnxPolicyHandle
-from econmotor.motor_backend.mjx.networks import NORM_EPS
+from econmotor.motor_backend.couriers.onnx_policy import ECONMOTOR_PREFIX, METADATA_KEY, OnnxPolicyHandle
+from econmotor.motor_backend.mjx.networks import ACTIVATIONS, NORM_EPS
 
-OPSET = 17
+#: Holosoma's exporter writes opset 13 (``torch.onnx.export(..., opset_version=13)``); every op here has it
+OPSET = 13
+
+
+def metadata_entries(metadata: Mapping[str, Any], holosoma: Mapping[str, Any] | None) -> dict[str, str]:
+    """The ONNX ``metadata_props`` of either format (module docstring), every value JSON."""
+    if holosoma is None:
+        return {METADATA_KEY: json.dumps(dict(metadata), default=str)}
+    entries = {key: json.dumps(value, default=str) for key, value in holosoma.items()}
+    entries.update({f"{ECONMOTOR_PREFIX}{key}": json.dumps(value, default=str) for key, value in metadata.items()})
+    return entries
 
 
 def export_onnx(params: Mapping[str, Any], stats: tuple[np.ndarray, np.ndarray] | None, clip_obs: float,
                 action_low: np.ndarray, action_high: np.ndarray, path: str | Path,
-                metadata: Mapping[str, Any]) -> Path:
+                metadata: Mapping[str, Any], activation: str = "tanh",
+                holosoma: Mapping[str, Any] | None = None) -> Path:
     """Write the deterministic policy graph to ``path`` (atomically).
 
     Args:
@@ -40,10 +61,15 @@ def export_onnx(params: Mapping[str, Any], stats: tuple[np.ndarray, np.ndarray] 
         clip_obs: clip of the normalised observations.
         action_low / action_high: the env's action bounds.
         path: where ``policy.onnx`` goes.
-        metadata: JSON-able dict stored under the ``econmotor`` metadata key.
+        metadata: JSON-able dict of econmotor's metadata (task, objective, economics, layouts, ...).
+        activation: the hidden layers' activation (``networks.ACTIVATIONS``).
+        holosoma: Holosoma's export metadata of the robot (None: econmotor's format).
     """
     import onnx
     from onnx import TensorProto, helper, numpy_helper
+
+    if activation not in ACTIVATIONS:
+        raise ValueError(f"activation must be one of {sorted(ACTIVATIONS)}, not {activation!r}")
 
     f32 = lambda a: np.asarray(a, dtype=np.float32)
     inits, nodes = [], []
@@ -55,7 +81,8 @@ def export_onnx(params: Mapping[str, Any], stats: tuple[np.ndarray, np.ndarray] 
     layers = params["policy"]
     obs_dim = int(np.shape(layers[0]["w"])[0])
     act_dim = int(np.shape(layers[-1]["w"])[1])
-    x = "obs"
+    input_name = "obs" if holosoma is None else "actor_obs"
+    x = input_name
     if stats is not None:
         mean, var = stats
         nodes += [helper.make_node("Sub", [x, const("obs_mean", mean)], ["obs_centred"]),
@@ -69,18 +96,23 @@ def export_onnx(params: Mapping[str, Any], stats: tuple[np.ndarray, np.ndarray] 
                   helper.make_node("Add", [f"mm{i}", const(f"b{i}", layer["b"])], [f"z{i}"])]
         x = f"z{i}"
         if i < len(layers) - 1:
-            nodes.append(helper.make_node("Tanh", [x], [f"h{i}"]))
+            if activation == "silu":
+                nodes += [helper.make_node("Sigmoid", [x], [f"s{i}"]), helper.make_node("Mul", [x, f"s{i}"], [f"h{i}"])]
+            else:
+                op = {"tanh": "Tanh", "elu": "Elu", "relu": "Relu"}[activation]
+                nodes.append(helper.make_node(op, [x], [f"h{i}"]))
             x = f"h{i}"
     nodes += [helper.make_node("Max", [x, const("action_low", action_low)], ["action_above_low"]),
               helper.make_node("Min", ["action_above_low", const("action_high", action_high)], ["action"])]
     graph = helper.make_graph(
         nodes, "econmotor_mjx_policy",
-        [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", obs_dim])],
+        [helper.make_tensor_value_info(input_name, TensorProto.FLOAT, ["batch", obs_dim])],
         [helper.make_tensor_value_info("action", TensorProto.FLOAT, ["batch", act_dim])], inits)
     model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", OPSET)], producer_name="econmotor")
     model.ir_version = min(model.ir_version, 9)  # readable by onnxruntime >= 1.17
-    entry = model.metadata_props.add()
-    entry.key, entry.value = METADATA_KEY, json.dumps(dict(metadata), default=str)
+    for key, value in metadata_entries(metadata, holosoma).items():
+        entry = model.metadata_props.add()
+        entry.key, entry.value = key, value
     onnx.checker.check_model(model)
     path = Path(path)
     tmp = path.with_name(path.stem + ".tmp.onnx")

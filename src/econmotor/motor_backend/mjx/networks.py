@@ -7,9 +7,11 @@ export (``mjx/export.py``) reads the same arrays::
               "log_std": [act],
               "value":  [{"w": [in, h1], "b": [h1]}, ..., {"w": [h_k, 1], "b": [1]}]}
 
-Policy: a Gaussian with mean ``mlp_tanh(x)`` and a state-independent ``log_std`` (SB3's
+Policy: a Gaussian with mean ``mlp(x)`` and a state-independent ``log_std`` (SB3's
 ``MlpPolicy``); the action sent to the env is the sample clipped to ``[low, high]``, the
-deterministic action is ``clip(mean, low, high)``.
+deterministic action is ``clip(mean, low, high)``. The hidden layers' activation is one of
+:data:`ACTIVATIONS` (tanh by default, as SB3's; ``elu`` is rsl_rl's and Holosoma's PPO actor's, so an
+actor imported from Holosoma's ONNX (``mjx/onnx_import.py``) runs here unchanged).
 
 Observation normaliser (SB3 ``VecNormalize`` formula, statistics merged per batch with Chan's
 parallel form of Welford's algorithm)::
@@ -28,6 +30,8 @@ import jax.numpy as jnp
 Params = dict[str, Any]
 #: VecNormalize's epsilon inside the square root.
 NORM_EPS = 1e-8
+#: hidden-layer activations by name (the ONNX export writes the same op, ``export.py``).
+ACTIVATIONS = {"tanh": jnp.tanh, "elu": jax.nn.elu, "relu": jax.nn.relu, "silu": jax.nn.silu}
 
 
 def _dense_init(key: jax.Array, sizes: Sequence[int], out_scale: float) -> list[dict[str, jax.Array]]:
@@ -53,19 +57,20 @@ def init_params(key: jax.Array, obs_size: int, action_size: int, hidden_sizes: S
     }
 
 
-def mlp(layers: Sequence[dict[str, jax.Array]], x: jax.Array) -> jax.Array:
-    """tanh hidden layers, linear output."""
+def mlp(layers: Sequence[dict[str, jax.Array]], x: jax.Array, activation: str = "tanh") -> jax.Array:
+    """Hidden layers with ``activation`` (a key of :data:`ACTIVATIONS`), linear output."""
+    act = ACTIVATIONS[activation]
     for layer in layers[:-1]:
-        x = jnp.tanh(x @ layer["w"] + layer["b"])
+        x = act(x @ layer["w"] + layer["b"])
     return x @ layers[-1]["w"] + layers[-1]["b"]
 
 
-def policy_mean(params: Params, x: jax.Array) -> jax.Array:
-    return mlp(params["policy"], x)
+def policy_mean(params: Params, x: jax.Array, activation: str = "tanh") -> jax.Array:
+    return mlp(params["policy"], x, activation)
 
 
-def value(params: Params, x: jax.Array) -> jax.Array:
-    return mlp(params["value"], x)[..., 0]
+def value(params: Params, x: jax.Array, activation: str = "tanh") -> jax.Array:
+    return mlp(params["value"], x, activation)[..., 0]
 
 
 def gaussian_log_prob(action: jax.Array, mean: jax.Array, log_std: jax.Array) -> jax.Array:

@@ -5,7 +5,7 @@ Read top to bottom (CleanRL / PureJaxRL style). Why not Brax's trainer: brax 0.1
 and under current ``pmap`` it recompiled its training and evaluation functions more than once
 per run. This module jits plain functions on one device instead, so each compiles once:
 
-``make_train_iteration(env, cfg, num_envs)`` returns ``iteration(state) -> (state, metrics)``:
+``make_train_iteration(env, cfg, num_envs)`` returns ``iteration(state, actor_weight=1.0) -> (state, metrics)``:
 
 1. rollout: ``lax.scan`` of ``cfg.unroll_length`` steps of ``env.step`` over ``num_envs``
    envs; actions sampled from the Gaussian policy on normalised observations, clipped to
@@ -17,8 +17,11 @@ per run. This module jits plain functions on one device instead, so each compile
    the bootstrap (``termination = done * (1 - truncated)``); a step that ended at the time
    limit is masked out of the advantages (its next observation is already the reset one);
 4. ``cfg.num_epochs`` epochs of ``cfg.num_minibatches`` shuffled minibatches of the
-   clipped-surrogate loss ``-min(r A, clip(r, 1 +- eps) A) + value_cost (V - R)^2 - entropy_cost H``
-   with Adam (optax) after global-norm gradient clipping.
+   clipped-surrogate loss ``a (-min(r A, clip(r, 1 +- eps) A) - entropy_cost H) + value_cost (V - R)^2``
+   with Adam (optax) after global-norm gradient clipping. ``a`` is the iteration's ``actor_weight``
+   (1; 0 during a critic warm-up, ``cfg.critic_warmup_iterations``: the actor's gradients are then
+   exactly zero, so an actor started from a walker that exists (``--init-policy``) does not move
+   while the fresh critic learns its values; the host loop then starts Adam afresh, ``training.py``).
 
 ``metrics`` holds the losses and, over the episodes that ended during the rollout, the count
 and the sums of every raw metric the env reports in ``finished`` (returns, overlay terms, ...).
@@ -57,8 +60,11 @@ class PPOConfig:
         clip_epsilon: PPO ratio clip epsilon.
         entropy_cost / value_cost: entropy bonus and value-loss weights.
         max_grad_norm: global-norm gradient clip.
-        hidden_sizes: tanh hidden layers of the policy and the value MLPs.
+        hidden_sizes: hidden layers of the policy and the value MLPs.
+        activation: the hidden layers' activation (``networks.ACTIVATIONS``: tanh, elu, relu, silu).
         init_log_std: initial log standard deviation of the Gaussian policy.
+        critic_warmup_iterations: iterations at the start of a run that train the critic only
+            (0: none; a run started from an imported actor sets it, ``mjx/onnx_import.py``).
         normalize_obs: running observation normalisation (exported into the ONNX graph).
         clip_obs: clip of the normalised observations.
         normalize_advantages: standardise advantages per minibatch.
@@ -76,7 +82,9 @@ class PPOConfig:
     value_cost: float = 0.5
     max_grad_norm: float = 0.5
     hidden_sizes: tuple[int, ...] = (64, 64)
+    activation: str = "tanh"
     init_log_std: float = 0.0
+    critic_warmup_iterations: int = 0
     normalize_obs: bool = True
     clip_obs: float = 10.0
     normalize_advantages: bool = True
@@ -96,14 +104,19 @@ class PPOConfig:
                     if not isinstance(raw, bool):
                         raise TypeError("expected true or false")
                     kw[key] = raw
+                elif isinstance(default, str):
+                    if raw not in nets.ACTIVATIONS:
+                        raise ValueError(f"expected one of {', '.join(nets.ACTIVATIONS)}")
+                    kw[key] = raw
                 elif isinstance(default, tuple):
                     kw[key] = tuple(int(v) for v in raw)
                     if not kw[key] or min(kw[key]) < 1:
                         raise ValueError("expected a non-empty list of positive layer sizes")
                 elif isinstance(default, int):
                     kw[key] = int(raw)
-                    if kw[key] < 1:
-                        raise ValueError("expected an integer >= 1")
+                    least = 0 if key in ZERO_ALLOWED else 1
+                    if kw[key] < least:
+                        raise ValueError(f"expected an integer >= {least}")
                 else:
                     kw[key] = float(raw)
             except (TypeError, ValueError) as exc:
@@ -114,6 +127,10 @@ class PPOConfig:
         out = asdict(self)
         out["hidden_sizes"] = list(self.hidden_sizes)
         return out
+
+
+#: integer hyperparameters that may be 0
+ZERO_ALLOWED = ("critic_warmup_iterations",)
 
 
 class Learner(NamedTuple):
@@ -168,7 +185,7 @@ def observe(stats: nets.RunningStats, obs: jax.Array, cfg: PPOConfig) -> jax.Arr
 def deterministic_action(params: nets.Params, stats: nets.RunningStats, obs: jax.Array, cfg: PPOConfig,
                          low: jax.Array, high: jax.Array) -> jax.Array:
     """``clip(mean(normalise(obs)), low, high)`` (what the ONNX graph computes)."""
-    return jnp.clip(nets.policy_mean(params, observe(stats, obs, cfg)), low, high)
+    return jnp.clip(nets.policy_mean(params, observe(stats, obs, cfg), cfg.activation), low, high)
 
 
 def gae(tr: Transition, last_value: jax.Array, gamma: float, lam: float) -> tuple[jax.Array, jax.Array]:
@@ -187,9 +204,10 @@ def gae(tr: Transition, last_value: jax.Array, gamma: float, lam: float) -> tupl
     return adv, adv + tr.value
 
 
-def ppo_loss(params: nets.Params, batch: tuple[jax.Array, ...], cfg: PPOConfig) -> tuple[jax.Array, dict]:
+def ppo_loss(params: nets.Params, batch: tuple[jax.Array, ...], cfg: PPOConfig,
+             actor_weight: jax.Array | float = 1.0) -> tuple[jax.Array, dict]:
     x, action, old_log_prob, advantage, target, mask = batch
-    mean = nets.policy_mean(params, x)
+    mean = nets.policy_mean(params, x, cfg.activation)
     log_prob = nets.gaussian_log_prob(action, mean, params["log_std"])
     ratio = jnp.exp(log_prob - old_log_prob)
     weight = mask / jnp.maximum(jnp.sum(mask), 1.0)
@@ -199,9 +217,9 @@ def ppo_loss(params: nets.Params, batch: tuple[jax.Array, ...], cfg: PPOConfig) 
         advantage = (advantage - mu) / (sd + 1e-8)
     surrogate = jnp.minimum(ratio * advantage, jnp.clip(ratio, 1 - cfg.clip_epsilon, 1 + cfg.clip_epsilon) * advantage)
     policy_loss = -jnp.sum(surrogate * weight)
-    value_loss = jnp.sum((nets.value(params, x) - target) ** 2 * weight)
+    value_loss = jnp.sum((nets.value(params, x, cfg.activation) - target) ** 2 * weight)
     entropy = nets.gaussian_entropy(params["log_std"])
-    loss = policy_loss + cfg.value_cost * value_loss - cfg.entropy_cost * entropy
+    loss = actor_weight * (policy_loss - cfg.entropy_cost * entropy) + cfg.value_cost * value_loss
     clip_fraction = jnp.sum((jnp.abs(ratio - 1.0) > cfg.clip_epsilon) * weight)
     return loss, {"policy_loss": policy_loss, "value_loss": value_loss, "entropy": entropy,
                   "clip_fraction": clip_fraction}
@@ -222,11 +240,11 @@ def make_train_iteration(env: Any, cfg: PPOConfig, num_envs: int):
         learner, env_state, key = carry
         key, k_act = jax.random.split(key)
         x = observe(learner.stats, env_state.obs, cfg)
-        mean = nets.policy_mean(learner.params, x)
+        mean = nets.policy_mean(learner.params, x, cfg.activation)
         log_std = learner.params["log_std"]
         action = mean + jnp.exp(log_std) * jax.random.normal(k_act, mean.shape)
         log_prob = nets.gaussian_log_prob(action, mean, log_std)
-        v = nets.value(learner.params, x)
+        v = nets.value(learner.params, x, cfg.activation)
         nxt = env.step(env_state, jnp.clip(action, low, high))
         done = nxt.done.astype(jnp.float32)
         tr = Transition(x, env_state.obs, action, log_prob, v, nxt.reward * cfg.reward_scaling, done,
@@ -235,32 +253,33 @@ def make_train_iteration(env: Any, cfg: PPOConfig, num_envs: int):
         return (learner, nxt, key), (tr, ended)
 
     def update_minibatch(carry, batch):
-        params, opt_state = carry
-        (_, info), grads = jax.value_and_grad(ppo_loss, has_aux=True)(params, batch, cfg)
+        params, opt_state, actor_weight = carry
+        (_, info), grads = jax.value_and_grad(ppo_loss, has_aux=True)(params, batch, cfg, actor_weight)
         updates, opt_state = optimizer.update(grads, opt_state, params)
-        return (optax.apply_updates(params, updates), opt_state), info
+        return (optax.apply_updates(params, updates), opt_state, actor_weight), info
 
     def update_epoch(carry, key):
-        params, opt_state, flat = carry
+        params, opt_state, flat, actor_weight = carry
         perm = jax.random.permutation(key, batch_size)
         shuffled = jax.tree_util.tree_map(lambda a: a[perm].reshape(cfg.num_minibatches, minibatch, *a.shape[1:]),
                                           flat)
-        (params, opt_state), info = jax.lax.scan(update_minibatch, (params, opt_state), shuffled)
-        return (params, opt_state, flat), info
+        (params, opt_state, _), info = jax.lax.scan(update_minibatch, (params, opt_state, actor_weight), shuffled)
+        return (params, opt_state, flat, actor_weight), info
 
-    def iteration(state: TrainState) -> tuple[TrainState, dict[str, jax.Array]]:
+    def iteration(state: TrainState, actor_weight: jax.Array | float = 1.0) -> tuple[TrainState, dict[str, jax.Array]]:
         learner = state.learner
         (_, env_state, key), (tr, ended) = jax.lax.scan(env_step, (learner, state.env_state, state.key), None,
                                                         length=cfg.unroll_length)
-        last_value = nets.value(learner.params, observe(learner.stats, env_state.obs, cfg))
+        last_value = nets.value(learner.params, observe(learner.stats, env_state.obs, cfg), cfg.activation)
         advantage, target = gae(tr, last_value, cfg.gamma, cfg.gae_lambda)
         stats = nets.update_stats(learner.stats, tr.raw_obs) if cfg.normalize_obs else learner.stats
         mask = 1.0 - tr.truncated
         flat = jax.tree_util.tree_map(lambda a: a.reshape(batch_size, *a.shape[2:]),
                                       (tr.x, tr.action, tr.log_prob, advantage, target, mask))
         key, k_epochs = jax.random.split(key)
-        (params, opt_state, _), info = jax.lax.scan(update_epoch, (learner.params, learner.opt_state, flat),
-                                                    jax.random.split(k_epochs, cfg.num_epochs))
+        weight = jnp.asarray(actor_weight, jnp.float32)
+        (params, opt_state, _, _), info = jax.lax.scan(update_epoch, (learner.params, learner.opt_state, flat, weight),
+                                                       jax.random.split(k_epochs, cfg.num_epochs))
         metrics = {k: jnp.mean(v) for k, v in info.items()}
         metrics["episodes"] = jnp.sum(tr.done)
         metrics.update({f"sum/{k}": jnp.sum(v) for k, v in ended.items()})

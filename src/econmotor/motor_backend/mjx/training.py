@@ -13,6 +13,11 @@ Run directory (``policy_id``), as the mujoco backend's::
 The host loop calls the one jitted iteration (``ppo.make_train_iteration``) until ``max_steps``
 env steps (rounded up to whole iterations of ``num_envs * unroll_length``), reporting progress,
 writing TensorBoard scalars of the episodes that ended, the training curve and checkpoints.
+
+A run may start from a given learner (``initial``: an actor imported from a walker that exists,
+``onnx_import.py``) instead of a fresh one. Its first ``cfg.critic_warmup_iterations`` iterations
+train the critic only (``actor_weight`` 0); after the last of them Adam's state is started afresh,
+so the actor's first updates have Adam's usual bias correction, not moments stale from zeros.
 """
 
 from __future__ import annotations
@@ -160,6 +165,8 @@ class MjxTrainingRun:
     #: ``held_out(learner, num_episodes, first_seed, stop) -> raw episodes``
     selection: Selection | None = None
     held_out: Callable[..., list[dict[str, Any]]] | None = None
+    #: the learner a fresh run starts from (None: ``ppo.init_learner``); a resumed run starts from its checkpoint
+    initial: ppo.Learner | None = None
 
     def _consider(self, learner: ppo.Learner, key: Any, steps: int, writer: Any) -> None:
         """One held-out evaluation of ``learner``; saved to ``best/`` when the best so far; TensorBoard."""
@@ -191,7 +198,7 @@ class MjxTrainingRun:
                 self.selection.restore(previous.get("selection"))
         env, cfg = self.env, self.cfg
         template = ppo.init_learner(jax.random.PRNGKey(self.seed), env.observation_size, env.action_size, cfg)
-        learner, key, steps = None, None, 0
+        learner, key, steps = self.initial, None, 0
         if found:
             learner, key, steps, _ = ckpt.load_tree(found[0], template)
         obs_layout, action_layout = env_layout(env, cfg.normalize_obs)
@@ -223,11 +230,17 @@ class MjxTrainingRun:
             self.selection.started = started
         last_held_out = steps
         first_done, t_loop = None, time.perf_counter()
+        warmup_steps = cfg.critic_warmup_iterations * per_iteration
         try:
             while steps < self.max_steps and not (self.selection is not None and self.selection.should_stop):
-                state, metrics = iteration(state)
+                warming = steps < warmup_steps
+                state, metrics = iteration(state, 0.0 if warming else 1.0)
                 metrics = jax.device_get(metrics)
                 steps += per_iteration
+                if warming and steps >= warmup_steps:  # the actor moves from now on, with a fresh Adam
+                    params = state.learner.params
+                    state = state._replace(learner=state.learner._replace(
+                        opt_state=ppo.make_optimizer(cfg).init(params)))
                 if first_done is None:  # the first iteration includes XLA compilation
                     first_done, t_loop = time.perf_counter() - started, time.perf_counter()
                 for name, value in episode_scalars(metrics, env.factors).items():

@@ -133,3 +133,26 @@ def test_ppo_learns_the_line_task_and_compiles_each_function_once() -> None:
     assert float(state.learner.stats.count) == pytest.approx(60 * 20 * 32)  # normaliser saw every observation
     assert after > before + 2.0, (before, after)  # -|x - g| summed over 20 steps: steering pays
     assert iteration._cache_size() == 1 and evaluate._cache_size() == 1
+
+
+def test_critic_warm_up_moves_the_critic_only_and_compiles_once() -> None:
+    """``actor_weight`` 0: the actor (and its noise) stays bit for bit while the critic learns; then 1 moves it."""
+    env = LineEnv()
+    cfg = ppo.PPOConfig(unroll_length=20, learning_rate=3e-3, hidden_sizes=(16, 16), activation="elu",
+                        critic_warmup_iterations=4)
+    state = ppo.init_train_state(env, cfg, 16, seed=3)
+    iteration = ppo.make_train_iteration(env, cfg, 16)
+    start = jax.device_get(state.learner.params)
+    losses = []
+    for _ in range(cfg.critic_warmup_iterations):
+        state, metrics = iteration(state, 0.0)
+        losses.append(float(metrics["value_loss"]))
+    warmed = jax.device_get(state.learner.params)
+    for key in ("policy", "log_std"):
+        for a, b in zip(jax.tree_util.tree_leaves(start[key]), jax.tree_util.tree_leaves(warmed[key]), strict=True):
+            np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(start["value"][0]["w"], warmed["value"][0]["w"])
+    assert losses[-1] < losses[0]  # the critic learned the policy's values
+    state, _ = iteration(state, 1.0)
+    assert not np.array_equal(warmed["policy"][0]["w"], np.asarray(state.learner.params["policy"][0]["w"]))
+    assert iteration._cache_size() == 1  # one program for both weights

@@ -1,0 +1,86 @@
+"""A policy exported here in Holosoma's format runs on Holosoma's own inference stack.
+
+Holosoma's shipped G1 PPO walker goes ONNX -> the mjx JAX actor (``mjx/onnx_import.py``) -> an
+econmotor export in Holosoma's format (``mjx/export.py``, the G1 card's metadata); in
+``.venv-holosoma``, holosoma_inference's policy loader (``BasePolicy.setup_policy``) loads it, reads
+its PD gains, and acts exactly as the shipped file on the same observations; the sim-to-sim
+evaluator's importer (``policy_import.resolve_contract``) resolves it to the G1 preset.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+from pathlib import Path
+
+import jax
+import numpy as np
+import pytest
+
+from econmotor.motor_backend.holosoma.backend import find_holosoma_python
+from econmotor.motor_backend.holosoma.jobs import job_environment
+from econmotor.motor_backend.holosoma.policy_import import holosoma_export_metadata, shipped_policy_path
+from econmotor.motor_backend.mjx import ppo
+from econmotor.motor_backend.mjx.export import export_onnx
+from econmotor.motor_backend.mjx.onnx_import import read_actor
+from econmotor.robots import G1_29DOF
+
+pytestmark = [pytest.mark.holosoma]
+REPO = Path(__file__).resolve().parents[2]
+
+# Runs in .venv-holosoma with this checkout's econmotor: holosoma_inference's own loader on our file.
+LOAD = r"""
+import json, sys
+import numpy as np
+from holosoma_inference.policies.locomotion import LocomotionPolicy
+from econmotor.motor_backend.holosoma.policy_import import resolve_contract
+
+out = {}
+for name, path in (("ours", sys.argv[1]), ("shipped", sys.argv[2])):
+    policy = LocomotionPolicy.__new__(LocomotionPolicy)  # its loader, without robot SDK or input devices
+    policy.setup_policy(path)
+    obs = np.load(sys.argv[3])
+    actions = np.concatenate([policy.policy({"actor_obs": row[None]}) for row in obs])
+    c = resolve_contract(path)
+    out[name] = {"inputs": policy.onnx_input_names, "outputs": policy.onnx_output_names,
+                 "kp": policy.onnx_kp.tolist(), "kd": policy.onnx_kd.tolist(), "actions": actions.tolist(),
+                 "contract": {"obs_dim": c.obs_dim, "preset": c.inference_preset, "action_scale": c.action_scale,
+                              "dof_names": list(c.dof_names), "command_ranges": c.command_ranges}}
+print("@@loaded " + json.dumps(out))
+"""
+
+
+def in_holosoma(script: str, *args: str) -> dict:
+    """Run ``script`` in .venv-holosoma on this checkout's source; its ``@@loaded`` line, decoded."""
+    python = find_holosoma_python(REPO / ".venv-holosoma")
+    env = {**job_environment(), "PYTHONPATH": str(REPO / "src")}
+    proc = subprocess.run([str(python), "-c", script, *args], capture_output=True, text=True, env=env, timeout=300,
+                          cwd=os.getcwd())
+    line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("@@loaded ")), None)
+    assert line is not None, proc.stdout[-2000:] + proc.stderr[-4000:]
+    return json.loads(line[len("@@loaded "):])
+
+
+def test_export_of_the_imported_g1_walker_loads_and_acts_in_holosoma_inference(tmp_path: Path) -> None:
+    shipped = shipped_policy_path("holosoma:g1_29dof/ppo", find_holosoma_python(REPO / ".venv-holosoma"))
+    actor = read_actor(shipped, "holosoma:g1_29dof/ppo")
+    cfg = ppo.PPOConfig(hidden_sizes=actor.hidden_sizes, activation=actor.activation, normalize_obs=False)
+    learner = ppo.init_learner(jax.random.PRNGKey(0), actor.obs_dim, actor.action_dim, cfg)
+    params = {**jax.device_get(learner.params), "policy": actor.layers}
+    bound = np.full(actor.action_dim, G1_29DOF.action_clip, np.float32)
+    ours = export_onnx(params, None, cfg.clip_obs, -bound, bound, tmp_path / "policy.onnx",
+                       {"task_id": "g1_courier", "objective": {"name": "energy_saver"}}, activation=cfg.activation,
+                       holosoma=holosoma_export_metadata(G1_29DOF))
+    obs = np.random.default_rng(0).normal(0.0, 0.5, size=(16, actor.obs_dim)).astype(np.float32)
+    np.save(tmp_path / "obs.npy", obs)
+    got = in_holosoma(LOAD, str(ours), str(shipped), str(tmp_path / "obs.npy"))
+    mine, theirs = got["ours"], got["shipped"]
+    assert (mine["inputs"], mine["outputs"]) == (["actor_obs"], ["action"]) == (theirs["inputs"], theirs["outputs"])
+    assert mine["kp"] == list(G1_29DOF.kp) and mine["kd"] == list(G1_29DOF.kd)
+    np.testing.assert_allclose(mine["kp"], theirs["kp"], rtol=1e-9)  # the card's gains are the walker's
+    np.testing.assert_allclose(np.asarray(mine["actions"]), np.asarray(theirs["actions"]), rtol=1e-5, atol=1e-5)
+    assert np.std(theirs["actions"]) > 0.1
+    assert mine["contract"]["obs_dim"] == 100 and mine["contract"]["preset"] == "g1-29dof-loco"
+    assert mine["contract"]["dof_names"] == theirs["contract"]["dof_names"] == list(G1_29DOF.dof_names)
+    assert mine["contract"]["action_scale"] == G1_29DOF.action_scale
