@@ -48,6 +48,7 @@ from econmotor.config.task_economics import TaskEconomics
 from econmotor.economics.meter import EconomicMeter
 from econmotor.errors import ConfigError
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
+from econmotor.tasks.catalog import TaskCatalog, load_catalog
 
 #: progress(label, completed, total): backends report long work through this; the CLI draws bars.
 ProgressFn = Callable[[str, float, float], None]
@@ -315,11 +316,11 @@ class MotorBackendBase:
     checkpoint_glob: ClassVar[str | None] = None
     environment_options: ClassVar[Mapping[str, str]] = {}
 
-    def __init__(self, *, task_files: Sequence[str | Path] = (), runs_dir: str | Path = "runs") -> None:
-        from econmotor.tasks import load_catalog
-
+    def __init__(self, *, task_files: Sequence[str | Path] = (), runs_dir: str | Path = "runs",
+                 catalog: TaskCatalog | None = None) -> None:
         self.task_files = [Path(f) for f in task_files]
-        self.catalog = load_catalog(self.task_files)
+        #: the task catalog (the factory hands over the one a command checked; else parsed here)
+        self.catalog = catalog if catalog is not None else load_catalog(self.task_files)
         self.runs_dir = Path(runs_dir)
 
     # --- declarations asked before any work ---------------------------------------------------

@@ -56,7 +56,7 @@ from econmotor.motor_backend.base import (
 )
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
-from econmotor.tasks.catalog import TaskSpec
+from econmotor.tasks.catalog import TaskCatalog, TaskSpec
 
 BACKEND_NAME = "dishwashing"
 OVERLAY_NORMALIZATIONS = ("human_baseline", "none")
@@ -157,6 +157,7 @@ class DishwashingBackend(MotorBackendBase):
         *,
         task_files: Sequence[str | Path] = (),
         runs_dir: str | Path = "runs",
+        catalog: TaskCatalog | None = None,
         sac: SACSettings | None = None,
         overlay_normalization: str = "human_baseline",
         known_datapacks: Sequence[DatapackConfig] = (),
@@ -165,7 +166,7 @@ class DishwashingBackend(MotorBackendBase):
         if overlay_normalization not in OVERLAY_NORMALIZATIONS:
             raise ConfigError("<dishwashing backend>", "overlay_normalization",
                               f"unknown {overlay_normalization!r}", OVERLAY_NORMALIZATIONS)
-        super().__init__(task_files=task_files, runs_dir=runs_dir)
+        super().__init__(task_files=task_files, runs_dir=runs_dir, catalog=catalog)
         self.sac = sac or SACSettings()
         self.overlay_normalization = overlay_normalization
         self.datapacks = DatapackProvider(known_datapacks)

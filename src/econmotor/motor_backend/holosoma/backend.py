@@ -81,7 +81,7 @@ from econmotor.motor_backend.holosoma.policy_import import (
 )
 from econmotor.motor_backend.holosoma.recording_metrics import episodes_from_recording
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
-from econmotor.tasks import get_task
+from econmotor.tasks.catalog import TaskCatalog
 
 __all__ = ["HOLOSOMA_TASK_PRESETS", "HolosomaBackend", "HolosomaPolicyHandle", "find_holosoma_python"]
 
@@ -220,6 +220,7 @@ class HolosomaBackend(MotorBackendBase):
         *,
         task_files: Sequence[str | Path] = (),
         runs_dir: str | Path = "runs",
+        catalog: TaskCatalog | None = None,
         simulator: str | None = None,
         algo: str | None = None,
         venv: str | Path | None = None,
@@ -228,7 +229,7 @@ class HolosomaBackend(MotorBackendBase):
         command_speed_m_per_s: float | None = None,
         job_timeout_s: float | None = None,
     ) -> None:
-        super().__init__(task_files=task_files, runs_dir=runs_dir)
+        super().__init__(task_files=task_files, runs_dir=runs_dir, catalog=catalog)
         self.simulator = simulator or "auto"
         # an unknown simulator name fails here, before any job starts
         choose_simulator(self.simulator, Capabilities(cuda=True, isaacgym=True, isaacsim=True, mujoco_warp=True))
@@ -264,7 +265,7 @@ class HolosomaBackend(MotorBackendBase):
         return self._caps
 
     def _task(self, task_id: str) -> tuple[Any, dict[str, Any]]:
-        spec = get_task(task_id, self.task_files)
+        spec = self.catalog.get(task_id)
         return spec, task_settings(task_id, spec.backend_entry("holosoma"), spec.source)
 
     @staticmethod

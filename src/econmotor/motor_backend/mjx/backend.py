@@ -54,6 +54,7 @@ from econmotor.motor_backend.mjx.training import (
 )
 from econmotor.motor_backend.selection import DEFAULT_SELECT_EPISODES, DEFAULT_SELECT_EVERY, selection_for
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
+from econmotor.tasks.catalog import TaskCatalog
 
 ONNX_FILE = "policy.onnx"
 ONNX_METADATA_KEYS = ("task_id", "overlay", "overlay_references", "objective", "datapack_ids", "economics",
@@ -99,12 +100,13 @@ class MjxBackend(MotorBackendBase):
     environment_options: ClassVar[Mapping[str, str]] = {CACHE_ENV: "compilation_cache_dir"}
 
     def __init__(self, *, task_files: Sequence[str | Path] = (), runs_dir: str | Path = "runs",
+                 catalog: TaskCatalog | None = None,
                  datapack_provider: DatapackProvider | None = None, keep_task_reward: bool = True,
                  eval_batch: int = 10,
                  compilation_cache_dir: str | Path | None = Path.home() / ".cache" / "econmotor" / "jax") -> None:
         if eval_batch < 1:
             raise ConfigError("<mjx backend>", "eval_batch", "must be >= 1")
-        super().__init__(task_files=task_files, runs_dir=runs_dir)
+        super().__init__(task_files=task_files, runs_dir=runs_dir, catalog=catalog)
         self.provider = datapack_provider or DatapackProvider()
         self.keep_task_reward = keep_task_reward
         self.eval_batch = int(eval_batch)

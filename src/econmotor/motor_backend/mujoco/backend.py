@@ -47,7 +47,7 @@ from econmotor.motor_backend.mujoco.settings import MujocoTaskSettings, parse_mu
 from econmotor.motor_backend.mujoco.training import obs_normalizer
 from econmotor.motor_backend.selection import DEFAULT_SELECT_EPISODES, DEFAULT_SELECT_EVERY, selection_for
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
-from econmotor.tasks.catalog import TaskSpec
+from econmotor.tasks.catalog import TaskCatalog, TaskSpec
 
 ONNX_FILE = "policy.onnx"
 
@@ -75,12 +75,13 @@ class MujocoBackend(MotorBackendBase):
     checkpoint_glob = "*.zip"
 
     def __init__(self, *, task_files: Sequence[str | Path] = (), runs_dir: str | Path = "runs",
+                 catalog: TaskCatalog | None = None,
                  datapack_provider: DatapackProvider | None = None, vec_env: str = "dummy",
                  keep_task_reward: bool = True, torch_threads: int = 1) -> None:
         if vec_env not in self.capabilities.vec_env_kinds:
             raise ConfigError("<mujoco backend>", "vec_env", f"unknown vector env '{vec_env}'",
                               self.capabilities.vec_env_kinds)
-        super().__init__(task_files=task_files, runs_dir=runs_dir)
+        super().__init__(task_files=task_files, runs_dir=runs_dir, catalog=catalog)
         self.provider = datapack_provider or DatapackProvider()
         self.vec_env = vec_env
         self.keep_task_reward = keep_task_reward
