@@ -217,8 +217,6 @@ def evaluation_result(backend: str, policy_id: str, task_id: str, raw_episodes: 
                       output_dir: str | Path | None = None) -> MotorEvalResult:
     """The :class:`MotorEvalResult` of evaluation episodes (see :func:`summarize_episodes`); with
     ``output_dir``, also written there as ``evaluation.json`` (metrics, episodes, config)."""
-    import json
-
     raw, econ, episodes = summarize_episodes(raw_episodes, economics)
     if output_dir is not None:
         out = Path(output_dir)
