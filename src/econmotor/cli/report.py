@@ -292,14 +292,13 @@ def report_command(
         report_imported(task, motor_backend, imported_policy, objective, packs, eval_episodes, seed, notes,
                         catalog, url, out_dir, output_json, policy)
         return
-    defaults = backend_class(motor_backend).defaults
+    size = backend_class(motor_backend).defaults.filled(num_envs, max_steps)
     backend = make_backend(motor_backend, tasks_file, catalog=catalog)
     run_dir = backend.run_dir(None, task_id, seed)
     announce_device(backend)
     announce_num_envs(backend, task_id, num_envs)
     request = TrainRequest(task=task, backend_name=motor_backend, objective=objective, datapacks=tuple(packs),
-                           num_envs=defaults.num_envs if num_envs is None else num_envs,
-                           max_steps=max_steps or defaults.max_steps, seed=seed, eval_episodes=eval_episodes,
+                           num_envs=size.num_envs, max_steps=size.max_steps, seed=seed, eval_episodes=eval_episodes,
                            notes=notes, output_dir=run_dir, backend_options=selecting,
                            # the episodes priced when no evaluation run follows (--eval-episodes 0)
                            train_eval_episodes=TRAINING_EVAL_EPISODES if eval_episodes else

@@ -63,8 +63,10 @@ def sweep_command(
     datapacks: list[str] = typer.Option([], "--datapacks", help="Grid values: YAML paths or registered ids, "
                                         "comma separated; 'a.yaml+b.yaml' is one value using both."),
     seeds: str = typer.Option("0", "--seeds", help="Seeds, e.g. '0,1,2' or '0-4'."),
-    num_envs: int = typer.Option(1, "--num-envs"),
-    max_steps: int = typer.Option(2000, "--max-steps", help="Environment steps per cell."),
+    num_envs: int = typer.Option(None, "--num-envs", min=0, help="Environments per cell (default: the "
+                                 "backend's)."),
+    max_steps: int = typer.Option(None, "--max-steps", min=1, help="Environment steps per cell (default: the "
+                                  "backend's)."),
     eval_episodes: int = typer.Option(5, "--eval-episodes", help="Evaluation episodes recorded per cell."),
     output_dir: Path = typer.Option(Path("runs/sweep"), "--output-dir", help="Policies land in OUTPUT_DIR/<cell key>."),
     db_url: str = typer.Option(None, "--db-url", help="Registry URL (default $ECONMOTOR_DB_URL or "
@@ -97,8 +99,9 @@ def sweep_command(
         groups = datapack_groups(datapacks, registry)
         check_size("--datapacks", "sweep cells (objectives x datapacks x seeds)",
                    len(objectives) * len(groups) * len(seed_list), MAX_SWEEP_CELLS)
-        cells = plan_sweep(task_id, motor_backend, objectives, groups, seed_list, num_envs=num_envs,
-                           max_steps=max_steps, eval_episodes=eval_episodes)
+        size = backend_class(motor_backend).defaults.filled(num_envs, max_steps)
+        cells = plan_sweep(task_id, motor_backend, objectives, groups, seed_list, num_envs=size.num_envs,
+                           max_steps=size.max_steps, eval_episodes=eval_episodes)
         needs = backend_class(motor_backend).sweep_resources()
         ray = RaySettings(ray_address, ray_num_cpus, needs["num_cpus"] if cpus_per_cell is None else cpus_per_cell,
                           needs["num_gpus"] if gpus_per_cell is None else gpus_per_cell) \

@@ -127,30 +127,34 @@ class StepAlias:
 RUN_CONFIG_FILE = "run_config.json"
 
 
-def read_run_config(run_dir: str | Path, backend: str, task_id: str | None = None,
-                    check_backend: bool = False) -> dict[str, Any]:
-    """The ``run_config.json`` of a ``backend`` run directory; a ConfigError names what is wrong.
+def read_run_config(run_dir: str | Path, backend: str | None = None, task_id: str | None = None) -> dict[str, Any]:
+    """The ``run_config.json`` of a run directory; a ConfigError names what is wrong.
 
-    ``task_id``: the policy must have been trained on it. ``check_backend``: the recorded
-    ``backend`` (``mujoco`` when absent) must be ``backend``.
+    ``backend``: the run must be that backend's (the ``backend`` every backend records with
+    :func:`write_run_config`; None: any backend's run). ``task_id``: the policy must have been
+    trained on it.
     """
     path = Path(run_dir) / RUN_CONFIG_FILE
-    a_backend = f"{'an' if backend == 'mjx' else 'a'} {backend}"  # "an mjx", "a mujoco", "a trained"
+    a_backend = f"{'an' if backend == 'mjx' else 'a'} {backend}" if backend else "a trained"  # "an mjx", "a mujoco"
     if not path.is_file():
         raise ConfigError(str(run_dir), None, f"not {a_backend} run directory (no {RUN_CONFIG_FILE})")
     config = json.loads(path.read_text(encoding="utf-8"))
-    recorded = config.get("backend", "mujoco")
-    if check_backend and recorded != backend:
+    recorded = config.get("backend")
+    if recorded is None:
+        raise ConfigError(str(path), "backend", "missing: every backend records its name there (a run written by "
+                          "hand or by an older econmotor); add the backend that trained it")
+    if backend is not None and recorded != backend:
         raise ConfigError(str(path), "backend", f"a '{recorded}' run, not {a_backend} one")
     if task_id is not None and config.get("task_id") != task_id:
         raise ConfigError(str(path), "task_id", f"policy was trained on '{config.get('task_id')}', not '{task_id}'")
     return config
 
 
-def write_run_config(run_dir: Path, config: Mapping[str, Any]) -> None:
-    """Write ``run_config.json`` atomically (a temporary file renamed over it): readers see the old or the new."""
+def write_run_config(run_dir: Path, config: Mapping[str, Any], backend: str) -> None:
+    """Write ``run_config.json`` with ``backend`` recorded, atomically (a temporary file renamed over it):
+    readers see the old or the new."""
     tmp = run_dir / (RUN_CONFIG_FILE + ".tmp")
-    tmp.write_text(json.dumps(config, indent=2, default=str), encoding="utf-8")
+    tmp.write_text(json.dumps({**config, "backend": backend}, indent=2, default=str), encoding="utf-8")
     tmp.replace(run_dir / RUN_CONFIG_FILE)
 
 
@@ -280,6 +284,12 @@ class RunSize:
     num_envs: int
     max_steps: int
     task_id: str | None = None
+
+    def filled(self, num_envs: int | None, max_steps: int | None) -> RunSize:
+        """A request's size: what it gives, this size for what it leaves out (None; ``num_envs`` 0 is
+        the task's catalog default and stays 0). The one run-size rule of every command."""
+        return RunSize(self.num_envs if num_envs is None else int(num_envs),
+                       self.max_steps if max_steps is None else int(max_steps), self.task_id)
 
 
 class MotorBackendBase:

@@ -51,6 +51,7 @@ from econmotor.motor_backend.base import (
     RunSize,
     StepAlias,
     no_progress,
+    read_run_config,
     summarize_episodes,
     write_run_config,
 )
@@ -297,7 +298,7 @@ class DishwashingBackend(MotorBackendBase):
         policy_path = run_dir / self.final_policy_file
         model.save(policy_path)
         config = {
-            "backend": BACKEND_NAME, "task_id": task_id, "objective": objective.to_dict(),
+            "task_id": task_id, "objective": objective.to_dict(),
             "datapack_ids": list(datapack_ids),
             "datapack_configs": [c.to_dict() for c in (datapack_configs or ()) if hasattr(c, "to_dict")],
             "num_envs": num_envs, "max_steps": max_steps, "seed": seed, "eval_episodes": eval_episodes,
@@ -308,7 +309,7 @@ class DishwashingBackend(MotorBackendBase):
             "overlay_keys_ignored": list(make().ignored_overlay_keys),
             "randomization": randomization.to_dict(), "train_seconds": train_s,
         }
-        write_run_config(run_dir, config)
+        write_run_config(run_dir, config, self.name)
         _write_json(run_dir / "training_curve.json", curve.curve)
         raw, econ, episodes = self._evaluate(model, spec, params, norm, objective, randomization,
                                              eval_episodes, seed + TRAINING_EVAL_SEED_OFFSET, progress)
@@ -375,7 +376,9 @@ class DishwashingBackend(MotorBackendBase):
         from stable_baselines3 import SAC
 
         path = Path(policy_id)
-        path = path / self.final_policy_file if path.is_dir() else path
+        if path.is_dir():
+            read_run_config(path, self.name)  # a run directory: this backend's
+            path = path / self.final_policy_file
         if not path.is_file():
             raise BackendError(f"no saved dishwashing policy at '{policy_id}': pass the policy_id (the run "
                                f"directory holding {self.final_policy_file}) that train_policy returned")

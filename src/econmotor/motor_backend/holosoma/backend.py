@@ -332,10 +332,10 @@ class HolosomaBackend(MotorBackendBase):
         policy_onnx = run_dir / self.final_policy_file  # the run's policy, where every backend keeps its final one
         shutil.copyfile(result["onnx"], policy_onnx)
         write_run_config(run_dir, {
-            **ours, "backend": self.name, "checkpoint": result["checkpoint"], "onnx": str(policy_onnx),
+            **ours, "checkpoint": result["checkpoint"], "onnx": str(policy_onnx),
             "holosoma_onnx": result["onnx"], "experiment_dir": result["experiment_dir"],
             "episode_length_s": result["episode_length_s"], "control_dt_s": result["control_dt_s"],
-            "simulator": plan.simulator, "algo": algo, "seed": int(seed)})
+            "simulator": plan.simulator, "algo": algo, "seed": int(seed)}, self.name)
         curve = [{"timesteps": float(c["timesteps"]), "mean_return": float(c["mean_return"])}
                  for c in outcome.curve if c.get("mean_return") is not None]
         econ_log = {k: v for c in outcome.curve for k, v in c.get("econ", {}).items()}
@@ -508,7 +508,7 @@ class HolosomaBackend(MotorBackendBase):
         legacy = Path(policy_id) / LEGACY_MANIFEST
         if not (Path(policy_id) / RUN_CONFIG_FILE).is_file() and legacy.is_file():
             return json.loads(legacy.read_text(encoding="utf-8"))
-        return read_run_config(policy_id, self.name, check_backend=True)
+        return read_run_config(policy_id, self.name)
 
 
 def shipped_policy_file(python: Path, name: str) -> Path:

@@ -271,8 +271,8 @@ class MjxBackend(MotorBackendBase):
     def deploy_policy_handle(self, policy_id: str) -> MjxOnnxPolicyHandle:
         """An onnxruntime handle on the run's ``policy.onnx`` (exported now if missing)."""
         path = Path(policy_id) / ONNX_FILE
+        config = read_run_config(policy_id)  # an mjx run directory, checked before anything is loaded
         if not path.is_file():
-            config = read_run_config(policy_id)
             cfg = ppo.PPOConfig.from_mapping(config["hyperparameters"], str(Path(policy_id) / RUN_CONFIG_FILE))
             self._export(Path(policy_id), load_learner(policy_id, config, cfg), cfg, config)
         return MjxOnnxPolicyHandle(path)

@@ -198,8 +198,8 @@ class MujocoBackend(MotorBackendBase):
     def deploy_policy_handle(self, policy_id: str) -> OnnxPolicyHandle:
         """An onnxruntime handle on the run's ``policy.onnx`` (exported now if missing)."""
         path = Path(policy_id) / ONNX_FILE
+        config = read_run_config(policy_id, self.name)  # a mujoco run directory, checked before anything is loaded
         if not path.is_file():
-            config = read_run_config(policy_id, "mujoco")
             model, _ = load_policy(policy_id, config["algorithm"])
             export_onnx(model, obs_normalizer(policy_id), path, self._onnx_metadata(config))
         return OnnxPolicyHandle(path)
