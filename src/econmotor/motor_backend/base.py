@@ -40,7 +40,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar, Protocol, runtime_checkable
+from typing import Any, ClassVar, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -48,7 +48,7 @@ from econmotor.config.task_economics import TaskEconomics
 from econmotor.economics.meter import EconomicMeter
 from econmotor.errors import ConfigError
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
-from econmotor.tasks.catalog import TaskCatalog, load_catalog
+from econmotor.tasks.catalog import TaskCatalog, TaskSpec, load_catalog
 
 #: progress(label, completed, total): backends report long work through this; the CLI draws bars.
 ProgressFn = Callable[[str, float, float], None]
@@ -266,6 +266,8 @@ class BackendCapabilities:
         records_clips: ``record_clip(policy_id, path, num_steps, seed)`` saves a motion clip.
         evaluation_driven: held-out evaluations choose the checkpoint a run keeps, and training can
             stop once deployable (``motor_backend/selection.py``; ``--until-deployable``).
+        shadow_env: :meth:`MotorBackendBase.shadow_env` builds one Gymnasium env of a task whose
+            ``info["step_summary"]`` carries each step's economics (shadow mode, ``rl/``).
     """
 
     resume: bool = False
@@ -274,6 +276,16 @@ class BackendCapabilities:
     imported_policies: bool = False
     records_clips: bool = False
     evaluation_driven: bool = False
+    shadow_env: bool = False
+
+
+class ShadowEnv(NamedTuple):
+    """One Gymnasium env of a task for shadow mode: ``info["step_summary"]`` every step, the
+    episode's raw metrics at its end; ``dt_s`` seconds per step; ``max_episode_steps`` its limit."""
+
+    env: Any
+    dt_s: float
+    max_episode_steps: int
 
 
 @dataclass(frozen=True)
@@ -332,6 +344,14 @@ class MotorBackendBase:
         self.runs_dir = Path(runs_dir)
 
     # --- declarations asked before any work ---------------------------------------------------
+    @classmethod
+    def shadow_env(cls, spec: TaskSpec, max_episode_steps: int | None = None,
+                   econ_overrides: Mapping[str, Any] | None = None) -> ShadowEnv:
+        """One Gymnasium env of task ``spec`` for shadow mode (where ``capabilities.shadow_env``):
+        ``max_episode_steps`` overrides the episode length, ``econ_overrides`` the backend's own
+        economic parameters where it has any (a ConfigError where it has none)."""
+        raise ConfigError("--env", spec.task_id, f"the '{cls.name}' backend builds no single Gymnasium env")
+
     @classmethod
     def check_num_envs(cls, num_envs: int | None, flag: str = "--num-envs") -> None:
         """``num_envs`` must be within :attr:`max_num_envs`; a ConfigError names the flag and the limit."""

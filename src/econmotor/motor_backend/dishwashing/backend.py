@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -49,6 +49,7 @@ from econmotor.motor_backend.base import (
     MotorTrainingResult,
     ProgressFn,
     RunSize,
+    ShadowEnv,
     StepAlias,
     no_progress,
     read_run_config,
@@ -147,7 +148,7 @@ class DishwashingBackend(MotorBackendBase):
     """
 
     name = BACKEND_NAME
-    capabilities = BackendCapabilities()
+    capabilities = BackendCapabilities(shadow_env=True)
     defaults = RunSize(num_envs=1, max_steps=5_000)
     smoke_run = RunSize(num_envs=1, max_steps=300, task_id="dishwashing")
     max_num_envs = 256  # in-process DummyVecEnv
@@ -198,6 +199,17 @@ class DishwashingBackend(MotorBackendBase):
         if norm is not None:
             as_str(norm, source, f"{key}.overlay_normalization", OVERLAY_NORMALIZATIONS)
         return params, norm
+
+    @classmethod
+    def shadow_env(cls, spec: TaskSpec, max_episode_steps: int | None = None,
+                   econ_overrides: Mapping[str, Any] | None = None) -> ShadowEnv:
+        """The workcell on the legacy reward (``info["step_summary"]`` every step), with the entry's
+        EconParams and ``econ_overrides`` on top (flag ``--econ-override``)."""
+        params, _ = cls._entry_params(spec)
+        if econ_overrides:
+            params = params.with_overrides(dict(econ_overrides), source="--econ-override")
+        env = DishwashingEnv(params, reward_mode="legacy", max_steps=max_episode_steps)
+        return ShadowEnv(env, params.time_step_s, env.max_steps)
 
     def _task(self, task_id: str) -> tuple[TaskSpec, EconParams, str]:
         spec = self.catalog.get(task_id)
