@@ -20,6 +20,7 @@ from econmotor.config.task_economics import TaskEconomics
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.factory import backend_class, known_backends
 from econmotor.tasks import load_catalog
+from econmotor.tasks.catalog import TaskSpec
 
 
 @dataclass
@@ -53,10 +54,16 @@ def make_task_env(task_id: str, max_episode_steps: int | None = None,
         econ_overrides: the backend's economic parameters to override (dishwashing's EconParams).
     """
     spec = load_catalog().get(task_id)
-    able = [name for name in spec.backends if backend_class(name).capabilities.shadow_env]
-    if not able:
-        offering = [name for name in known_backends() if backend_class(name).capabilities.shadow_env]
-        raise ConfigError("--env", task_id, "none of the task's backends builds a single Gymnasium env "
-                          f"(its backends: {', '.join(spec.backends)})", offering)
-    env, dt_s, limit = backend_class(able[0]).shadow_env(spec, max_episode_steps, econ_overrides)
+    env, dt_s, limit = backend_class(shadow_backend(spec)).shadow_env(spec, max_episode_steps, econ_overrides)
     return TaskEnv(env, spec.economics, float(dt_s), int(limit), task_id)
+
+
+def shadow_backend(spec: TaskSpec) -> str:
+    """The first of ``spec``'s backends that builds a single Gymnasium env; a ConfigError names the
+    backends that can where none of the task's can."""
+    for name in spec.backends:
+        if backend_class(name).capabilities.shadow_env:
+            return name
+    offering = [name for name in known_backends() if backend_class(name).capabilities.shadow_env]
+    raise ConfigError("--env", spec.task_id, "none of the task's backends builds a single Gymnasium env "
+                      f"(its backends: {', '.join(spec.backends)})", offering)
