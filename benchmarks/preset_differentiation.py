@@ -40,6 +40,7 @@ import argparse
 import tempfile
 import time
 from collections import Counter
+from pathlib import Path
 
 import numpy as np
 
@@ -139,8 +140,8 @@ def main() -> None:
             objective = objective_from_vector(ObjectiveVector.from_preset(preset), preset)
             for seed in range(args.seeds):
                 t0 = time.perf_counter()
-                result = backend.train_policy(args.task, objective, [], args.num_envs, args.steps, seed, output_dir=out,
-                                              eval_episodes=1)
+                result = backend.train_policy(args.task, objective, [], args.num_envs, args.steps, seed,
+                                              output_dir=Path(out) / f"{preset}-s{seed}", eval_episodes=1)
                 row = policy_row(backend, result.policy_id, args.task, objective, args.eval_episodes)
                 rows.setdefault(preset, []).append(row)
                 print(f"  {preset:<12} seed {seed}: MPL {row['mpl']:6.1f}  err {row['error_rate']:.4f}  "

@@ -72,7 +72,13 @@ def test_train_into_output_dir_evaluate_by_policy_id_and_deploy(name: str, tmp_p
                                    eval_episodes=1)
     assert Path(trained.policy_id) == run_dir and trained.backend == name
     config = json.loads((run_dir / RUN_CONFIG_FILE).read_text())
-    assert config["task_id"] == task_id and config.get("backend", name) == name
+    assert config["task_id"] == task_id and config["backend"] == name
+    config["backend"] = "another"
+    (run_dir / RUN_CONFIG_FILE).write_text(json.dumps(config))
+    with pytest.raises(ConfigError, match=f"a 'another' run, not an? {name} one"):
+        backend.deploy_policy_handle(trained.policy_id)  # every backend checks the run before loading it
+    config["backend"] = name
+    (run_dir / RUN_CONFIG_FILE).write_text(json.dumps(config))
     assert cls.is_complete_run(run_dir) and not (tmp_path / "runs").exists()  # nothing nested elsewhere
 
     evaluated = backend.evaluate_policy(trained.policy_id, task_id, objective, 1, 11)
@@ -83,6 +89,38 @@ def test_train_into_output_dir_evaluate_by_policy_id_and_deploy(name: str, tmp_p
     assert isinstance(handle, PolicyHandle)
     obs = np.zeros(handle.obs_dim, dtype=np.float32)
     assert np.array_equal(handle.step(obs), handle.act(obs)) and np.all(np.isfinite(handle.act(obs)))
+
+
+@pytest.mark.parametrize("name", BACKENDS)
+def test_run_size_defaults_fill_what_a_request_leaves_out(name: str) -> None:
+    defaults = backend_class(name).defaults
+    assert defaults.max_steps >= 1 and defaults.num_envs >= 0
+    assert defaults.filled(None, None) == defaults
+    assert defaults.filled(3, None).num_envs == 3 and defaults.filled(None, 77).max_steps == 77
+    assert defaults.filled(0, 5).num_envs == 0  # 0: the task's catalog default, kept
+
+
+class DuckBackend:
+    """A plugin with the specification's three methods that does not extend MotorBackendBase."""
+
+    def train_policy(self, *args, **kwargs): ...
+
+    def evaluate_policy(self, *args, **kwargs): ...
+
+    def deploy_policy_handle(self, policy_id): ...
+
+
+def test_a_duck_typed_plugin_is_refused_with_one_clear_line() -> None:
+    from econmotor.errors import BackendError
+    from econmotor.motor_backend import factory
+
+    factory.register_motor_backend("duck", f"{__name__}:DuckBackend")
+    try:
+        with pytest.raises(BackendError, match="'duck' .*DuckBackend.* does not extend .*MotorBackendBase") as info:
+            factory.backend_class("duck")
+        assert "\n" not in str(info.value)
+    finally:
+        factory._REGISTRY.pop("duck")
 
 
 def test_default_run_directories_are_new_and_under_runs_dir(tmp_path: Path) -> None:

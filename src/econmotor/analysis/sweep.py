@@ -85,8 +85,9 @@ def plan_sweep(task_id: str, backend: str, objectives: Sequence[Objective],
     """
     if not objectives or not seeds or not datapack_groups:
         raise ConfigError("<sweep>", None, "a sweep needs at least one objective, datapack group and seed")
-    if num_envs < 1 or max_steps < 1 or eval_episodes < 1:
-        raise ConfigError("<sweep>", "num_envs/max_steps/eval_episodes", "must all be >= 1")
+    if num_envs < 0 or max_steps < 1 or eval_episodes < 1:
+        raise ConfigError("<sweep>", "num_envs/max_steps/eval_episodes",
+                          "num_envs must be >= 0 (0: the task's default), the others >= 1")
     cells = [SweepCell(task_id, backend, o, tuple(g), int(s), num_envs, max_steps, eval_episodes)
              for o in objectives for g in datapack_groups for s in seeds]
     keys = [c.key for c in cells]

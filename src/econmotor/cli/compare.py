@@ -32,8 +32,8 @@ from econmotor.cli.validation import check_db_url, check_flags, check_output_dir
 from econmotor.economics.pricing import PricingPolicy
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import REPORT_EVAL_SEED_OFFSET
+from econmotor.motor_backend.factory import load_checked_catalog
 from econmotor.report.render import fmt
-from econmotor.tasks import load_catalog
 
 #: intervals narrower than this fraction of the price cannot tell policies apart: the episodes barely
 #: differ (nominal conditions vary only the start pose), which is not evidence of how a difference holds
@@ -197,13 +197,14 @@ def compare_command(
         raise ConfigError("--policy", None, f"a policy is named twice: {policies}")
     check_imports_policies(motor_backend, "--motor-backend")
     url = check_db_url(db_url, create=True)
-    task = load_catalog(tasks_file).get(task_id)
+    catalog = load_checked_catalog(tasks_file)
+    task = catalog.get(task_id)
     task.backend_entry(motor_backend)
     objective = resolve_objective(None, None)
     packs = resolve_datapacks(split_datapack_values(datapacks), url)
     out_dir = check_output_dir("--output-dir", output_dir or Path("reports") / task_id / "compare")
     options = {"command_speed_m_per_s": command_speed} if command_speed is not None else {}
-    backend = make_backend(motor_backend, tasks_file, **options)
+    backend = make_backend(motor_backend, tasks_file, catalog=catalog, **options)
     for policy_id in policies:  # bad input records nothing
         backend.check_policy(policy_id)
     pricing = PricingPolicy(spread_share)

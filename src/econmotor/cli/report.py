@@ -58,7 +58,7 @@ from econmotor.economics.pricing import PricingPolicy
 from econmotor.errors import ConfigError, UnknownNameError, did_you_mean
 from econmotor.motor_backend.base import REPORT_EVAL_SEED_OFFSET
 from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_configs
-from econmotor.motor_backend.factory import DEFAULT_BACKEND, backend_class, known_backends
+from econmotor.motor_backend.factory import DEFAULT_BACKEND, backend_class, known_backends, load_checked_catalog
 from econmotor.objectives import load_objective_spec, objective_from_vector
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.report.pipeline import (
@@ -80,7 +80,7 @@ from econmotor.report.render import (
     table_rows,
 )
 from econmotor.store.registry import DB_URL_ENV, Registry, registry_exists
-from econmotor.tasks import load_catalog
+from econmotor.tasks.catalog import TaskCatalog
 from econmotor.valuation import default_objective_vector
 
 NO_BACKEND = "none"
@@ -191,13 +191,13 @@ def price_imported(task, backend, policy_id: str, objective: EconomicObjectiveSp
 
 
 def report_imported(task, backend_name: str, policy_id: str, objective: EconomicObjectiveSpec,
-                    packs: list[DatapackConfig], eval_episodes: int, seed: int, notes: str, tasks_file: list[Path],
+                    packs: list[DatapackConfig], eval_episodes: int, seed: int, notes: str, catalog: TaskCatalog,
                     url: str, out_dir: Path, output_json: Path | None, pricing: PricingPolicy) -> None:
     """``report --policy``: evaluate an imported policy (nothing trained), record the run, write the report."""
     check_imports_policies(backend_name, "--motor-backend")
     if eval_episodes < 1:
         raise ConfigError("--eval-episodes", None, "--policy evaluates an imported policy: give --eval-episodes N")
-    backend = make_backend(backend_name, tasks_file)
+    backend = make_backend(backend_name, catalog=catalog)
     backend.check_policy(policy_id)  # bad input records nothing
     outcome = price_imported(task, backend, policy_id, objective, packs, eval_episodes, seed, notes, url, out_dir,
                              output_json, pricing)
@@ -251,7 +251,8 @@ def report_command(
     check_output_file("--output-json", output_json)
     policy = PricingPolicy(spread_share)
     url = check_db_url(db_url, create=motor_backend != NO_BACKEND)
-    task = load_catalog(tasks_file).get(task_id)
+    catalog = load_checked_catalog(tasks_file)
+    task = catalog.get(task_id)
     backends = [*known_backends(), NO_BACKEND]
     if motor_backend not in backends:
         raise UnknownNameError("motor backend", motor_backend, backends)
@@ -306,18 +307,17 @@ def report_command(
 
     if imported_policy is not None:
         report_imported(task, motor_backend, imported_policy, objective, packs, eval_episodes, seed, notes,
-                        tasks_file, url, out_dir, output_json, policy)
+                        catalog, url, out_dir, output_json, policy)
         return
-    defaults = backend_class(motor_backend).defaults
-    backend = make_backend(motor_backend, tasks_file)
+    size = backend_class(motor_backend).defaults.filled(num_envs, max_steps)
+    backend = make_backend(motor_backend, tasks_file, catalog=catalog)
     if init_policy is not None:
         backend.check_init_policy(init_policy, task_id)
     run_dir = backend.run_dir(None, task_id, seed)
     announce_device(backend)
     announce_num_envs(backend, task_id, num_envs)
     request = TrainRequest(task=task, backend_name=motor_backend, objective=objective, datapacks=tuple(packs),
-                           num_envs=defaults.num_envs if num_envs is None else num_envs,
-                           max_steps=max_steps or defaults.max_steps, seed=seed, eval_episodes=eval_episodes,
+                           num_envs=size.num_envs, max_steps=size.max_steps, seed=seed, eval_episodes=eval_episodes,
                            notes=notes, output_dir=run_dir, backend_options=selecting,
                            # the episodes priced when no evaluation run follows (--eval-episodes 0)
                            train_eval_episodes=TRAINING_EVAL_EPISODES if eval_episodes else

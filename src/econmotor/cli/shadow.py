@@ -24,6 +24,7 @@ from econmotor.config.objective_profile import OBJECTIVE_TERMS, ObjectiveVector
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import new_run_dir
 from econmotor.store.registry import Registry
+from econmotor.tasks import load_catalog
 from econmotor.valuation import load_constraint_set
 
 #: the files of a shadow run; a --save-dir holding any of them (not empty) holds a run already.
@@ -69,6 +70,31 @@ def shadow_command(
     """Train SAC on the legacy reward while logging the RewardBuilder reward beside it (or flipped)."""
     check_flags(total_steps=total_steps, seed=seed, max_episode_steps=max_episode_steps, lagrange_lr=lagrange_lr,
                 learning_starts=learning_starts, eval_episodes=eval_episodes)
+    check_shadow_choices(objective_vector, constraint_mode, objective_sampling, reward_weights, constraints,
+                         reward_net, save_dir)
+    set_cpu_threads()
+    from econmotor.rl.train_sac_objective import ShadowConfig
+
+    run_dir = shadow_run_dir(save_dir, env, seed)
+    label, vector = shadow_objective(objective_preset, objective_vector)
+    config = ShadowConfig(
+        env=env, objective=tuple(vector.to_list()), objective_label=label, energy_term=energy_term,
+        total_steps=total_steps, use_objective_reward=use_objective_reward,
+        constraints=load_constraint_set(Path(constraints)) if constraints else None, constraint_mode=constraint_mode,
+        objective_sampling=objective_sampling, reward_weights=reward_weights, reward_net_path=reward_net,
+        seed=seed, save_dir=str(run_dir), max_episode_steps=max_episode_steps, lagrange_lr=lagrange_lr,
+        learning_starts=learning_starts, eval_episodes=eval_episodes,
+        eval_objectives={label: tuple(vector.to_list()),
+                         **{p: tuple(ObjectiveVector.from_preset(p).to_list()) for p in eval_preset}}
+        if eval_preset else {})
+    run_id, result = run_recorded(config, vector, check_db_url(db_url), run_dir)
+    print_shadow(config, vector, run_id, result)
+
+
+def check_shadow_choices(objective_vector: tuple[float, ...] | None, constraint_mode: str, objective_sampling: str,
+                         reward_weights: str, constraints: str | None, reward_net: str | None,
+                         save_dir: str | None) -> None:
+    """The shadow command's choices, files and output directory, before anything runs."""
     for weight in objective_vector or ():
         FLAG_RULES["--objective-vector"].check("--objective-vector", weight)
     check_choice("--constraint-mode", constraint_mode, ("penalty", "lagrangian"))
@@ -79,47 +105,38 @@ def shadow_command(
     if reward_net:
         check_input_files("--reward-net", [reward_net])
     check_output_dir("--save-dir", save_dir)
-    set_cpu_threads()
-    from econmotor.rl.train_sac_objective import ShadowConfig, train_sac_objective
 
+
+def shadow_run_dir(save_dir: str | None, env: str, seed: int) -> Path:
+    """``--save-dir`` (which must not hold a run) or a new ``runs/shadow/<env>-<time>-s<seed>-<pid>``;
+    the env must be a task some backend builds a single Gymnasium env of."""
+    from econmotor.rl.task_env import shadow_backend
+
+    shadow_backend(load_catalog().get(env))
     run_dir = Path(save_dir) if save_dir else new_run_dir(Path("runs") / "shadow", env, seed)
     if holds_a_run(run_dir):
         raise ConfigError("--save-dir", None, f"{run_dir} already holds a shadow run; a run never overwrites "
                           "another: give a new directory, or leave --save-dir out for a fresh one")
-    if objective_preset and objective_vector:
-        raise ConfigError("--objective-vector", None, "give --objective-preset or --objective-vector, not both")
-    if objective_vector:
-        vector, label = ObjectiveVector.from_list(list(objective_vector), source="--objective-vector"), "custom"
-    elif objective_preset:
-        vector, label = ObjectiveVector.from_preset(objective_preset), objective_preset
-    else:
-        vector, label = ObjectiveVector(), "default"
-    config = ShadowConfig(
-        env=env, objective=tuple(vector.to_list()), objective_label=label, energy_term=energy_term,
-        total_steps=total_steps,
-        use_objective_reward=use_objective_reward,
-        constraints=load_constraint_set(Path(constraints)) if constraints else None, constraint_mode=constraint_mode,
-        objective_sampling=objective_sampling, reward_weights=reward_weights, reward_net_path=reward_net,
-        seed=seed, save_dir=str(run_dir),
-        max_episode_steps=max_episode_steps, lagrange_lr=lagrange_lr, learning_starts=learning_starts,
-        eval_episodes=eval_episodes,
-        eval_objectives={label: tuple(vector.to_list()),
-                         **{p: tuple(ObjectiveVector.from_preset(p).to_list()) for p in eval_preset}}
-        if eval_preset else {})
-    url = check_db_url(db_url)
-    recorded: dict[str, Any] = {}
+    return run_dir
 
-    def start() -> int:
-        """Record the run when training really starts (bad input found before that records nothing)."""
-        if "id" not in recorded:
-            recorded["registry"] = registry = Registry(url)
-            recorded["id"] = registry.start_run(
-                "shadow", env, "shadow", objective=recorded_objective(label, vector, objective_sampling),
-                config={"run_dir": str(run_dir), "total_steps": total_steps,
-                        "use_objective_reward": use_objective_reward, "constraint_mode": constraint_mode,
-                        "objective_sampling": objective_sampling, "reward_weights": reward_weights},
-                seed=seed, max_steps=total_steps, policy_path=str(run_dir))
-        return recorded["id"]
+
+def shadow_objective(preset: str | None, weights: tuple[float, ...] | None) -> tuple[str, ObjectiveVector]:
+    """(label, vector) of ``--objective-preset`` or ``--objective-vector`` (at most one; neither: default)."""
+    if preset and weights:
+        raise ConfigError("--objective-vector", None, "give --objective-preset or --objective-vector, not both")
+    if weights:
+        return "custom", ObjectiveVector.from_list(list(weights), source="--objective-vector")
+    if preset:
+        return preset, ObjectiveVector.from_preset(preset)
+    return "default", ObjectiveVector()
+
+
+def run_recorded(config: Any, vector: ObjectiveVector, url: str, run_dir: Path) -> tuple[int, Any]:
+    """Record the run in the registry, train it, and record how it ended: ``(run id, result)``.
+
+    Interrupted: the run is recorded as interrupted, the console says what was kept, and the
+    command aborts; failed: recorded as failed with the error, which propagates."""
+    from econmotor.rl.train_sac_objective import train_sac_objective
 
     def kept_note() -> str:
         kept = ", ".join(sorted(p.name for p in run_dir.iterdir())) if run_dir.is_dir() else ""
@@ -127,32 +144,34 @@ def shadow_command(
                 "runs do not resume: run the command again (it writes a new directory).")
 
     set_deadline_note(kept_note)
-    try:
-        with progress_bars() as bars:
-            def progress(label_: str, done: float, total: float) -> None:
-                start()
-                bars(label_, done, total)
+    with Registry(url) as registry:
+        run_id = registry.start_run(
+            "shadow", config.env, "shadow",
+            objective=recorded_objective(config.objective_label, vector, config.objective_sampling),
+            config={"run_dir": str(run_dir), "total_steps": config.total_steps,
+                    "use_objective_reward": config.use_objective_reward, "constraint_mode": config.constraint_mode,
+                    "objective_sampling": config.objective_sampling, "reward_weights": config.reward_weights},
+            seed=config.seed, max_steps=config.total_steps, policy_path=str(run_dir))
+        try:
+            with progress_bars() as bars:
+                result = train_sac_objective(config, bars)
+        except KeyboardInterrupt as exc:
+            registry.mark_run(run_id, "interrupted", f"KeyboardInterrupt: {exc}")
+            err_console.print(f"[yellow]interrupted[/]: shadow run #{run_id} is recorded as interrupted in "
+                              f"{registry.display_url}. {kept_note()}", highlight=False)
+            raise typer.Abort from None
+        except BaseException as exc:
+            registry.mark_run(run_id, "failed", f"{type(exc).__name__}: {exc}")
+            raise
+        registry.finish_run(run_id, raw_metrics=dict(result.summary), econ_metrics={},
+                            artifacts={"run_dir": str(run_dir), "evaluation": result.evaluation})
+    return run_id, result
 
-            result = train_sac_objective(config, progress)
-        run_id = start()
-        recorded["registry"].finish_run(run_id, raw_metrics=dict(result.summary), econ_metrics={},
-                                        artifacts={"run_dir": str(run_dir), "evaluation": result.evaluation})
-    except KeyboardInterrupt as exc:
-        where = "nothing was recorded"
-        if "id" in recorded:
-            recorded["registry"].mark_run(recorded["id"], "interrupted", f"KeyboardInterrupt: {exc}")
-            where = f"shadow run #{recorded['id']} is recorded as interrupted in {recorded['registry'].display_url}"
-        err_console.print(f"[yellow]interrupted[/]: {where}. {kept_note()}", highlight=False)
-        raise typer.Abort from None
-    except BaseException as exc:
-        if "id" in recorded:
-            recorded["registry"].mark_run(recorded["id"], "failed", f"{type(exc).__name__}: {exc}")
-        raise
-    finally:
-        if "registry" in recorded:
-            recorded["registry"].close()
-    for line in header_lines(env, label, vector, objective_sampling, use_objective_reward, result.steps_per_s,
-                             list(result.evaluation)):
+
+def print_shadow(config: Any, vector: ObjectiveVector, run_id: int, result: Any) -> None:
+    """What was trained, the correlations, the evaluation table, the multipliers and the files."""
+    for line in header_lines(config.env, config.objective_label, vector, config.objective_sampling,
+                             config.use_objective_reward, result.steps_per_s, list(result.evaluation)):
         console.print(line, highlight=False)
     for line in correlation_lines(result.summary):
         console.print(line, highlight=False)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import typer
 from rich.table import Table
@@ -130,20 +131,9 @@ def solve_command(
     objectives = objectives_from_options(preset, vector, grid, include_novelty, energy_term)
     reference = parse_reference(reference_point)
     if episodes_jsonl:
-        tables = [read_episodes_jsonl(p) for p in episodes_jsonl]
-        table = tables[0] if len(tables) == 1 else EpisodeTable.from_records(
-            [rec for t in tables for rec in t.records()], ",".join(map(str, episodes_jsonl)))
-        source = {"episodes_jsonl": [str(p) for p in episodes_jsonl]}
+        table, source = episodes_from_files(episodes_jsonl)
     else:
-        from econmotor.analysis.sources import episodes_from_registry
-
-        with open_registry(db_url, create=False) as registry:
-            note_abandoned(registry)
-            table = episodes_from_registry(registry, task_id=task_id, backend=motor_backend,
-                                           datapacks=split_ids(datapacks) or None, objective=objective,
-                                           kind=run_kind)
-            source = {"registry": registry.display_url, "task_id": task_id, "backend": motor_backend,
-                      "datapacks": split_ids(datapacks), "objective": objective, "run_kind": run_kind}
+        table, source = episodes_from_db(db_url, task_id, motor_backend, split_ids(datapacks), objective, run_kind)
     if export_jsonl:
         err_console.print(f"episodes written to {write_episodes_jsonl(table, export_jsonl)}")
     surface = solve_objective_surface(table, objectives, sets)
@@ -182,3 +172,25 @@ def _print_summary(surface, files) -> None:
     console.print(f"hypervolume {front['hypervolume']:.6g} (reference point: {bound})", highlight=False)
     for kind, path in files.items():
         console.print(f"{kind}: {path}")
+
+
+def episodes_from_files(paths: list[Path]) -> tuple[EpisodeTable, dict[str, Any]]:
+    """The episodes of JSONL exports (one table), and where they came from."""
+    tables = [read_episodes_jsonl(p) for p in paths]
+    table = tables[0] if len(tables) == 1 else EpisodeTable.from_records(
+        [rec for t in tables for rec in t.records()], ",".join(map(str, paths)))
+    return table, {"episodes_jsonl": [str(p) for p in paths]}
+
+
+def episodes_from_db(db_url: str, task_id: str | None, backend: str | None, datapacks: list[str],
+                     objective: str | None, run_kind: str | None) -> tuple[EpisodeTable, dict[str, Any]]:
+    """The recorded episodes of the runs the filters select, and the filters."""
+    from econmotor.analysis.sources import episodes_from_registry
+
+    with open_registry(db_url, create=False) as registry:
+        note_abandoned(registry)
+        table = episodes_from_registry(registry, task_id=task_id, backend=backend, datapacks=datapacks or None,
+                                       objective=objective, kind=run_kind)
+        source = {"registry": registry.display_url, "task_id": task_id, "backend": backend,
+                  "datapacks": datapacks, "objective": objective, "run_kind": run_kind}
+    return table, source

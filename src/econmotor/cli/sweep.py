@@ -63,8 +63,10 @@ def sweep_command(
     datapacks: list[str] = typer.Option([], "--datapacks", help="Grid values: YAML paths or registered ids, "
                                         "comma separated; 'a.yaml+b.yaml' is one value using both."),
     seeds: str = typer.Option("0", "--seeds", help="Seeds, e.g. '0,1,2' or '0-4'."),
-    num_envs: int = typer.Option(1, "--num-envs"),
-    max_steps: int = typer.Option(2000, "--max-steps", help="Environment steps per cell."),
+    num_envs: int = typer.Option(None, "--num-envs", min=0, help="Environments per cell (default: the "
+                                 "backend's)."),
+    max_steps: int = typer.Option(None, "--max-steps", min=1, help="Environment steps per cell (default: the "
+                                  "backend's)."),
     eval_episodes: int = typer.Option(5, "--eval-episodes", help="Evaluation episodes recorded per cell."),
     output_dir: Path = typer.Option(Path("runs/sweep"), "--output-dir", help="Policies land in OUTPUT_DIR/<cell key>."),
     db_url: str = typer.Option(None, "--db-url", help="Registry URL (default $ECONMOTOR_DB_URL or "
@@ -97,24 +99,49 @@ def sweep_command(
         groups = datapack_groups(datapacks, registry)
         check_size("--datapacks", "sweep cells (objectives x datapacks x seeds)",
                    len(objectives) * len(groups) * len(seed_list), MAX_SWEEP_CELLS)
-        cells = plan_sweep(task_id, motor_backend, objectives, groups, seed_list, num_envs=num_envs,
-                           max_steps=max_steps, eval_episodes=eval_episodes)
-        needs = backend_class(motor_backend).sweep_resources()
-        ray = RaySettings(ray_address, ray_num_cpus, needs["num_cpus"] if cpus_per_cell is None else cpus_per_cell,
-                          needs["num_gpus"] if gpus_per_cell is None else gpus_per_cell) \
-            if use_ray or ray_address else None
+        size = backend_class(motor_backend).defaults.filled(num_envs, max_steps)
+        cells = plan_sweep(task_id, motor_backend, objectives, groups, seed_list, num_envs=size.num_envs,
+                           max_steps=size.max_steps, eval_episodes=eval_episodes)
+        ray = ray_settings(motor_backend, use_ray, ray_address, ray_num_cpus, cpus_per_cell, gpus_per_cell)
         console.print(f"sweep: {len(cells)} cells on {motor_backend} "
                       f"({'Ray' if ray else 'sequential'}); registry {registry.display_url}")
-        try:
-            with progress_bars() as progress:
-                outcomes = run_sweep(registry, cells, output_dir, ray=ray, progress=progress,
-                                     backend_options=environment_options(motor_backend, os.environ))
-        except KeyboardInterrupt:
-            done = completed_cell_keys(registry, task_id, motor_backend) & {c.key for c in cells}
-            err_console.print(f"[yellow]interrupted[/]: the cells in flight are recorded as interrupted in "
-                              f"{registry.display_url}. Kept: {len(done)} of {len(cells)} cells completed, {kept}",
-                              highlight=False)
-            raise typer.Abort from None
+        outcomes = run_cells(registry, cells, output_dir, ray, kept)
+    print_cells(outcomes)
+    failed = sum(o.status == "failed" for o in outcomes)
+    console.print(f"then: econmotor solve --task-id {task_id} --motor-backend {motor_backend}"
+                  + (f" --db-url {db_url}" if db_url else ""))
+    if failed:
+        raise typer.Exit(1)
+
+
+def ray_settings(backend: str, use_ray: bool, address: str | None, num_cpus: int | None,
+                 cpus_per_cell: float | None, gpus_per_cell: float | None) -> RaySettings | None:
+    """Ray's settings of a sweep (None: cells run one after another here); a cell declares what the
+    backend says it needs unless the flags say otherwise."""
+    if not (use_ray or address):
+        return None
+    needs = backend_class(backend).sweep_resources()
+    return RaySettings(address, num_cpus, needs["num_cpus"] if cpus_per_cell is None else cpus_per_cell,
+                       needs["num_gpus"] if gpus_per_cell is None else gpus_per_cell)
+
+
+def run_cells(registry, cells: list, output_dir: Path, ray: RaySettings | None, kept: str) -> list:
+    """Train the cells with progress bars; interrupted: say what is kept and abort."""
+    backend = cells[0].backend
+    try:
+        with progress_bars() as progress:
+            return run_sweep(registry, cells, output_dir, ray=ray, progress=progress,
+                             backend_options=environment_options(backend, os.environ))
+    except KeyboardInterrupt:
+        done = completed_cell_keys(registry, cells[0].task_id, backend) & {c.key for c in cells}
+        err_console.print(f"[yellow]interrupted[/]: the cells in flight are recorded as interrupted in "
+                          f"{registry.display_url}. Kept: {len(done)} of {len(cells)} cells completed, {kept}",
+                          highlight=False)
+        raise typer.Abort from None
+
+
+def print_cells(outcomes: list) -> None:
+    """One row per cell: objective, datapacks, seed, status, run, mean J, cell key."""
     table = Table(title="sweep cells")
     for col in ("objective", "datapacks", "seed", "status", "run", "mean J", "cell key"):
         table.add_column(col, overflow="fold")  # wrap, never cut: ids and keys are copied by users
@@ -123,8 +150,3 @@ def sweep_command(
         table.add_row(o.cell.objective.name, "+".join(o.cell.datapack_ids) or "-", str(o.cell.seed), status,
                       str(o.run_id or "-"), "-" if o.mean_j is None else f"{o.mean_j:.4g}", o.cell.key)
     console.print(table)
-    failed = sum(o.status == "failed" for o in outcomes)
-    console.print(f"then: econmotor solve --task-id {task_id} --motor-backend {motor_backend}"
-                  + (f" --db-url {db_url}" if db_url else ""))
-    if failed:
-        raise typer.Exit(1)

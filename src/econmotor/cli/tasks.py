@@ -8,7 +8,7 @@ import typer
 from rich.table import Table
 
 from econmotor.cli._app import app, console
-from econmotor.tasks import load_catalog
+from econmotor.motor_backend.factory import load_checked_catalog
 
 
 @app.command("tasks")
@@ -18,7 +18,7 @@ def tasks_command(
     show: str = typer.Option(None, "--show", help="Print every economic input of one task id."),
 ) -> None:
     """List task ids, their unit of work and the backends that run them."""
-    catalog = load_catalog(tasks_file)
+    catalog = load_checked_catalog(tasks_file)
     if show:
         spec = catalog.get(show)
         table = Table(title=f"{spec.task_id}: {spec.description}")

@@ -94,7 +94,7 @@ def completed_run_note(backend: str, run_dir: Path) -> str | None:
     if not cls.is_complete_run(run_dir):
         return None
     final = cls.final_policy_file
-    config = read_run_config(run_dir, "trained")
+    config = read_run_config(run_dir)
     return (f"{run_dir} is a complete run ({config.get('algorithm', '?')}, trained with --max-steps "
             f"{config.get('max_steps', '?'):,}, final {final})" if isinstance(config.get("max_steps"), int)
             else f"{run_dir} is a complete run (final {final})")
@@ -198,8 +198,10 @@ def train_command(
     objective_config: Path = OBJECTIVE_CONFIG_OPTION,
     objective_preset: str = OBJECTIVE_PRESET_OPTION,
     datapacks: list[Path] = typer.Option([], "--datapacks", help="Datapack YAML files (in order)."),
-    num_envs: int = typer.Option(0, "--num-envs", help="Environments (0: the task's default)."),
-    max_steps: int = typer.Option(100_000, "--max-steps", help="Total environment steps."),
+    num_envs: int = typer.Option(None, "--num-envs", min=0, help="Environments (default: the backend's; 0: the "
+                                 "task's)."),
+    max_steps: int = typer.Option(None, "--max-steps", min=1, help="Total environment steps (default: the "
+                                  "backend's)."),
     seed: int = SEED_OPTION,
     output_dir: Path = typer.Option(None, "--output-dir", help="Run directory (the policy id; default: a new "
                                     "runs/<task>-<time>-s<seed>-<pid>)."),
@@ -265,14 +267,14 @@ def train_command(
     announce_num_envs(motor, task, num_envs)
     url = check_db_url(db_url)
     run_dir = motor.run_dir(output_dir, task, seed)
+    size = motor.defaults.filled(num_envs, max_steps)
     request = TrainRequest(task=spec, backend_name=backend, objective=objective, datapacks=tuple(configs),
-                           num_envs=num_envs if num_envs > 0 else motor.defaults.num_envs,
-                           max_steps=max_steps,
-                           seed=seed, train_eval_episodes=eval_episodes, output_dir=run_dir, backend_options=extra)
+                           num_envs=size.num_envs, max_steps=size.max_steps, seed=seed,
+                           train_eval_episodes=eval_episodes, output_dir=run_dir, backend_options=extra)
     registry = None
 
     def note() -> str:
-        return f"{interrupted_note(backend, task, run_dir, max_steps)} (registry {url})"
+        return f"{interrupted_note(backend, task, run_dir, size.max_steps)} (registry {url})"
 
     set_deadline_note(note)
     try:

@@ -40,7 +40,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar, Protocol, runtime_checkable
+from typing import Any, ClassVar, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -48,6 +48,7 @@ from econmotor.config.task_economics import TaskEconomics
 from econmotor.economics.meter import EconomicMeter
 from econmotor.errors import ConfigError
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
+from econmotor.tasks.catalog import TaskCatalog, TaskSpec, load_catalog
 
 #: progress(label, completed, total): backends report long work through this; the CLI draws bars.
 ProgressFn = Callable[[str, float, float], None]
@@ -126,30 +127,34 @@ class StepAlias:
 RUN_CONFIG_FILE = "run_config.json"
 
 
-def read_run_config(run_dir: str | Path, backend: str, task_id: str | None = None,
-                    check_backend: bool = False) -> dict[str, Any]:
-    """The ``run_config.json`` of a ``backend`` run directory; a ConfigError names what is wrong.
+def read_run_config(run_dir: str | Path, backend: str | None = None, task_id: str | None = None) -> dict[str, Any]:
+    """The ``run_config.json`` of a run directory; a ConfigError names what is wrong.
 
-    ``task_id``: the policy must have been trained on it. ``check_backend``: the recorded
-    ``backend`` (``mujoco`` when absent) must be ``backend``.
+    ``backend``: the run must be that backend's (the ``backend`` every backend records with
+    :func:`write_run_config`; None: any backend's run). ``task_id``: the policy must have been
+    trained on it.
     """
     path = Path(run_dir) / RUN_CONFIG_FILE
-    a_backend = f"{'an' if backend == 'mjx' else 'a'} {backend}"  # "an mjx", "a mujoco", "a trained"
+    a_backend = f"{'an' if backend == 'mjx' else 'a'} {backend}" if backend else "a trained"  # "an mjx", "a mujoco"
     if not path.is_file():
         raise ConfigError(str(run_dir), None, f"not {a_backend} run directory (no {RUN_CONFIG_FILE})")
     config = json.loads(path.read_text(encoding="utf-8"))
-    recorded = config.get("backend", "mujoco")
-    if check_backend and recorded != backend:
+    recorded = config.get("backend")
+    if recorded is None:
+        raise ConfigError(str(path), "backend", "missing: every backend records its name there (a run written by "
+                          "hand or by an older econmotor); add the backend that trained it")
+    if backend is not None and recorded != backend:
         raise ConfigError(str(path), "backend", f"a '{recorded}' run, not {a_backend} one")
     if task_id is not None and config.get("task_id") != task_id:
         raise ConfigError(str(path), "task_id", f"policy was trained on '{config.get('task_id')}', not '{task_id}'")
     return config
 
 
-def write_run_config(run_dir: Path, config: Mapping[str, Any]) -> None:
-    """Write ``run_config.json`` atomically (a temporary file renamed over it): readers see the old or the new."""
+def write_run_config(run_dir: Path, config: Mapping[str, Any], backend: str) -> None:
+    """Write ``run_config.json`` with ``backend`` recorded, atomically (a temporary file renamed over it):
+    readers see the old or the new."""
     tmp = run_dir / (RUN_CONFIG_FILE + ".tmp")
-    tmp.write_text(json.dumps(config, indent=2, default=str), encoding="utf-8")
+    tmp.write_text(json.dumps({**config, "backend": backend}, indent=2, default=str), encoding="utf-8")
     tmp.replace(run_dir / RUN_CONFIG_FILE)
 
 
@@ -216,8 +221,6 @@ def evaluation_result(backend: str, policy_id: str, task_id: str, raw_episodes: 
                       output_dir: str | Path | None = None) -> MotorEvalResult:
     """The :class:`MotorEvalResult` of evaluation episodes (see :func:`summarize_episodes`); with
     ``output_dir``, also written there as ``evaluation.json`` (metrics, episodes, config)."""
-    import json
-
     raw, econ, episodes = summarize_episodes(raw_episodes, economics)
     if output_dir is not None:
         out = Path(output_dir)
@@ -266,6 +269,8 @@ class BackendCapabilities:
         init_policies: ``train_policy(..., init_policy=...)`` starts a new run's actor from a policy
             trained elsewhere (an ONNX file in Holosoma's format or a shipped name such as
             ``holosoma:g1_29dof/ppo``; ``--init-policy``) and fine-tunes it for the objective.
+        shadow_env: :meth:`MotorBackendBase.shadow_env` builds one Gymnasium env of a task whose
+            ``info["step_summary"]`` carries each step's economics (shadow mode, ``rl/``).
     """
 
     resume: bool = False
@@ -275,6 +280,16 @@ class BackendCapabilities:
     records_clips: bool = False
     evaluation_driven: bool = False
     init_policies: bool = False
+    shadow_env: bool = False
+
+
+class ShadowEnv(NamedTuple):
+    """One Gymnasium env of a task for shadow mode: ``info["step_summary"]`` every step, the
+    episode's raw metrics at its end; ``dt_s`` seconds per step; ``max_episode_steps`` its limit."""
+
+    env: Any
+    dt_s: float
+    max_episode_steps: int
 
 
 @dataclass(frozen=True)
@@ -285,6 +300,12 @@ class RunSize:
     num_envs: int
     max_steps: int
     task_id: str | None = None
+
+    def filled(self, num_envs: int | None, max_steps: int | None) -> RunSize:
+        """A request's size: what it gives, this size for what it leaves out (None; ``num_envs`` 0 is
+        the task's catalog default and stays 0). The one run-size rule of every command."""
+        return RunSize(self.num_envs if num_envs is None else int(num_envs),
+                       self.max_steps if max_steps is None else int(max_steps), self.task_id)
 
 
 class MotorBackendBase:
@@ -319,14 +340,22 @@ class MotorBackendBase:
     checkpoint_glob: ClassVar[str | None] = None
     environment_options: ClassVar[Mapping[str, str]] = {}
 
-    def __init__(self, *, task_files: Sequence[str | Path] = (), runs_dir: str | Path = "runs") -> None:
-        from econmotor.tasks import load_catalog
-
+    def __init__(self, *, task_files: Sequence[str | Path] = (), runs_dir: str | Path = "runs",
+                 catalog: TaskCatalog | None = None) -> None:
         self.task_files = [Path(f) for f in task_files]
-        self.catalog = load_catalog(self.task_files)
+        #: the task catalog (the factory hands over the one a command checked; else parsed here)
+        self.catalog = catalog if catalog is not None else load_catalog(self.task_files)
         self.runs_dir = Path(runs_dir)
 
     # --- declarations asked before any work ---------------------------------------------------
+    @classmethod
+    def shadow_env(cls, spec: TaskSpec, max_episode_steps: int | None = None,
+                   econ_overrides: Mapping[str, Any] | None = None) -> ShadowEnv:
+        """One Gymnasium env of task ``spec`` for shadow mode (where ``capabilities.shadow_env``):
+        ``max_episode_steps`` overrides the episode length, ``econ_overrides`` the backend's own
+        economic parameters where it has any (a ConfigError where it has none)."""
+        raise ConfigError("--env", spec.task_id, f"the '{cls.name}' backend builds no single Gymnasium env")
+
     @classmethod
     def check_num_envs(cls, num_envs: int | None, flag: str = "--num-envs") -> None:
         """``num_envs`` must be within :attr:`max_num_envs`; a ConfigError names the flag and the limit."""

@@ -7,11 +7,13 @@ when that backend is asked for.
 from __future__ import annotations
 
 import importlib
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
+from pathlib import Path
 from typing import Any
 
-from econmotor.errors import BackendError, UnknownNameError
+from econmotor.errors import BackendError, ConfigError, UnknownNameError, did_you_mean
 from econmotor.motor_backend.base import MotorBackendBase
+from econmotor.tasks.catalog import TaskCatalog, TaskSpec, load_catalog
 
 #: the default ``--motor-backend`` of the commands that train.
 DEFAULT_BACKEND = "mujoco"
@@ -42,15 +44,49 @@ def backend_class(name: str) -> type[MotorBackendBase]:
         raise UnknownNameError("motor backend", name, _REGISTRY)
     module_name, _, attr = _REGISTRY[name].partition(":")
     try:
-        return getattr(importlib.import_module(module_name), attr)
+        cls = getattr(importlib.import_module(module_name), attr)
     except ImportError as exc:
         raise BackendError(f"motor backend '{name}' cannot be imported: {exc}") from exc
+    if not (isinstance(cls, type) and issubclass(cls, MotorBackendBase)):
+        raise BackendError(f"motor backend '{name}' ({_REGISTRY[name]}) does not extend "
+                           "econmotor.motor_backend.base.MotorBackendBase, the class that owns the contract")
+    return cls
+
+
+def check_backend_entries(spec: TaskSpec) -> None:
+    """Every ``backends.<name>`` entry of ``spec`` names a registered backend and passes that
+    backend's own check (``check_task_entry``: its keys and value types); a ConfigError names the
+    file and key. A backend whose dependencies are not installed here cannot be asked: its entry is
+    checked where it runs."""
+    known = known_backends()
+    for name in spec.backends:
+        key = f"tasks.{spec.task_id}.backends.{name}"
+        if name not in known:
+            raise ConfigError(spec.backend_source(name), key, "unknown motor backend" + did_you_mean(name, known),
+                              known)
+        try:
+            backend = backend_class(name)
+        except BackendError:
+            continue
+        backend.check_task_entry(spec)
+
+
+def load_checked_catalog(user_files: Iterable[str | Path] = ()) -> TaskCatalog:
+    """The task catalog with ``user_files``, their tasks' backend entries checked against the
+    backends: what a command loads once and hands to the backend it builds."""
+    catalog = load_catalog(user_files)
+    for task_id in sorted(catalog.user_ids):
+        check_backend_entries(catalog.get(task_id))
+    return catalog
 
 
 def make_motor_backend(name: str, **kwargs: Any) -> MotorBackendBase:
     """Construct the backend registered as ``name`` with keyword arguments (``task_files``,
-    ``runs_dir``, then the backend's own); unknown names list the known ones."""
-    return backend_class(name)(**kwargs)
+    ``runs_dir``, ``catalog``, then the backend's own); without a ``catalog`` the checked catalog
+    of ``task_files`` is loaded here; unknown names list the known ones."""
+    cls = backend_class(name)
+    kwargs.setdefault("catalog", load_checked_catalog(kwargs.get("task_files", ())))
+    return cls(**kwargs)
 
 
 def environment_options(name: str, environ: Mapping[str, str]) -> dict[str, str]:

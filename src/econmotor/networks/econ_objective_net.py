@@ -52,7 +52,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import torch
@@ -249,8 +249,3 @@ class EconObjectiveNet(nn.Module):
         net.load_state_dict(data["state_dict"])
         net.eval()
         return net
-
-
-def features_dict(econ: EconFeatures, energy: EnergyResponse) -> dict[str, float]:
-    """The inputs as a flat, named mapping (for run records)."""
-    return {**asdict(econ), **{k: float(v) for k, v in asdict(energy).items()}}

@@ -79,7 +79,6 @@ class ReportOutcome:
     report_id: int
     train_run: RunRecord | None
     eval_run: RunRecord | None
-    extra: dict[str, Any] = field(default_factory=dict)
 
 
 def how_to_report_from(run_id: int, task_id: str, registry: Registry) -> str:

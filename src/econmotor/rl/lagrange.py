@@ -29,8 +29,6 @@ from econmotor.errors import ConfigError
 from econmotor.valuation import ConstraintSet
 from econmotor.valuation.reward_builder import summary_value
 
-MINIMUM_CONSTRAINTS = frozenset({"min_wage_parity"})
-
 
 def signed_costs(constraints: ConstraintSet, summary: Mapping[str, Any]) -> dict[str, float]:
     """``g_i`` per active constraint of ``summary`` (positive = violated, negative = slack)."""

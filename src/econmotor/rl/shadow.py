@@ -3,7 +3,7 @@
 At every step :class:`ShadowRewardWrapper` reads ``info["step_summary"]`` (the
 dishwashing key set: ``d_mpl``, ``error_rate_t``, ``implied_wage_t``,
 ``wage_human``, ``mpl_t``, ``Wh``, ``catastrophic``, ...; MuJoCo tasks get it from
-:class:`econmotor.rl.step_summary.MujocoStepSummaryWrapper`) and computes
+:class:`econmotor.motor_backend.mujoco.step_summary.MujocoStepSummaryWrapper`) and computes
 
 - legacy: ``alpha*d_mpl - beta*error_rate_t - gamma*|implied_wage_t/wage_human - 1|``
   via :func:`econmotor.economics.compute_econ_reward`;

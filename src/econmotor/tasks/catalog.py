@@ -44,7 +44,7 @@ from econmotor.config.loading import (
     require_mapping,
 )
 from econmotor.config.task_economics import ECONOMICS_UNITS, TaskEconomics
-from econmotor.errors import BackendError, ConfigError, UnknownNameError, did_you_mean
+from econmotor.errors import ConfigError, UnknownNameError
 
 _PACKAGE_DIR = Path(__file__).parent
 _TASK_KEYS = ("description", "unit", "error_definition", "economics", "backends", "tags", "acceptance")
@@ -91,8 +91,10 @@ class TaskSpec:
 class TaskCatalog:
     """A registry of :class:`TaskSpec` by id (like Gymnasium's env registry)."""
 
-    def __init__(self, tasks: Mapping[str, TaskSpec]) -> None:
+    def __init__(self, tasks: Mapping[str, TaskSpec], user_ids: Iterable[str] = ()) -> None:
         self._tasks = dict(tasks)
+        #: the ids a user's task file defined (their backend entries are checked by the factory)
+        self.user_ids = frozenset(user_ids)
 
     def get(self, task_id: str) -> TaskSpec:
         try:
@@ -224,38 +226,19 @@ def _builtin_tasks() -> dict[str, TaskSpec]:
     return tasks
 
 
-def check_backend_entries(spec: TaskSpec) -> None:
-    """Every ``backends.<name>`` entry of ``spec`` names a registered backend and passes that
-    backend's own check (``check_task_entry``: its keys and value types); a ConfigError names the
-    file and key. A backend whose dependencies are not installed here cannot be asked: its entry is
-    checked where it runs."""
-    from econmotor.motor_backend.factory import backend_class, known_backends
-
-    known = known_backends()
-    for name in spec.backends:
-        key = f"tasks.{spec.task_id}.backends.{name}"
-        if name not in known:
-            raise ConfigError(spec.backend_source(name), key, "unknown motor backend" + did_you_mean(name, known),
-                              known)
-        try:
-            backend = backend_class(name)
-        except BackendError:
-            continue
-        backend.check_task_entry(spec)
-
-
 def load_catalog(user_files: Iterable[str | Path] = ()) -> TaskCatalog:
-    """The shipped catalog plus ``user_files`` (later files replace earlier ids whole).
+    """The shipped catalog plus ``user_files`` (later files replace earlier ids whole), parsed only.
 
-    A user file's backend entries are checked as it is loaded (:func:`check_backend_entries`);
-    the shipped entries are checked by the tests."""
+    The backend entries of a user file's tasks (``user_ids``) are checked against the backends by
+    :func:`econmotor.motor_backend.factory.load_checked_catalog`, which commands call once; the
+    shipped entries are checked by the tests."""
     tasks = dict(_builtin_tasks())
+    user_ids: set[str] = set()
     for path in user_files:
         added = read_task_file(path)
-        for spec in added.values():
-            check_backend_entries(spec)
         tasks.update(added)
-    return TaskCatalog(tasks)
+        user_ids.update(added)
+    return TaskCatalog(tasks, user_ids)
 
 
 def get_task(task_id: str, user_files: Iterable[str | Path] = ()) -> TaskSpec:

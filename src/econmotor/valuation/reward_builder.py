@@ -185,7 +185,7 @@ def extract_step_summary(info: Mapping[str, Any]) -> dict[str, Any]:
     """The step summary in a step's ``info`` (spec §3: ``step_summary = extract_step_summary(info)``).
 
     Every env econmotor trains on writes ``info["step_summary"]`` (the dishwashing workcell
-    itself; MuJoCo tasks through ``econmotor.rl.step_summary.MujocoStepSummaryWrapper``).
+    itself; MuJoCo tasks through ``econmotor.motor_backend.mujoco.step_summary.MujocoStepSummaryWrapper``).
     Returns a copy; ``build_reward_terms`` and ``IncrementalRewardTerms.step`` read it.
     """
     if not isinstance(info, Mapping):
@@ -193,7 +193,7 @@ def extract_step_summary(info: Mapping[str, Any]) -> dict[str, Any]:
     summary = info.get("step_summary")
     if not isinstance(summary, Mapping):
         raise ConfigError("<info>", "step_summary", "no per-step summary in info; wrap MuJoCo envs in "
-                          "econmotor.rl.step_summary.MujocoStepSummaryWrapper")
+                          "econmotor.motor_backend.mujoco.step_summary.MujocoStepSummaryWrapper")
     return dict(summary)
 
 
@@ -217,7 +217,7 @@ class IncrementalRewardTerms:
     objective vector gives the episode J.
 
     Step terms (the step summary keys of the dishwashing env and of
-    ``econmotor.rl.step_summary.MujocoStepSummaryWrapper``):
+    ``econmotor.motor_backend.mujoco.step_summary.MujocoStepSummaryWrapper``):
 
     - ``r_mpl = mpl_t - mpl_{t-1}``: ``mpl_t`` is the running MPL (units/h), ``mpl_0 = 0``;
     - ``r_error = -(E_t/A_t - E_{t-1}/A_{t-1})`` with ``E_t``, ``A_t`` the sums of the

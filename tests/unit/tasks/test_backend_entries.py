@@ -1,11 +1,18 @@
-"""A user task file's ``backends:`` entries are checked when the file is loaded: an unknown backend
-name, or a key or value its backend cannot use, is a ConfigError naming the file and the key."""
+"""A user task file's ``backends:`` entries are checked when a command loads the catalog
+(``factory.load_checked_catalog``): an unknown backend name, or a key or value its backend cannot use,
+is a ConfigError naming the file and the key. The catalog itself only parses (no import circle)."""
 
 import pytest
 
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.factory import backend_class, known_backends
-from econmotor.tasks.catalog import check_backend_entries, load_catalog
+from econmotor.motor_backend.factory import (
+    backend_class,
+    check_backend_entries,
+    known_backends,
+    load_checked_catalog,
+    make_motor_backend,
+)
+from econmotor.tasks.catalog import load_catalog
 
 TASK = """tasks:
   my_task:
@@ -46,8 +53,9 @@ def task_file(tmp_path, entry: str):
         "holosoma-efficiency-type"])
 def test_bad_entry_is_refused_at_load(tmp_path, entry, key, message):
     path = task_file(tmp_path, entry)
+    assert "my_task" in load_catalog([path])  # parsing alone accepts it
     with pytest.raises(ConfigError) as info:
-        load_catalog([path])
+        load_checked_catalog([path])
     assert info.value.source == str(path)
     assert info.value.key.startswith(key), info.value
     assert message in info.value.detail
@@ -56,8 +64,21 @@ def test_bad_entry_is_refused_at_load(tmp_path, entry, key, message):
 def test_good_entries_load(tmp_path):
     path = task_file(tmp_path, "dishwashing: {econ_preset: realistic, econ_overrides: {damage_cost: 2.5}, "
                                "overlay_normalization: none}")
-    spec = load_catalog([path]).get("my_task")
+    spec = load_checked_catalog([path]).get("my_task")
     assert spec.backend_entry("dishwashing")["econ_overrides"] == {"damage_cost": 2.5}
+
+
+def test_a_backend_built_without_a_catalog_checks_its_task_files(tmp_path):
+    path = task_file(tmp_path, "dishwashing: {econ_preset: luxury}")
+    with pytest.raises(ConfigError, match="not allowed"):
+        make_motor_backend("dishwashing", task_files=[path])
+
+
+def test_the_backend_uses_the_catalog_it_is_handed(tmp_path):
+    path = task_file(tmp_path, "dishwashing: {econ_preset: realistic}")
+    catalog = load_checked_catalog([path])
+    backend = make_motor_backend("dishwashing", task_files=[path], catalog=catalog)
+    assert backend.catalog is catalog
 
 
 @pytest.mark.parametrize("backend", known_backends())

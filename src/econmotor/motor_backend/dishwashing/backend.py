@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -49,14 +49,16 @@ from econmotor.motor_backend.base import (
     MotorTrainingResult,
     ProgressFn,
     RunSize,
+    ShadowEnv,
     StepAlias,
     no_progress,
+    read_run_config,
     summarize_episodes,
     write_run_config,
 )
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
-from econmotor.tasks.catalog import TaskSpec
+from econmotor.tasks.catalog import TaskCatalog, TaskSpec
 
 BACKEND_NAME = "dishwashing"
 OVERLAY_NORMALIZATIONS = ("human_baseline", "none")
@@ -146,7 +148,7 @@ class DishwashingBackend(MotorBackendBase):
     """
 
     name = BACKEND_NAME
-    capabilities = BackendCapabilities()
+    capabilities = BackendCapabilities(shadow_env=True)
     defaults = RunSize(num_envs=1, max_steps=5_000)
     smoke_run = RunSize(num_envs=1, max_steps=300, task_id="dishwashing")
     max_num_envs = 256  # in-process DummyVecEnv
@@ -157,6 +159,7 @@ class DishwashingBackend(MotorBackendBase):
         *,
         task_files: Sequence[str | Path] = (),
         runs_dir: str | Path = "runs",
+        catalog: TaskCatalog | None = None,
         sac: SACSettings | None = None,
         overlay_normalization: str = "human_baseline",
         known_datapacks: Sequence[DatapackConfig] = (),
@@ -165,7 +168,7 @@ class DishwashingBackend(MotorBackendBase):
         if overlay_normalization not in OVERLAY_NORMALIZATIONS:
             raise ConfigError("<dishwashing backend>", "overlay_normalization",
                               f"unknown {overlay_normalization!r}", OVERLAY_NORMALIZATIONS)
-        super().__init__(task_files=task_files, runs_dir=runs_dir)
+        super().__init__(task_files=task_files, runs_dir=runs_dir, catalog=catalog)
         self.sac = sac or SACSettings()
         self.overlay_normalization = overlay_normalization
         self.datapacks = DatapackProvider(known_datapacks)
@@ -196,6 +199,17 @@ class DishwashingBackend(MotorBackendBase):
         if norm is not None:
             as_str(norm, source, f"{key}.overlay_normalization", OVERLAY_NORMALIZATIONS)
         return params, norm
+
+    @classmethod
+    def shadow_env(cls, spec: TaskSpec, max_episode_steps: int | None = None,
+                   econ_overrides: Mapping[str, Any] | None = None) -> ShadowEnv:
+        """The workcell on the legacy reward (``info["step_summary"]`` every step), with the entry's
+        EconParams and ``econ_overrides`` on top (flag ``--econ-override``)."""
+        params, _ = cls._entry_params(spec)
+        if econ_overrides:
+            params = params.with_overrides(dict(econ_overrides), source="--econ-override")
+        env = DishwashingEnv(params, reward_mode="legacy", max_steps=max_episode_steps)
+        return ShadowEnv(env, params.time_step_s, env.max_steps)
 
     def _task(self, task_id: str) -> tuple[TaskSpec, EconParams, str]:
         spec = self.catalog.get(task_id)
@@ -296,7 +310,7 @@ class DishwashingBackend(MotorBackendBase):
         policy_path = run_dir / self.final_policy_file
         model.save(policy_path)
         config = {
-            "backend": BACKEND_NAME, "task_id": task_id, "objective": objective.to_dict(),
+            "task_id": task_id, "objective": objective.to_dict(),
             "datapack_ids": list(datapack_ids),
             "datapack_configs": [c.to_dict() for c in (datapack_configs or ()) if hasattr(c, "to_dict")],
             "num_envs": num_envs, "max_steps": max_steps, "seed": seed, "eval_episodes": eval_episodes,
@@ -307,7 +321,7 @@ class DishwashingBackend(MotorBackendBase):
             "overlay_keys_ignored": list(make().ignored_overlay_keys),
             "randomization": randomization.to_dict(), "train_seconds": train_s,
         }
-        write_run_config(run_dir, config)
+        write_run_config(run_dir, config, self.name)
         _write_json(run_dir / "training_curve.json", curve.curve)
         raw, econ, episodes = self._evaluate(model, spec, params, norm, objective, randomization,
                                              eval_episodes, seed + TRAINING_EVAL_SEED_OFFSET, progress)
@@ -374,7 +388,9 @@ class DishwashingBackend(MotorBackendBase):
         from stable_baselines3 import SAC
 
         path = Path(policy_id)
-        path = path / self.final_policy_file if path.is_dir() else path
+        if path.is_dir():
+            read_run_config(path, self.name)  # a run directory: this backend's
+            path = path / self.final_policy_file
         if not path.is_file():
             raise BackendError(f"no saved dishwashing policy at '{policy_id}': pass the policy_id (the run "
                                f"directory holding {self.final_policy_file}) that train_policy returned")

@@ -84,7 +84,7 @@ from econmotor.motor_backend.holosoma.policy_import import (
 )
 from econmotor.motor_backend.holosoma.recording_metrics import episodes_from_recording
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
-from econmotor.tasks import get_task
+from econmotor.tasks.catalog import TaskCatalog
 
 __all__ = ["HOLOSOMA_TASK_PRESETS", "HolosomaBackend", "HolosomaPolicyHandle", "find_holosoma_python"]
 
@@ -215,6 +215,7 @@ class HolosomaBackend(MotorBackendBase):
         *,
         task_files: Sequence[str | Path] = (),
         runs_dir: str | Path = "runs",
+        catalog: TaskCatalog | None = None,
         simulator: str | None = None,
         algo: str | None = None,
         venv: str | Path | None = None,
@@ -223,7 +224,7 @@ class HolosomaBackend(MotorBackendBase):
         command_speed_m_per_s: float | None = None,
         job_timeout_s: float | None = None,
     ) -> None:
-        super().__init__(task_files=task_files, runs_dir=runs_dir)
+        super().__init__(task_files=task_files, runs_dir=runs_dir, catalog=catalog)
         self.simulator = simulator or "auto"
         # an unknown simulator name fails here, before any job starts
         choose_simulator(self.simulator, Capabilities(cuda=True, isaacgym=True, isaacsim=True, mujoco_warp=True))
@@ -259,7 +260,7 @@ class HolosomaBackend(MotorBackendBase):
         return self._caps
 
     def _task(self, task_id: str) -> tuple[Any, dict[str, Any]]:
-        spec = get_task(task_id, self.task_files)
+        spec = self.catalog.get(task_id)
         return spec, task_settings(task_id, spec.backend_entry("holosoma"), spec.source)
 
     @staticmethod
@@ -325,10 +326,10 @@ class HolosomaBackend(MotorBackendBase):
         policy_onnx = run_dir / self.final_policy_file  # the run's policy, where every backend keeps its final one
         shutil.copyfile(result["onnx"], policy_onnx)
         write_run_config(run_dir, {
-            **ours, "backend": self.name, "checkpoint": result["checkpoint"], "onnx": str(policy_onnx),
+            **ours, "checkpoint": result["checkpoint"], "onnx": str(policy_onnx),
             "holosoma_onnx": result["onnx"], "experiment_dir": result["experiment_dir"],
             "episode_length_s": result["episode_length_s"], "control_dt_s": result["control_dt_s"],
-            "simulator": plan.simulator, "algo": algo, "seed": int(seed)})
+            "simulator": plan.simulator, "algo": algo, "seed": int(seed)}, self.name)
         curve = [{"timesteps": float(c["timesteps"]), "mean_return": float(c["mean_return"])}
                  for c in outcome.curve if c.get("mean_return") is not None]
         econ_log = {k: v for c in outcome.curve for k, v in c.get("econ", {}).items()}
@@ -501,4 +502,4 @@ class HolosomaBackend(MotorBackendBase):
         legacy = Path(policy_id) / LEGACY_MANIFEST
         if not (Path(policy_id) / RUN_CONFIG_FILE).is_file() and legacy.is_file():
             return json.loads(legacy.read_text(encoding="utf-8"))
-        return read_run_config(policy_id, self.name, check_backend=True)
+        return read_run_config(policy_id, self.name)

@@ -65,6 +65,7 @@ from econmotor.motor_backend.mjx.training import (
 from econmotor.motor_backend.selection import DEFAULT_SELECT_EPISODES, DEFAULT_SELECT_EVERY, selection_for
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.robots import card as robot_card
+from econmotor.tasks.catalog import TaskCatalog
 
 ONNX_FILE = "policy.onnx"
 ONNX_METADATA_KEYS = ("task_id", "overlay", "overlay_references", "objective", "datapack_ids", "economics",
@@ -85,6 +86,14 @@ def enable_compilation_cache(path: str | Path | None) -> None:
     Path(path).mkdir(parents=True, exist_ok=True)
     jax.config.update("jax_compilation_cache_dir", str(path))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+
+
+def env_class(settings: MjxTaskSettings) -> type:
+    """The env a task's mjx entry asks for: a robot card's courier (``robot:``) or a Gymnasium body's."""
+    from econmotor.motor_backend.mjx.env import MjxCourierEnv
+    from econmotor.motor_backend.mjx.humanoid_env import MjxHumanoidCourierEnv
+
+    return MjxHumanoidCourierEnv if settings.robot is not None else MjxCourierEnv
 
 
 class MjxBackend(MotorBackendBase):
@@ -114,13 +123,14 @@ class MjxBackend(MotorBackendBase):
                                                         VENV_ENV: "holosoma_venv"}
 
     def __init__(self, *, task_files: Sequence[str | Path] = (), runs_dir: str | Path = "runs",
+                 catalog: TaskCatalog | None = None,
                  datapack_provider: DatapackProvider | None = None, keep_task_reward: bool = True,
                  eval_batch: int = 10,
                  compilation_cache_dir: str | Path | None = Path.home() / ".cache" / "econmotor" / "jax",
                  holosoma_venv: str | Path | None = None) -> None:
         if eval_batch < 1:
             raise ConfigError("<mjx backend>", "eval_batch", "must be >= 1")
-        super().__init__(task_files=task_files, runs_dir=runs_dir)
+        super().__init__(task_files=task_files, runs_dir=runs_dir, catalog=catalog)
         self.provider = datapack_provider or DatapackProvider()
         self.keep_task_reward = keep_task_reward
         self.eval_batch = int(eval_batch)
@@ -170,8 +180,6 @@ class MjxBackend(MotorBackendBase):
     def env(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str] = (),
             datapack_configs: Sequence[DatapackConfig] | None = None) -> tuple[Any, dict[str, Any]]:
         """The (memoised) env for a task, objective and datapacks, and a JSON-able description."""
-        from econmotor.motor_backend.mjx.env import env_class
-
         configs = list(datapack_configs or ())
         bundle = self.provider.resolve(task_id, datapack_ids, configs)
         memo = json.dumps([task_id, objective.to_dict(), [p.to_dict() for p in configs], list(bundle.datapack_ids)],
@@ -313,8 +321,8 @@ class MjxBackend(MotorBackendBase):
     def deploy_policy_handle(self, policy_id: str) -> MjxOnnxPolicyHandle:
         """An onnxruntime handle on the run's ``policy.onnx`` (exported now if missing)."""
         path = Path(policy_id) / ONNX_FILE
+        config = read_run_config(policy_id)  # an mjx run directory, checked before anything is loaded
         if not path.is_file():
-            config = read_run_config(policy_id)
             cfg = ppo.PPOConfig.from_mapping(config["hyperparameters"], str(Path(policy_id) / RUN_CONFIG_FILE))
             self._export(Path(policy_id), load_learner(policy_id, config, cfg), cfg, config)
         return MjxOnnxPolicyHandle(path)

@@ -160,15 +160,6 @@ def task_settings(task_id: str, catalog: Any = None) -> tuple[Any, MjxTaskSettin
     return spec, settings, f"{settings.source}: backend_entries.mjx.{task_id}"
 
 
-def env_class(settings: MjxTaskSettings) -> type:
-    """The env a task's mjx entry asks for: a robot card's courier (``robot:``) or a Gymnasium body's."""
-    if settings.robot is not None:
-        from econmotor.motor_backend.mjx.humanoid_env import MjxHumanoidCourierEnv
-
-        return MjxHumanoidCourierEnv
-    return MjxCourierEnv
-
-
 class MjxCourierEnv:
     """A courier task as batched pure functions (module docstring); API in ``MJX_INTERFACE.md``.
 

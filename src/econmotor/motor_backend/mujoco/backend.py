@@ -13,7 +13,7 @@ datapacks add domain randomization, a curriculum and motion clips (``mujoco/rand
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +30,7 @@ from econmotor.motor_backend.base import (
     MotorTrainingResult,
     ProgressFn,
     RunSize,
+    ShadowEnv,
     evaluation_result,
     no_progress,
     read_run_config,
@@ -41,13 +42,15 @@ from econmotor.motor_backend.mujoco.clips import check_clip_file, load_bundle_cl
 from econmotor.motor_backend.mujoco.env_factory import EnvRecipe, make_env
 from econmotor.motor_backend.mujoco.evaluation import load_policy, rollout_episodes, torch_act_fn
 from econmotor.motor_backend.mujoco.export import OnnxPolicyHandle, export_onnx
+from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper
 from econmotor.motor_backend.mujoco.randomization import parse_randomization
 from econmotor.motor_backend.mujoco.run import TrainingRun
 from econmotor.motor_backend.mujoco.settings import MujocoTaskSettings, parse_mujoco_settings
+from econmotor.motor_backend.mujoco.step_summary import MujocoStepSummaryWrapper
 from econmotor.motor_backend.mujoco.training import obs_normalizer
 from econmotor.motor_backend.selection import DEFAULT_SELECT_EPISODES, DEFAULT_SELECT_EVERY, selection_for
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
-from econmotor.tasks.catalog import TaskSpec
+from econmotor.tasks.catalog import TaskCatalog, TaskSpec
 
 ONNX_FILE = "policy.onnx"
 
@@ -67,7 +70,7 @@ class MujocoBackend(MotorBackendBase):
 
     name = "mujoco"
     capabilities = BackendCapabilities(resume=True, algorithms=("ppo", "sac"), vec_env_kinds=("dummy", "subproc"),
-                                       records_clips=True, evaluation_driven=True)
+                                       records_clips=True, evaluation_driven=True, shadow_env=True)
     defaults = RunSize(num_envs=0, max_steps=100_000)
     smoke_run = RunSize(num_envs=1, max_steps=64, task_id="hopper_courier")
     max_num_envs = 256  # SB3 vector envs: one process (subproc) or one env object (dummy) each
@@ -75,12 +78,13 @@ class MujocoBackend(MotorBackendBase):
     checkpoint_glob = "*.zip"
 
     def __init__(self, *, task_files: Sequence[str | Path] = (), runs_dir: str | Path = "runs",
+                 catalog: TaskCatalog | None = None,
                  datapack_provider: DatapackProvider | None = None, vec_env: str = "dummy",
                  keep_task_reward: bool = True, torch_threads: int = 1) -> None:
         if vec_env not in self.capabilities.vec_env_kinds:
             raise ConfigError("<mujoco backend>", "vec_env", f"unknown vector env '{vec_env}'",
                               self.capabilities.vec_env_kinds)
-        super().__init__(task_files=task_files, runs_dir=runs_dir)
+        super().__init__(task_files=task_files, runs_dir=runs_dir, catalog=catalog)
         self.provider = datapack_provider or DatapackProvider()
         self.vec_env = vec_env
         self.keep_task_reward = keep_task_reward
@@ -197,13 +201,33 @@ class MujocoBackend(MotorBackendBase):
     def deploy_policy_handle(self, policy_id: str) -> OnnxPolicyHandle:
         """An onnxruntime handle on the run's ``policy.onnx`` (exported now if missing)."""
         path = Path(policy_id) / ONNX_FILE
+        config = read_run_config(policy_id, self.name)  # a mujoco run directory, checked before anything is loaded
         if not path.is_file():
-            config = read_run_config(policy_id, "mujoco")
             model, _ = load_policy(policy_id, config["algorithm"])
             export_onnx(model, obs_normalizer(policy_id), path, self._onnx_metadata(config))
         return OnnxPolicyHandle(path)
 
     # --- declarations ----------------------------------------------------------------------------
+    @classmethod
+    def shadow_env(cls, spec: TaskSpec, max_episode_steps: int | None = None,
+                   econ_overrides: Mapping[str, Any] | None = None) -> ShadowEnv:
+        """The task's Gymnasium env metered like training (:class:`EconomicMeteringWrapper`) with
+        ``info["step_summary"]`` every step (:class:`MujocoStepSummaryWrapper`); no EconParams."""
+        if econ_overrides:
+            raise ConfigError("--env", spec.task_id, "EconParams overrides apply to dishwashing tasks only")
+        settings = parse_mujoco_settings(spec)
+        kwargs = dict(settings.env_kwargs)
+        if max_episode_steps is not None:
+            kwargs["max_episode_steps"] = int(max_episode_steps)
+        env = EconomicMeteringWrapper(gym.make(settings.env_id, **kwargs), leg_distance_m=settings.leg_distance_m,
+                                      drivetrain_efficiency=settings.drivetrain_efficiency,
+                                      idle_power_w=settings.idle_power_w, tilt_margin_rad=settings.tilt_margin_rad,
+                                      fall_tilt_rad=settings.fall_tilt_rad, novelty_dims=settings.novelty_dims,
+                                      novelty_bin=settings.novelty_bin)
+        env = MujocoStepSummaryWrapper(env, spec.economics)
+        limit = env.spec.max_episode_steps if env.spec is not None and env.spec.max_episode_steps else 1000
+        return ShadowEnv(env, float(env.unwrapped.dt), int(limit))
+
     @classmethod
     def check_datapack(cls, pack: DatapackConfig, source: str) -> None:
         """The randomization and curriculum a mujoco training run would apply, and its motion clips'

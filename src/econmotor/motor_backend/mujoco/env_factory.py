@@ -28,9 +28,6 @@ from econmotor.motor_backend.mujoco.randomization import (
 )
 from econmotor.motor_backend.mujoco.settings import MujocoTaskSettings
 
-#: keys of info added at an episode's end, recorded by SB3's Monitor.
-MONITOR_INFO_KEYS = ("econ_episode", "overlay_terms", "overlay_return")
-
 
 @dataclass(frozen=True, eq=False)
 class EnvRecipe:

@@ -108,7 +108,7 @@ class TrainingRun:
 
     def _record_selection(self) -> None:
         self.config = {**self.config, "selection": self.selection.record()}
-        write_run_config(self.run_dir, self.config)
+        write_run_config(self.run_dir, self.config, "mujoco")
 
     def _hyperparameters(self) -> dict[str, Any]:
         hp = merge_hyperparameters(self.recipe.settings.algo_hyperparameters(self.algorithm), self.hyperparameters)
@@ -154,7 +154,7 @@ class TrainingRun:
         }
         if self.selection is not None and self.selection.history:
             self.config["selection"] = self.selection.record()  # a resumed run's selection so far
-        write_run_config(self.run_dir, self.config)
+        write_run_config(self.run_dir, self.config, "mujoco")
         tb_dir = str(self.run_dir / "tb")
         if ckpt:
             model = load_checkpoint(self.algorithm, ckpt[0], ckpt[1], venv)
@@ -177,7 +177,7 @@ class TrainingRun:
         if self.selection is not None:  # the record first: policy.zip marks a complete run
             self.config = {**self.config, "trained_steps": int(model.num_timesteps),
                            "selection": self.selection.record()}
-            write_run_config(self.run_dir, self.config)
+            write_run_config(self.run_dir, self.config, "mujoco")
         if self.selection is not None and self.selection.best is not None:
             install_policy(self.run_dir / BEST_DIR, self.run_dir)
             model = algorithm_class(self.algorithm).load(str(self.run_dir / "policy.zip"), device="cpu")
