@@ -32,13 +32,14 @@ from econmotor.cli._app import (
 )
 from econmotor.cli._interrupts import set_deadline_note
 from econmotor.cli.train import (
+    EVAL_MAX_EPISODES_OPTION,
+    EVAL_MAX_SECONDS_OPTION,
     SELECT_EPISODES_OPTION,
     SELECT_EVERY_OPTION,
     TRAINING_EVAL_EPISODES,
     UNTIL_DEPLOYABLE_OPTION,
     interrupted_note,
     selection_options,
-    training_eval_episodes,
 )
 from econmotor.cli.validation import (
     check_db_url,
@@ -49,10 +50,12 @@ from econmotor.cli.validation import (
     check_output_dir,
     check_output_file,
     check_task_backend,
+    evaluation_plan,
     note_abandoned,
 )
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.economics.pricing import PricingPolicy
+from econmotor.economics.uncertainty import SequentialPlan
 from econmotor.errors import ConfigError, UnknownNameError, did_you_mean
 from econmotor.motor_backend.base import REPORT_EVAL_SEED_OFFSET
 from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_configs
@@ -168,10 +171,12 @@ def check_imports_policies(backend_name: str, flag: str) -> None:
 
 def price_imported(task, backend, policy_id: str, objective: EconomicObjectiveSpec, packs: list[DatapackConfig],
                    eval_episodes: int, seed: int, notes: str, url: str, out_dir: Path, output_json: Path | None,
-                   pricing: PricingPolicy) -> ReportOutcome:
-    """Evaluate an imported policy (nothing trained), record the evaluation run, write its report."""
+                   pricing: PricingPolicy, plan: SequentialPlan | None = None) -> ReportOutcome:
+    """Evaluate an imported policy (nothing trained; ``eval_episodes``, or sequentially under ``plan``), record
+    the evaluation run, write its report."""
     request = TrainRequest(task=task, backend_name=backend.name, objective=objective, datapacks=tuple(packs),
-                           seed=seed, eval_episodes=eval_episodes, notes=notes,
+                           seed=seed, eval_episodes=0 if plan is not None else eval_episodes, eval_plan=plan,
+                           notes=notes,
                            output_dir=backend.run_dir(None, task.task_id, seed))
     with progress_bars() as progress:
         reg, eval_id = evaluate_and_record(request, backend, policy_id, lambda: Registry(url), progress)
@@ -179,17 +184,13 @@ def price_imported(task, backend, policy_id: str, objective: EconomicObjectiveSp
         return report_from_registry(reg, task, reg.run(eval_id), None, out_dir, output_json, pricing)
 
 
-def report_imported(task, backend_name: str, policy_id: str, objective: EconomicObjectiveSpec,
-                    packs: list[DatapackConfig], eval_episodes: int, seed: int, notes: str, tasks_file: list[Path],
-                    url: str, out_dir: Path, output_json: Path | None, pricing: PricingPolicy) -> None:
+def report_imported(task, backend, policy_id: str, objective: EconomicObjectiveSpec,
+                    packs: list[DatapackConfig], eval_episodes: int | None, plan: SequentialPlan | None, seed: int,
+                    notes: str, url: str, out_dir: Path, output_json: Path | None, pricing: PricingPolicy) -> None:
     """``report --policy``: evaluate an imported policy (nothing trained), record the run, write the report."""
-    check_imports_policies(backend_name, "--motor-backend")
-    if eval_episodes < 1:
-        raise ConfigError("--eval-episodes", None, "--policy evaluates an imported policy: give --eval-episodes N")
-    backend = make_backend(backend_name, tasks_file)
     backend.check_policy(policy_id)  # bad input records nothing
-    outcome = price_imported(task, backend, policy_id, objective, packs, eval_episodes, seed, notes, url, out_dir,
-                             output_json, pricing)
+    outcome = price_imported(task, backend, policy_id, objective, packs, eval_episodes or 0, seed, notes, url,
+                             out_dir, output_json, pricing, plan)
     console.print(f"[bold]evaluated[/]: {imported_policy_text(outcome.document['runs']['eval'])}", highlight=False)
     show_outcome(outcome)
 
@@ -210,10 +211,12 @@ def report_command(
     num_envs: int = typer.Option(None, "--num-envs", min=0, help="Environments (default: the backend's)."),
     max_steps: int = typer.Option(None, "--max-steps", min=1, help="Training environment steps "
                                   "(default: the backend's)."),
-    eval_episodes: int = typer.Option(0, "--eval-episodes", min=0,
-                                      help="Add an evaluation run of N fresh episodes after training and price "
-                                      f"it (0: price the {TRAINING_EVAL_EPISODES} episodes evaluated right after "
-                                      "training, or with --until-deployable as many as a held-out evaluation)."),
+    eval_episodes: int = typer.Option(None, "--eval-episodes",
+                                      help="Price an evaluation run of exactly N fresh episodes (default: a "
+                                      "sequential evaluation: episodes in batches until the verdict is decided, "
+                                      "or a cap)."),
+    eval_max_episodes: int = EVAL_MAX_EPISODES_OPTION,
+    eval_max_seconds: float = EVAL_MAX_SECONDS_OPTION,
     seed: int = typer.Option(0, "--seed", help=f"Seed of training (evaluation uses seed + {REPORT_EVAL_SEED_OFFSET})."),
     output_dir: Path = typer.Option(None, "--output-dir", help="Report directory (default reports/<task>)."),
     output_json: Path = typer.Option(None, "--output-json", help="Also choose where the JSON document goes."),
@@ -234,7 +237,8 @@ def report_command(
     set_cpu_threads()
     # ---- validate everything first: nothing is trained or written on bad input
     check_flags(num_envs=num_envs, max_steps=max_steps, eval_episodes=eval_episodes, seed=seed,
-                spread_share=spread_share, run_id=run_id)
+                spread_share=spread_share, run_id=run_id, eval_max_episodes=eval_max_episodes,
+                eval_max_seconds=eval_max_seconds)
     check_name("--objective-name", objective_name)
     check_output_file("--output-json", output_json)
     policy = PricingPolicy(spread_share)
@@ -256,7 +260,9 @@ def report_command(
 
     if motor_backend == NO_BACKEND:
         ignored = [flag for flag, value in (("--num-envs", num_envs), ("--max-steps", max_steps),
-                                             ("--eval-episodes", eval_episodes or None),
+                                             ("--eval-episodes", eval_episodes),
+                                             ("--eval-max-episodes", eval_max_episodes),
+                                             ("--eval-max-seconds", eval_max_seconds),
                                              ("--objective-config", objective_config),
                                              ("--until-deployable", until_deployable or None),
                                              ("--select-every", select_every),
@@ -288,21 +294,23 @@ def report_command(
         return
 
     if imported_policy is not None:
-        report_imported(task, motor_backend, imported_policy, objective, packs, eval_episodes, seed, notes,
-                        tasks_file, url, out_dir, output_json, policy)
-        return
+        check_imports_policies(motor_backend, "--motor-backend")
     defaults = backend_class(motor_backend).defaults
     backend = make_backend(motor_backend, tasks_file)
+    plan = evaluation_plan(backend, task_id, eval_episodes, eval_max_episodes, eval_max_seconds)
+    if imported_policy is not None:
+        report_imported(task, backend, imported_policy, objective, packs, eval_episodes, plan, seed, notes,
+                        url, out_dir, output_json, policy)
+        return
     run_dir = backend.run_dir(None, task_id, seed)
     announce_device(backend)
     announce_num_envs(backend, task_id, num_envs)
     request = TrainRequest(task=task, backend_name=motor_backend, objective=objective, datapacks=tuple(packs),
                            num_envs=defaults.num_envs if num_envs is None else num_envs,
-                           max_steps=max_steps or defaults.max_steps, seed=seed, eval_episodes=eval_episodes,
-                           notes=notes, output_dir=run_dir, backend_options=selecting,
-                           # the episodes priced when no evaluation run follows (--eval-episodes 0)
-                           train_eval_episodes=TRAINING_EVAL_EPISODES if eval_episodes else
-                           training_eval_episodes(None, until_deployable, select_episodes))
+                           max_steps=max_steps or defaults.max_steps, seed=seed, eval_episodes=eval_episodes or 0,
+                           eval_plan=plan, notes=notes, output_dir=run_dir, backend_options=selecting,
+                           # an evaluation run follows and is priced: the one after training stays small
+                           train_eval_episodes=TRAINING_EVAL_EPISODES)
 
     def note() -> str:
         return (f"{interrupted_note(motor_backend, task_id, run_dir, request.max_steps, 'report')}. "
