@@ -20,6 +20,7 @@ import typer
 
 from econmotor.cli._app import app, console
 from econmotor.cli.report import report_command
+from econmotor.cli.train import EVAL_MAX_EPISODES_OPTION, EVAL_MAX_SECONDS_OPTION
 from econmotor.motor_backend.factory import DEFAULT_BACKEND
 
 DEMO_TASK = "hopper_courier"
@@ -55,6 +56,8 @@ def demo_command(
     eval_episodes: int = typer.Option(None, "--eval-episodes",
                                       help="Exactly N episodes in the evaluation run (default: a sequential "
                                       "evaluation, until the verdict is decided)."),
+    eval_max_episodes: int = EVAL_MAX_EPISODES_OPTION,
+    eval_max_seconds: float = EVAL_MAX_SECONDS_OPTION,
     output_dir: Path = typer.Option(Path("reports") / "demo", "--output-dir", help="Where the reports go."),
     db_url: str = typer.Option(None, "--db-url", help="Registry URL (default ./.econmotor/registry.sqlite)."),
     seed: int = typer.Option(0, "--seed"),
@@ -67,5 +70,6 @@ def demo_command(
     report_command(**{**flag_defaults(report_command), **dict(
         task_id=DEMO_TASK, motor_backend=DEFAULT_BACKEND, objective_config=DEMO_OBJECTIVE,
         notes="econmotor demo: hopper courier on the embedded MuJoCo backend", max_steps=max_steps,
-        eval_episodes=eval_episodes, seed=seed, output_dir=output_dir, db_url=db_url,
+        eval_episodes=eval_episodes, eval_max_episodes=eval_max_episodes, eval_max_seconds=eval_max_seconds,
+        seed=seed, output_dir=output_dir, db_url=db_url,
         until_deployable=True, select_every=DEMO_SELECT_EVERY)})
