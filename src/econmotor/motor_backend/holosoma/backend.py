@@ -441,6 +441,7 @@ class HolosomaBackend(MotorBackendBase):
         for text in notes:
             progress(f"holosoma: {text}", 1.0, 1.0)
         workers = max(1, min(self.eval_workers, int(num_episodes)))
+        job["sequential"] = stop is not None  # the message says "up to" the cap
         jobs = [{**job, "worker": w, "announce": w == 0, "episode_indices": list(range(w, int(num_episodes), workers))}
                 for w in range(workers)]
         stream, wall_s = run_episode_jobs(self.python, jobs, run_dir, progress, int(num_episodes),
