@@ -267,10 +267,11 @@ def sim2sim(job: dict[str, Any]) -> dict[str, Any]:
     meter = s.MeterSettings(**job["meter"])
     indices = [int(i) for i in job.get("episode_indices") or range(int(job["num_episodes"]))]
     total = int(job["num_episodes"])
+    count = f"up to {total}" if job.get("sequential") else str(total)
     if job.get("announce", True):
         emit("message", text=f"sim-to-sim: {contract.policy} ({contract.inference_preset} observations, "
                              f"{contract.control_rate_hz:g} Hz policy, {1 / contract.physics_dt_s:g} Hz PD) in "
-                             f"MuJoCo, {'up to ' if job.get('sequential') else ''}{total} episode(s) of {course.legs or 'unlimited'} {course.leg_m:g} m leg(s) "
+                             f"MuJoCo, {count} episode(s) of {course.legs or 'unlimited'} {course.leg_m:g} m leg(s) "
                              f"with a {course.dwell_s:g} s dwell each (at most {job['episode_s']:g} s) at "
                              f"{course.speed_m_per_s:g} m/s commanded")
     emit("setup", contract=contract.to_dict(), stress=dataclasses.asdict(stress))
