@@ -87,9 +87,10 @@ class SequentialEvaluation:
                                   "left matched the best so far")
         elapsed = time.perf_counter() - self.started
         if outcome == CONTINUE and n >= self.plan.max_episodes:
-            outcome, why = EPISODE_CAP, f"undecided at the cap of {self.plan.max_episodes} episodes: {why}"
+            outcome, why = EPISODE_CAP, f"undecided at the cap of {self.plan.max_episodes} episodes"
         elif outcome == CONTINUE and elapsed >= self.plan.max_wall_s:
-            outcome, why = TIME_CAP, f"undecided after {elapsed:.0f} s (cap {self.plan.max_wall_s:g} s): {why}"
+            outcome, why = TIME_CAP, (f"undecided after {elapsed:.0f} s (cap {self.plan.max_wall_s:g} s, "
+                                      "--eval-max-seconds)")
         self.looks.append({"episodes": n, "outcome": outcome, "why": why, "wall_s": round(elapsed, 3)})
         self.judged = judged
         if outcome != CONTINUE:
