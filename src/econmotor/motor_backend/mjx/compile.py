@@ -48,7 +48,12 @@ class CompiledAhead:
 
     def __call__(self, *args: Any) -> Any:
         self._thread.join()
-        return self._jitted(*args) if self._compiled is None else self._compiled(*args)
+        if self._compiled is not None:
+            try:
+                return self._compiled(*args)
+            except (TypeError, ValueError):  # arguments unlike the examples (shapes, dtypes): jit them
+                self._compiled = None
+        return self._jitted(*args)
 
 
 class CacheWatch:
