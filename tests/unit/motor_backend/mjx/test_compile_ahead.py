@@ -22,6 +22,8 @@ def test_a_function_compiled_ahead_answers_as_the_jitted_one():
     ahead = CompiledAhead(jitted, x, y)
     np.testing.assert_array_equal(np.asarray(ahead(x * 2, y)), np.asarray(jitted(x * 2, y)))
     assert ahead.ready and ahead.error is None
+    wider = jnp.ones((4, 5)), jnp.ones((5, 2))  # unlike the examples: the jitted function answers
+    np.testing.assert_array_equal(np.asarray(ahead(*wider)), np.asarray(jitted(*wider)))
     assert CacheWatch().hits == 0  # a new watch counts from now
 
 
