@@ -47,7 +47,8 @@ def test_a_negative_cap_is_refused(capsys, flag: str, value: str) -> None:
 
 
 @pytest.mark.parametrize("command", [MUJOCO, ["demo"], ["report", "--task-id", "humanoid_locomotion_g1", "--policy",
-                                                       "holosoma:g1_29dof/ppo", "--motor-backend", "holosoma"]])
+                                                       "holosoma:g1_29dof/ppo", "--motor-backend", "holosoma"],
+                                     COMPARE])
 def test_eval_episodes_0_says_to_give_a_count_or_leave_it_out(capsys, command: list[str]) -> None:
     refused(capsys, [*command, "--eval-episodes", "0"], "--eval-episodes", "leave --eval-episodes out",
             "sequential")
