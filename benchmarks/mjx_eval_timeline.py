@@ -58,6 +58,7 @@ def arm(args: argparse.Namespace) -> dict:
                          for e in selection.get("evaluations", [])],
             "held_out_s": (selection.get("evaluation_cost") or {}).get("wall_s", 0.0),
             "eval_episodes": len(evaluation.episodes), "eval_s": eval_s,
+            "eval_env_steps": sum(float(e.get("length_steps", 0.0)) for e in evaluation.episodes),
             "eval_s_per_episode": eval_s / max(len(evaluation.episodes), 1),
             "eval_batch": getattr(backend, "eval_batch", None), "cache_hits": timing.get("compile_cache_hits"),
             "messages": [m for m in messages if "cache" in m], "process_s": time.perf_counter() - started}
@@ -85,8 +86,10 @@ def show(name: str, r: dict) -> None:
               f"{e['episodes']:>4} episodes  {e.get('outcome') or ('cut short' if e['cut_short'] else 'full')}")
     print(f"  training {r['steps']:,} steps: {r['train_wall_s']:.1f} s, held-out evaluations {r['held_out_s']:.1f} s "
           f"({share:.0%} of it)")
+    steps = r.get("eval_env_steps") or 0.0
     print(f"  evaluation: {r['eval_episodes']} episodes in {r['eval_s']:.2f} s = {r['eval_s_per_episode'] * 1000:.1f} "
-          f"ms per episode (compiled)")
+          f"ms per episode (compiled), episodes {steps / max(r['eval_episodes'], 1):.0f} steps long on average "
+          "(the kept policies differ between arms)")
     for m in r["messages"]:
         print(f"  said: {m}")
 

@@ -283,8 +283,8 @@ class HeldOutCadence:
 
     Attributes:
         every_steps: env steps between held-out evaluations, at least (1: after any training iteration).
-        max_share: and only while the held-out evaluations so far cost at most this share of the
-            run's wall time (so by default they cost at most ~10% of a run, whatever the device).
+        max_share: and only once the training since the last one took at least ``(1 - max_share) /
+            max_share`` times its cost (so by default they cost at most ~10% of a run, whatever the device).
     """
 
     every_steps: int = 25_000

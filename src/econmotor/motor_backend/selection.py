@@ -21,8 +21,9 @@ early checkpoints that fall in most episodes cost one batch each, and a passing 
 episodes its verdict needs.
 
 When held-out evaluations come (:meth:`Selection.due`): every ``every_steps`` env steps and, by
-default, only while the evaluations so far have cost at most ``max_share`` of the run's wall time
-(the backend's declared :class:`~econmotor.motor_backend.base.HeldOutCadence`); an explicit
+default, only once the training since the last evaluation is at least ``(1 - max_share) / max_share``
+times that evaluation's cost, so they take at most ``max_share`` of the run's wall time (the
+backend's declared :class:`~econmotor.motor_backend.base.HeldOutCadence`); an explicit
 ``--select-every`` drops the share rule, so the cadence is exactly every ``every_steps`` steps.
 
 The report's verdict comes from a separate evaluation on fresh seeds, so it is not selected
@@ -201,15 +202,19 @@ class Selection:
     # --- what the trainer asks --------------------------------------------------------------
     def due(self, env_steps: int, last_env_steps: int, now: float | None = None) -> bool:
         """An evaluation is due when ``env_steps`` crossed a multiple of ``every_steps`` since the last one
-        and, with ``max_share``, the evaluations so far cost at most that share of the wall time since the
-        run started (``now``: ``time.perf_counter()`` unless given)."""
+        and, with ``max_share``, the wall time since the last evaluation ended is at least
+        ``(1 - max_share) / max_share`` times what it cost, so evaluations take at most ``max_share`` of
+        the run after the first (``now``: ``time.perf_counter()`` unless given)."""
         every = self.config.every_steps
         if env_steps // every <= last_env_steps // every:
             return False
-        if self.config.max_share is None:
+        if self.config.max_share is None or not self.history:
             return True
-        elapsed = (time.perf_counter() if now is None else now) - self.started
-        return self.evaluation_s <= self.config.max_share * elapsed
+        # the training since the last evaluation pays for it: at least (1 - share) / share times its cost
+        # (measured from the last evaluation, so a long compile before it buys no burst of evaluations)
+        share, last = self.config.max_share, self.history[-1]
+        since = (time.perf_counter() if now is None else now) - (self.started + last.wall_s)
+        return since * share >= (1.0 - share) * last.eval_s
 
     @property
     def evaluation_s(self) -> float:

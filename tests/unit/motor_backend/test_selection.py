@@ -102,11 +102,12 @@ def test_an_evaluation_that_ran_out_before_a_decision_never_passes():
 def test_the_default_cadence_keeps_held_out_evaluations_under_their_share_of_wall_time():
     sel = Selection(TASK, OBJECTIVE, SelectionConfig(every_steps=1000, episodes=160, max_share=0.1))
     sel.started = 0.0
-    assert sel.due(1000, 0, now=1.0)  # nothing spent yet
+    assert sel.due(1000, 0, now=500.0)  # the first, whenever it comes (a long compile before it buys nothing)
     sel.consider(1000, evaluation(FALLING))
-    spent = sel.evaluation_s
-    assert not sel.due(2000, 1000, now=spent * 9)  # evaluations would be over 10% of the run so far
-    assert sel.due(2000, 1000, now=spent * 10 + 1e-6)
+    last = sel.history[-1]
+    ended = sel.started + last.wall_s
+    assert not sel.due(2000, 1000, now=ended + 8.9 * last.eval_s)  # it would be over 10% of the time since
+    assert sel.due(2000, 1000, now=ended + 9.0 * last.eval_s + 1e-6)
     assert not sel.due(1500, 1000, now=1e9)  # and never before every_steps
     exact = Selection(TASK, OBJECTIVE, SelectionConfig(every_steps=1000, episodes=160))
     exact.consider(1000, evaluation(FALLING))

@@ -102,8 +102,8 @@ class MjxBackend(MotorBackendBase):
     final_policy_file = "policy.npz"
     checkpoint_glob = "ckpt_*_steps.npz"
     environment_options: ClassVar[Mapping[str, str]] = {CACHE_ENV: "compilation_cache_dir"}
-    #: held-out evaluations after any training iteration, while they have cost at most 10% of the run's
-    #: wall time (on a GPU one iteration is ~20k env steps in ~0.07 s, an evaluation ~1-3 s)
+    #: held-out evaluations after any training iteration once the training since the last took 9 times its
+    #: cost: at most 10% of the run's wall time (on a GPU an iteration is ~20k env steps in ~0.07 s)
     held_out_cadence = HeldOutCadence(every_steps=1, max_share=0.10)
 
     def __init__(self, *, task_files: Sequence[str | Path] = (), runs_dir: str | Path = "runs",
