@@ -15,6 +15,20 @@ evaluations' share of them, and the evaluation's seconds per episode (compiled, 
 load average is printed at the start and the end (the machine is shared).
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/mjx_eval_timeline.py [--max-steps 100000] [--num-envs 16]
+
+Measured 2026-11-26 on the shared 2-core CPU (load 7-20, so absolute seconds are several times an idle
+machine's), hopper_courier, 16 envs, 100k steps: before, the first iteration 783 s, then 4 held-out
+evaluations (at 25k, 50k, 75k, 100k steps, 10 episodes each, cut short) cost 263 s, 20% of the 1,335 s
+of training, 251 s of it the evaluation's own compile at its first use; after, the evaluation compiled
+in a thread during the first iteration (714 s), and with the share rule as first written (evaluations
+under 10% of the time since the start) 31 held-out evaluations cost 175 s, 11%, 25 of them in the 130 s
+after the compile; the rule now spaces them from the last one (9x its cost of training between): a
+separate cold run (load 7-14) made 12 held-out evaluations of 1.0-13.2 s, 32 s, 6.3% of its 516 s. A
+second run on the first one's cache said "compilation cache warm: 3 compiled program(s) loaded ..." and
+its first iteration took 156 s instead of 714 s. Evaluation per episode (compiled, 64 episodes): 81 ms
+before (batch 10), 61.6 ms after (batch 16, episodes 202 steps long on average); the kept policies differ,
+so per-episode times are not a like-for-like comparison; on a CPU a step costs in proportion to the batch.
+The GPU timeline is not measured yet.
 """
 
 from __future__ import annotations
