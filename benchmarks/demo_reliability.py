@@ -16,7 +16,7 @@ import argparse
 import json
 import time
 
-from econmotor.cli.demo import DEMO_EVAL_EPISODES, DEMO_OBJECTIVE, DEMO_TASK
+from econmotor.cli.demo import DEMO_OBJECTIVE, DEMO_TASK
 from econmotor.cli.report import resolve_objective
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.economics.uncertainty import clopper_pearson
@@ -28,7 +28,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--max-steps", type=int, default=300_000)
-    parser.add_argument("--eval-episodes", type=int, default=DEMO_EVAL_EPISODES)
+    parser.add_argument("--eval-episodes", type=int, default=80)
     parser.add_argument("--hp", default="{}", help="JSON PPO hyperparameter overrides")
     parser.add_argument("--objective-vector", default=None,
                         help="JSON [mpl, error, energy, safety, novelty] instead of the demo's objective")

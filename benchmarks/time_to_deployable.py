@@ -8,9 +8,10 @@ For each seed, one after the other in this process (so both arms see the same ma
   at ``--max-steps``;
 - ``fixed``: today's demo before this change, ``--baseline-steps`` (300k) steps, last weights kept.
 
-Each arm's policy is then evaluated like the demo's report (``--eval-episodes`` 80 fresh episodes,
-seeds ``seed + 1000 ...``, apart from the held-out ones) and judged by the report's judgement
-(``economics.uncertainty.judge``). Printed per seed and arm: env steps trained, training wall
+Each arm's policy is then evaluated like the demo's report (a sequential evaluation of fresh episodes,
+seeds ``seed + 1000 ...``, apart from the held-out ones, until the verdict is decided; or exactly
+``--eval-episodes N``) and judged by the report's judgement (``economics.uncertainty.judge``, at the
+sequential plan's look confidence). Printed per seed and arm: env steps trained, training wall
 seconds (``train_policy``: env creation, training, held-out evaluations, ONNX export), the report
 verdict with falls / legs and legs/h; then the median training seconds of each arm and their ratio.
 The load average is printed at the start and the end: absolute seconds on a shared machine are
@@ -37,9 +38,11 @@ import time
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-from econmotor.cli.demo import DEMO_EVAL_EPISODES, DEMO_MAX_STEPS, DEMO_OBJECTIVE, DEMO_TASK
+from econmotor.cli.demo import DEMO_MAX_STEPS, DEMO_OBJECTIVE, DEMO_TASK
+from econmotor.economics.uncertainty import SequentialPlan
 from econmotor.motor_backend.factory import make_motor_backend
 from econmotor.motor_backend.selection import Selection, SelectionConfig
+from econmotor.motor_backend.sequential import evaluate_sequentially
 from econmotor.objectives import load_objective_spec
 
 REPORT_EVAL_OFFSET = 1_000  # the report's evaluation run: seed + 1000 + i (pipeline.train_and_record)
@@ -57,10 +60,19 @@ def run_arm(arm: str, seed: int, args: argparse.Namespace, out: str) -> dict:
     result = backend.train_policy(DEMO_TASK, objective, [], 0, args.max_steps if until else args.baseline_steps,
                                   seed, output_dir=run_dir, eval_episodes=0, **options)
     train_s = time.perf_counter() - started
-    evaluation = backend.evaluate_policy(result.policy_id, DEMO_TASK, objective, args.eval_episodes,
-                                         seed + REPORT_EVAL_OFFSET)
+    t_eval = time.perf_counter()
+    if args.eval_episodes:
+        evaluation = backend.evaluate_policy(result.policy_id, DEMO_TASK, objective, args.eval_episodes,
+                                             seed + REPORT_EVAL_OFFSET)
+        confidence, how = 0.95, f"fixed {args.eval_episodes}"
+    else:
+        plan = SequentialPlan(batch=backend.evaluation_batch(DEMO_TASK))
+        evaluation = evaluate_sequentially(backend, result.policy_id, task, objective, plan, seed + REPORT_EVAL_OFFSET)
+        seq = evaluation.config["sequential"]
+        confidence, how = seq["confidence"], f"sequential: {seq['outcome']} at {seq['episodes']}"
+    eval_s = time.perf_counter() - t_eval
     raw = [{k: v for k, v in ep.items()} for ep in evaluation.episodes]
-    _, verdict, j_mean = Selection(task, objective, SelectionConfig()).judge(raw)
+    _, verdict, j_mean = Selection(task, objective, SelectionConfig()).judge(raw, confidence)
     falls = sum(float(e["errors"]) for e in raw)
     legs = sum(float(e["units_completed"]) for e in raw)
     hours = sum(float(e["episode_length_s"]) for e in raw) / 3600.0
@@ -71,7 +83,8 @@ def run_arm(arm: str, seed: int, args: argparse.Namespace, out: str) -> dict:
             "held_out_deployable_at": selection.get("became_deployable"),
             "held_out_evals": (selection.get("evaluation_cost") or {}).get("count"),
             "held_out_eval_s": (selection.get("evaluation_cost") or {}).get("wall_s"),
-            "report_verdict": verdict.label, "falls": falls, "legs": round(legs, 1),
+            "report_verdict": verdict.label, "report_episodes": len(raw), "report_eval": how,
+            "report_eval_s": round(eval_s, 1), "falls": falls, "legs": round(legs, 1),
             "legs_per_h": round(legs / hours, 1) if hours else 0.0, "J": round(j_mean, 2)}
 
 
@@ -82,8 +95,9 @@ def main() -> None:
     parser.add_argument("--max-steps", type=int, default=DEMO_MAX_STEPS, help="cap of the until arm")
     parser.add_argument("--baseline-steps", type=int, default=300_000)
     parser.add_argument("--select-every", type=int, default=25_000)
-    parser.add_argument("--select-episodes", type=int, default=80)
-    parser.add_argument("--eval-episodes", type=int, default=DEMO_EVAL_EPISODES)
+    parser.add_argument("--select-episodes", type=int, default=None, help="cap of a held-out evaluation "
+                        "(default: selection.DEFAULT_SELECT_EPISODES)")
+    parser.add_argument("--eval-episodes", type=int, default=0, help="a fixed count (0: sequential, as the demo)")
     parser.add_argument("--hp", default="{}", help="JSON PPO hyperparameter overrides of the until arm")
     parser.add_argument("--jobs", type=int, default=1, help="runs at once (2: one per core; the arms of a seed "
                         "side by side)")
@@ -109,11 +123,11 @@ def main() -> None:
                     print(json.dumps(rows[-1]), flush=True)
             rows.sort(key=lambda r: (r["seed"], arms.index(r["arm"])))
     print(f"load average at end: {os.getloadavg()}")
-    print(f"{'arm':<6} {'seed':>4} {'env steps':>10} {'train s':>8} {'verdict (fresh 80)':>20} {'falls/legs':>11} "
-          f"{'legs/h':>7}")
+    print(f"{'arm':<6} {'seed':>4} {'env steps':>10} {'train s':>8} {'verdict (fresh)':>16} {'episodes':>8} "
+          f"{'falls/legs':>11} {'legs/h':>7}")
     for r in rows:
-        print(f"{r['arm']:<6} {r['seed']:>4} {r['env_steps']:>10,} {r['train_s']:>8.1f} {r['report_verdict']:>20} "
-              f"{r['falls']:>4.0f}/{r['legs']:<6.1f} {r['legs_per_h']:>7.1f}")
+        print(f"{r['arm']:<6} {r['seed']:>4} {r['env_steps']:>10,} {r['train_s']:>8.1f} {r['report_verdict']:>16} "
+              f"{r['report_episodes']:>8} {r['falls']:>4.0f}/{r['legs']:<6.1f} {r['legs_per_h']:>7.1f}")
     medians = {arm: statistics.median(r["train_s"] for r in rows if r["arm"] == arm) for arm in arms}
     for arm in arms:
         ok = sum(r["report_verdict"] == "deployable" for r in rows if r["arm"] == arm)

@@ -252,3 +252,30 @@ def test_onnx_with_the_wrong_observation_width_is_a_clear_error(backend: Holosom
               "onnx.save(model, sys.argv[1])\n")
     text = evaluation_error(backend, python, script, onnx_file)
     assert "takes 50 observations" in text and "robot card 'g1_29dof' builds 100" in text
+
+
+
+def test_two_worker_processes_give_each_seed_the_episode_one_process_gives(python: Path, tmp_path: Path) -> None:
+    policy, task, kwargs = "holosoma:g1_29dof/fastsac", "humanoid_locomotion_g1", {"eval_episode_length_s": 4.0}
+    one = HolosomaBackend(venv=python.parent.parent, eval_workers=1, **kwargs)
+    two = HolosomaBackend(venv=python.parent.parent, eval_workers=2, **kwargs)
+    a = one.evaluate_policy(policy, task, EconomicObjectiveSpec(), 3, 11, output_dir=tmp_path / "one")
+    b = two.evaluate_policy(policy, task, EconomicObjectiveSpec(), 3, 11, output_dir=tmp_path / "two")
+    assert a.config["workers"] == 1 and b.config["workers"] == 2
+    assert (tmp_path / "two" / "sim2sim_1.log").is_file()  # the second process ran episodes too
+    assert a.episodes == b.episodes  # per seed, the same floats
+    assert len({ep["energy_wh"] for ep in a.episodes}) == 3  # and the seeds differ from one another
+
+
+def test_a_stop_after_the_first_batch_ends_the_workers_early(python: Path, tmp_path: Path) -> None:
+    backend = HolosomaBackend(venv=python.parent.parent, eval_workers=2, eval_episode_length_s=2.0)
+    seen: list[int] = []
+
+    def stop(rows: list) -> bool:
+        seen.append(len(rows))
+        return True
+
+    result = backend.evaluate_policy("holosoma:g1_29dof/fastsac", "humanoid_locomotion_g1", EconomicObjectiveSpec(),
+                                     60, 0, output_dir=tmp_path, stop=stop)
+    assert seen == [backend.evaluation_batch("humanoid_locomotion_g1")]
+    assert backend.evaluation_batch("humanoid_locomotion_g1") <= len(result.episodes) < 60

@@ -28,7 +28,8 @@ from econmotor.cli.report import (
     resolve_objective,
     split_datapack_values,
 )
-from econmotor.cli.validation import check_db_url, check_flags, check_output_dir
+from econmotor.cli.train import EVAL_MAX_EPISODES_OPTION, EVAL_MAX_SECONDS_OPTION
+from econmotor.cli.validation import check_db_url, check_flags, check_output_dir, evaluation_plan
 from econmotor.economics.pricing import PricingPolicy
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import REPORT_EVAL_SEED_OFFSET
@@ -177,7 +178,10 @@ def compare_command(
     policies: list[str] = typer.Option(..., "--policy", help="A policy to price (repeat, at least two): an ONNX "
                                        "file or a shipped name such as holosoma:g1_29dof/ppo."),
     motor_backend: str = typer.Option("holosoma", "--motor-backend", help="A backend that imports policies."),
-    eval_episodes: int = typer.Option(10, "--eval-episodes", min=1, help="Episodes per policy."),
+    eval_episodes: int = typer.Option(None, "--eval-episodes", help="Exactly N episodes per policy (default: a "
+                                      "sequential evaluation of each, until its verdict is decided, or a cap)."),
+    eval_max_episodes: int = EVAL_MAX_EPISODES_OPTION,
+    eval_max_seconds: float = EVAL_MAX_SECONDS_OPTION,
     seed: int = typer.Option(0, "--seed", help="Seed of the evaluations (the same for every policy)."),
     datapacks: list[str] = typer.Option([], "--datapacks", help="Datapack YAML paths or registered ids (stress)."),
     command_speed: float = typer.Option(None, "--command-speed", min=0.05, help="Commanded walking speed, m/s "
@@ -190,7 +194,8 @@ def compare_command(
 ) -> None:
     """Price several imported policies on the same seeds, course and conditions; rank them and name the winner."""
     set_cpu_threads()
-    check_flags(eval_episodes=eval_episodes, seed=seed, spread_share=spread_share)
+    check_flags(eval_episodes=eval_episodes, seed=seed, spread_share=spread_share,
+                eval_max_episodes=eval_max_episodes, eval_max_seconds=eval_max_seconds)
     if len(policies) < 2:
         raise ConfigError("--policy", None, f"compare needs at least two policies, got {len(policies)}")
     if len(set(policies)) != len(policies):
@@ -205,21 +210,25 @@ def compare_command(
     out_dir = check_output_dir("--output-dir", output_dir or Path("reports") / task_id / "compare")
     options = {"command_speed_m_per_s": command_speed} if command_speed is not None else {}
     backend = make_backend(motor_backend, tasks_file, catalog=catalog, **options)
+    plan = evaluation_plan(backend, task_id, eval_episodes, eval_max_episodes, eval_max_seconds)
     for policy_id in policies:  # bad input records nothing
         backend.check_policy(policy_id)
     pricing = PricingPolicy(spread_share)
-    rows = []
+    rows, counts = [], []
     for policy_id in policies:
-        outcome = price_imported(task, backend, policy_id, objective, packs, eval_episodes, seed,
-                                 f"econmotor compare: {policy_id}", url, out_dir, None, pricing)
+        outcome = price_imported(task, backend, policy_id, objective, packs, eval_episodes or 0, seed,
+                                 f"econmotor compare: {policy_id}", url, out_dir, None, pricing, plan)
         rows.append(comparison_row(policy_id, outcome.document))
+        counts.append(outcome.document["uncertainty"]["evidence"]["episodes"])
     ranked, summary = rank(rows)
     first = seed + REPORT_EVAL_SEED_OFFSET
-    seeds = f"{first}-{first + eval_episodes - 1}"
+    seeds = f"{first}-{first + max(counts) - 1}"
     files = write_comparison(ranked, summary, out_dir, {"task_id": task_id, "seeds": seeds,
                                                          "datapacks": [p.id for p in packs],
                                                          "command_speed_m_per_s": command_speed})
-    title = f"{task_id}: {len(ranked)} policies, {eval_episodes} episodes each, seeds {seeds}"
+    each = f"{eval_episodes} episodes each" if eval_episodes else \
+        f"sequential evaluations ({', '.join(map(str, counts))} episodes, until each verdict was decided)"
+    title = f"{task_id}: {len(ranked)} policies, {each}, seeds {seeds}"
     console.print(comparison_table(ranked, title, console))
     console.print(summary, highlight=False, soft_wrap=True)
     for path in files:

@@ -32,6 +32,8 @@ from econmotor.cli._app import (
 )
 from econmotor.cli._interrupts import set_deadline_note
 from econmotor.cli.train import (
+    EVAL_MAX_EPISODES_OPTION,
+    EVAL_MAX_SECONDS_OPTION,
     INIT_POLICY_OPTION,
     SELECT_EPISODES_OPTION,
     SELECT_EVERY_OPTION,
@@ -40,7 +42,6 @@ from econmotor.cli.train import (
     init_policy_options,
     interrupted_note,
     selection_options,
-    training_eval_episodes,
 )
 from econmotor.cli.validation import (
     check_db_url,
@@ -51,10 +52,12 @@ from econmotor.cli.validation import (
     check_output_dir,
     check_output_file,
     check_task_backend,
+    evaluation_plan,
     note_abandoned,
 )
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.economics.pricing import PricingPolicy
+from econmotor.economics.uncertainty import SequentialPlan
 from econmotor.errors import ConfigError, UnknownNameError, did_you_mean
 from econmotor.motor_backend.base import REPORT_EVAL_SEED_OFFSET
 from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_configs
@@ -80,7 +83,6 @@ from econmotor.report.render import (
     table_rows,
 )
 from econmotor.store.registry import DB_URL_ENV, Registry, registry_exists
-from econmotor.tasks.catalog import TaskCatalog
 from econmotor.valuation import default_objective_vector
 
 NO_BACKEND = "none"
@@ -179,10 +181,12 @@ def check_imports_policies(backend_name: str, flag: str) -> None:
 
 def price_imported(task, backend, policy_id: str, objective: EconomicObjectiveSpec, packs: list[DatapackConfig],
                    eval_episodes: int, seed: int, notes: str, url: str, out_dir: Path, output_json: Path | None,
-                   pricing: PricingPolicy) -> ReportOutcome:
-    """Evaluate an imported policy (nothing trained), record the evaluation run, write its report."""
+                   pricing: PricingPolicy, plan: SequentialPlan | None = None) -> ReportOutcome:
+    """Evaluate an imported policy (nothing trained; ``eval_episodes``, or sequentially under ``plan``), record
+    the evaluation run, write its report."""
     request = TrainRequest(task=task, backend_name=backend.name, objective=objective, datapacks=tuple(packs),
-                           seed=seed, eval_episodes=eval_episodes, notes=notes,
+                           seed=seed, eval_episodes=0 if plan is not None else eval_episodes, eval_plan=plan,
+                           notes=notes,
                            output_dir=backend.run_dir(None, task.task_id, seed))
     with progress_bars() as progress:
         reg, eval_id = evaluate_and_record(request, backend, policy_id, lambda: Registry(url), progress)
@@ -190,17 +194,13 @@ def price_imported(task, backend, policy_id: str, objective: EconomicObjectiveSp
         return report_from_registry(reg, task, reg.run(eval_id), None, out_dir, output_json, pricing)
 
 
-def report_imported(task, backend_name: str, policy_id: str, objective: EconomicObjectiveSpec,
-                    packs: list[DatapackConfig], eval_episodes: int, seed: int, notes: str, catalog: TaskCatalog,
-                    url: str, out_dir: Path, output_json: Path | None, pricing: PricingPolicy) -> None:
+def report_imported(task, backend, policy_id: str, objective: EconomicObjectiveSpec,
+                    packs: list[DatapackConfig], eval_episodes: int | None, plan: SequentialPlan | None, seed: int,
+                    notes: str, url: str, out_dir: Path, output_json: Path | None, pricing: PricingPolicy) -> None:
     """``report --policy``: evaluate an imported policy (nothing trained), record the run, write the report."""
-    check_imports_policies(backend_name, "--motor-backend")
-    if eval_episodes < 1:
-        raise ConfigError("--eval-episodes", None, "--policy evaluates an imported policy: give --eval-episodes N")
-    backend = make_backend(backend_name, catalog=catalog)
     backend.check_policy(policy_id)  # bad input records nothing
-    outcome = price_imported(task, backend, policy_id, objective, packs, eval_episodes, seed, notes, url, out_dir,
-                             output_json, pricing)
+    outcome = price_imported(task, backend, policy_id, objective, packs, eval_episodes or 0, seed, notes, url,
+                             out_dir, output_json, pricing, plan)
     console.print(f"[bold]evaluated[/]: {imported_policy_text(outcome.document['runs']['eval'])}", highlight=False)
     show_outcome(outcome)
 
@@ -221,10 +221,12 @@ def report_command(
     num_envs: int = typer.Option(None, "--num-envs", min=0, help="Environments (default: the backend's)."),
     max_steps: int = typer.Option(None, "--max-steps", min=1, help="Training environment steps "
                                   "(default: the backend's)."),
-    eval_episodes: int = typer.Option(0, "--eval-episodes", min=0,
-                                      help="Add an evaluation run of N fresh episodes after training and price "
-                                      f"it (0: price the {TRAINING_EVAL_EPISODES} episodes evaluated right after "
-                                      "training, or with --until-deployable as many as a held-out evaluation)."),
+    eval_episodes: int = typer.Option(None, "--eval-episodes",
+                                      help="Price an evaluation run of exactly N fresh episodes (default: a "
+                                      "sequential evaluation: episodes in batches until the verdict is decided, "
+                                      "or a cap)."),
+    eval_max_episodes: int = EVAL_MAX_EPISODES_OPTION,
+    eval_max_seconds: float = EVAL_MAX_SECONDS_OPTION,
     seed: int = typer.Option(0, "--seed", help=f"Seed of training (evaluation uses seed + {REPORT_EVAL_SEED_OFFSET})."),
     output_dir: Path = typer.Option(None, "--output-dir", help="Report directory (default reports/<task>)."),
     output_json: Path = typer.Option(None, "--output-json", help="Also choose where the JSON document goes."),
@@ -246,7 +248,8 @@ def report_command(
     set_cpu_threads()
     # ---- validate everything first: nothing is trained or written on bad input
     check_flags(num_envs=num_envs, max_steps=max_steps, eval_episodes=eval_episodes, seed=seed,
-                spread_share=spread_share, run_id=run_id)
+                spread_share=spread_share, run_id=run_id, eval_max_episodes=eval_max_episodes,
+                eval_max_seconds=eval_max_seconds)
     check_name("--objective-name", objective_name)
     check_output_file("--output-json", output_json)
     policy = PricingPolicy(spread_share)
@@ -274,7 +277,9 @@ def report_command(
 
     if motor_backend == NO_BACKEND:
         ignored = [flag for flag, value in (("--num-envs", num_envs), ("--max-steps", max_steps),
-                                             ("--eval-episodes", eval_episodes or None),
+                                             ("--eval-episodes", eval_episodes),
+                                             ("--eval-max-episodes", eval_max_episodes),
+                                             ("--eval-max-seconds", eval_max_seconds),
                                              ("--objective-config", objective_config),
                                              ("--until-deployable", until_deployable or None),
                                              ("--select-every", select_every),
@@ -306,22 +311,25 @@ def report_command(
         return
 
     if imported_policy is not None:
-        report_imported(task, motor_backend, imported_policy, objective, packs, eval_episodes, seed, notes,
-                        catalog, url, out_dir, output_json, policy)
-        return
+        check_imports_policies(motor_backend, "--motor-backend")
     size = backend_class(motor_backend).defaults.filled(num_envs, max_steps)
     backend = make_backend(motor_backend, tasks_file, catalog=catalog)
+    plan = evaluation_plan(backend, task_id, eval_episodes, eval_max_episodes, eval_max_seconds)
+    if imported_policy is not None:
+        report_imported(task, backend, imported_policy, objective, packs, eval_episodes, plan, seed, notes,
+                        url, out_dir, output_json, policy)
+        return
     if init_policy is not None:
         backend.check_init_policy(init_policy, task_id)
     run_dir = backend.run_dir(None, task_id, seed)
     announce_device(backend)
     announce_num_envs(backend, task_id, num_envs)
     request = TrainRequest(task=task, backend_name=motor_backend, objective=objective, datapacks=tuple(packs),
-                           num_envs=size.num_envs, max_steps=size.max_steps, seed=seed, eval_episodes=eval_episodes,
-                           notes=notes, output_dir=run_dir, backend_options=selecting,
-                           # the episodes priced when no evaluation run follows (--eval-episodes 0)
-                           train_eval_episodes=TRAINING_EVAL_EPISODES if eval_episodes else
-                           training_eval_episodes(None, until_deployable, select_episodes))
+                           num_envs=size.num_envs, max_steps=size.max_steps, seed=seed,
+                           eval_episodes=eval_episodes or 0, eval_plan=plan, notes=notes, output_dir=run_dir,
+                           backend_options=selecting,
+                           # an evaluation run follows and is priced: the one after training stays small
+                           train_eval_episodes=TRAINING_EVAL_EPISODES)
 
     def note() -> str:
         return (f"{interrupted_note(motor_backend, task_id, run_dir, request.max_steps, 'report')}. "

@@ -105,9 +105,15 @@ UNTIL_DEPLOYABLE_OPTION = typer.Option(
     False, "--until-deployable", help="Stop as soon as a held-out evaluation passes the task's acceptance rule "
     "(or at --max-steps); the run records when it became deployable.")
 SELECT_EVERY_OPTION = typer.Option(None, "--select-every", help="Env steps between held-out evaluations that "
-                                   "choose the kept checkpoint (0: none, keep the last weights; default 25,000).")
-SELECT_EPISODES_OPTION = typer.Option(None, "--select-episodes", help="Episodes per held-out evaluation "
-                                      "(default 80).")
+                                   "choose the kept checkpoint, exactly (0: none, keep the last weights; default: "
+                                   "the backend's cadence, at most 10% of the run's wall time).")
+SELECT_EPISODES_OPTION = typer.Option(None, "--select-episodes", help="The most episodes of a held-out evaluation "
+                                      "(each is sequential: it stops once its verdict is decided; default 160).")
+# a sequential evaluation's caps (report, compare, demo)
+EVAL_MAX_EPISODES_OPTION = typer.Option(None, "--eval-max-episodes", help="Cap on a sequential evaluation's "
+                                        "episodes (default 640).")
+EVAL_MAX_SECONDS_OPTION = typer.Option(None, "--eval-max-seconds", help="Cap on a sequential evaluation's wall "
+                                       "seconds, checked at each look (default 900).")
 
 
 INIT_POLICY_OPTION = typer.Option(

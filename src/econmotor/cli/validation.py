@@ -84,6 +84,8 @@ FLAG_RULES: dict[str, Rule] = {
     "--eval-episodes": Rule("int", 0, MAX_EPISODES),
     "--select-every": Rule("int", 0, MAX_STEPS),
     "--select-episodes": Rule("int", 1, MAX_EPISODES),
+    "--eval-max-episodes": Rule("int", 1, MAX_EPISODES),
+    "--eval-max-seconds": Rule("float", 0.0, 1e7, low_open=True),
     "--episodes": Rule("int", 1, MAX_EPISODES),
     "--steps": Rule("int", 1, 10_000_000),
     "--run-id": Rule("int", 1, 2**31 - 1),
@@ -105,6 +107,29 @@ def check_flags(**values: Any) -> None:
         flag = "--" + name.replace("_", "-")
         for item in value if isinstance(value, (list, tuple)) else (value,):
             FLAG_RULES[flag].check(flag, item)
+
+
+def evaluation_plan(backend: Any, task_id: str, eval_episodes: int | None, max_episodes: int | None,
+                    max_seconds: float | None) -> Any:
+    """How the evaluation run chooses its episodes: None for a fixed ``--eval-episodes N``, else the
+    sequential plan (episodes in the backend's batches until the verdict is decided, or a cap). Bad
+    combinations are errors naming the flag: ``--eval-episodes 0``, a cap below one batch, a negative cap,
+    a cap beside a fixed count."""
+    from econmotor.economics.uncertainty import DEFAULT_MAX_EPISODES, DEFAULT_MAX_WALL_S, SequentialPlan
+
+    check_flags(eval_episodes=eval_episodes, eval_max_episodes=max_episodes, eval_max_seconds=max_seconds)
+    if eval_episodes is not None:
+        if eval_episodes < 1:
+            raise ConfigError("--eval-episodes", None, "0 episodes cannot show anything: give N >= 1 for a fixed "
+                              "count, or leave --eval-episodes out for a sequential evaluation (episodes in batches "
+                              "until the verdict is decided; caps --eval-max-episodes, --eval-max-seconds)")
+        given = [f for f, v in (("--eval-max-episodes", max_episodes), ("--eval-max-seconds", max_seconds)) if v]
+        if given:
+            raise ConfigError(given[0], None, "caps a sequential evaluation: drop it, or drop --eval-episodes N "
+                              "(a fixed count)")
+        return None
+    return SequentialPlan(batch=backend.evaluation_batch(task_id), max_episodes=max_episodes or DEFAULT_MAX_EPISODES,
+                          max_wall_s=max_seconds or DEFAULT_MAX_WALL_S)
 
 
 def check_num_envs(backend: str, num_envs: int | None, flag: str = "--num-envs") -> None:

@@ -24,6 +24,13 @@ module says how uncertain it is and whether the robot may be priced at all.
   rate's upper bound is within the task's acceptance limit (``max_error_rate``, the
   human's rate unless the catalog says otherwise) and the MPL lower bound reaches the
   task's ``min_units_per_hour``. Otherwise the reasons say why, in words.
+- **Evidence sized to the verdict** (:class:`SequentialPlan`, :func:`look_outcome`): a sequential
+  evaluation runs episodes in batches and judges them at pre-set looks (``batch``, doubling, up to a
+  cap) until the rule is decided: pass (every bound inside its limit), fail (a bound's favourable
+  end outside it, :func:`certainly_fails`), or a cap is reached. Each look's bounds are at
+  ``1 - (1 - confidence) / K`` for K looks (alpha-spending, Bonferroni), so the bounds stay valid
+  however early the evaluation stops: a policy whose true rate equals the limit is judged
+  deployable at most ``1 - confidence`` of the time (tests/unit/economics/test_sequential.py).
 """
 
 from __future__ import annotations
@@ -40,6 +47,7 @@ from econmotor.config.acceptance import Acceptance
 from econmotor.config.task_economics import TaskEconomics
 from econmotor.economics import labour
 from econmotor.economics.pricing import PricingPolicy, TaskPrice, price_task
+from econmotor.errors import ConfigError
 
 #: one-sided confidence of every bound (each end of a 90% interval).
 CONFIDENCE = 0.95
@@ -201,6 +209,11 @@ def _g(value: float) -> str:
     return f"{value:,.0f}" if abs(value) >= 1000 else f"{value:.3g}"
 
 
+def percent(confidence: float) -> str:
+    """A confidence in words: ``0.95 -> '95%'``, ``0.991667 -> '99.2%'``."""
+    return f"{confidence * 100:.3g}%"
+
+
 def _plural(name: str, count: float) -> str:
     return name if count == 1 else (name[:-1] + "ies" if name.endswith("y") else name + "s")
 
@@ -211,17 +224,19 @@ def counted(count: int, name: str) -> str:
 
 
 def judge(economics: TaskEconomics, acceptance: Acceptance, unit: str, episodes: Sequence[Mapping[str, Any]],
-          point: TaskPrice, policy: PricingPolicy = PricingPolicy()) -> tuple[Uncertainty, Verdict]:
+          point: TaskPrice, policy: PricingPolicy = PricingPolicy(),
+          confidence: float = CONFIDENCE) -> tuple[Uncertainty, Verdict]:
     """The intervals of evaluation episodes (:func:`assess`) and the verdict on them (:func:`decide`):
-    the one judgement a report prints and evaluation-driven training selects checkpoints by."""
-    uncertainty = assess(economics, episodes, point, policy)
+    the one judgement a report prints and evaluation-driven training selects checkpoints by.
+    ``confidence``: of each bound (a sequential evaluation's look judges at its ``look_confidence``)."""
+    uncertainty = assess(economics, episodes, point, policy, confidence)
     return uncertainty, decide(acceptance, uncertainty, economics.error_rate_human, unit)
 
 
 def decide(acceptance: Acceptance, uncertainty: Uncertainty, human_error_rate: float, unit: str) -> Verdict:
     """Apply the acceptance rule to the evaluation (module docstring)."""
     ev, iv = uncertainty.evidence, uncertainty.intervals
-    pct = f"{uncertainty.confidence:.0%}"
+    pct = percent(uncertainty.confidence)
     err, mpl = iv["error_rate"], iv["mpl_units_per_hour"]
     name = acceptance.error_name
     reasons: list[str] = []
@@ -252,3 +267,93 @@ def decide(acceptance: Acceptance, uncertainty: Uncertainty, human_error_rate: f
     if worked and not mpl_ok:
         reasons.append(text)
     return Verdict(not reasons, tuple(reasons), tuple(checks), acceptance)
+
+
+# --- evidence sized to the verdict: the sequential rule -----------------------------------------
+
+#: the anytime-valid method of a sequential evaluation, as the report and docs/architecture.md name it.
+SEQUENTIAL_METHOD = ("alpha-spending over pre-set looks (Bonferroni: each of the K looks tests at "
+                     "(1 - confidence) / K, so all looks together are wrong at most 1 - confidence of the time)")
+#: a sequential evaluation's defaults where the user gives no cap: episodes and wall seconds.
+DEFAULT_MAX_EPISODES = 640
+DEFAULT_MAX_WALL_S = 900.0
+
+
+@dataclass(frozen=True)
+class SequentialPlan:
+    """How a sequential evaluation looks at its episodes (the schedule is fixed before any episode runs).
+
+    Looks come at ``batch``, ``2 batch``, ``4 batch``, ... episodes and at ``max_episodes`` (the cap);
+    each look judges the first ``n_k`` episodes (in seed order) with every bound at
+    :attr:`look_confidence` = ``1 - (1 - confidence) / K``. A bound that is wrong at some look is
+    wrong at one of the K looks, so by the union bound the chance that any look's bound is wrong,
+    whenever the evaluation stops, is at most ``1 - confidence``: stopping at the first look that
+    decides keeps every bound valid (:data:`SEQUENTIAL_METHOD`). A wall-time cap only removes looks.
+
+    Attributes:
+        batch: episodes of the first look (the backend's evaluation batch).
+        max_episodes: the cap on episodes (the last look).
+        max_wall_s: the cap on wall seconds (checked at each look that did not decide).
+        confidence: the one-sided confidence of every bound over all looks together.
+    """
+
+    batch: int
+    max_episodes: int = DEFAULT_MAX_EPISODES
+    max_wall_s: float = DEFAULT_MAX_WALL_S
+    confidence: float = CONFIDENCE
+
+    def __post_init__(self) -> None:
+        if self.batch < 1:
+            raise ConfigError("<sequential evaluation>", "batch", f"must be >= 1, got {self.batch}")
+        if self.max_episodes < self.batch:
+            raise ConfigError("--eval-max-episodes", None, f"{self.max_episodes} is below one evaluation batch "
+                              f"({self.batch} episodes)", f"{self.batch} or more")
+        if not (self.max_wall_s > 0 and math.isfinite(self.max_wall_s)):
+            raise ConfigError("--eval-max-seconds", None, f"must be a positive number of seconds, "
+                              f"got {self.max_wall_s}")
+
+    @property
+    def looks(self) -> tuple[int, ...]:
+        """Episode counts at which the evaluation is judged: ``batch * 2**j`` below the cap, then the cap."""
+        out, n = [], self.batch
+        while n < self.max_episodes:
+            out.append(n)
+            n *= 2
+        return (*out, self.max_episodes)
+
+    @property
+    def look_confidence(self) -> float:
+        """The confidence of each look's bounds: ``1 - (1 - confidence) / len(looks)``."""
+        return 1.0 - (1.0 - self.confidence) / len(self.looks)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"batch": self.batch, "max_episodes": self.max_episodes, "max_wall_s": self.max_wall_s,
+                "confidence": self.confidence, "looks": list(self.looks), "look_confidence": self.look_confidence,
+                "method": SEQUENTIAL_METHOD}
+
+
+#: a look's outcomes: every bound inside its limit / a bound certainly outside / not decided yet.
+PASS, FAIL, CONTINUE = "pass", "fail", "continue"
+
+
+def certainly_fails(acceptance: Acceptance, uncertainty: Uncertainty) -> str | None:
+    """Why the acceptance rule certainly fails (a bound's favourable end is outside its limit), or None:
+    the error rate's lower bound above ``max_error_rate``, or throughput's upper bound below
+    ``min_units_per_hour``."""
+    err, mpl = uncertainty.intervals["error_rate"], uncertainty.intervals["mpl_units_per_hour"]
+    pct, name = percent(uncertainty.confidence), acceptance.error_name
+    if err.low > acceptance.max_error_rate:
+        return (f"the {name} rate is above {_g(acceptance.max_error_rate)} ({pct} lower bound "
+                f"{_g(err.low)})")
+    if acceptance.min_units_per_hour > 0 and math.isfinite(mpl.high) and mpl.high < acceptance.min_units_per_hour:
+        return (f"throughput is below {_g(acceptance.min_units_per_hour)} units/h ({pct} upper bound "
+                f"{_g(mpl.high)})")
+    return None
+
+
+def look_outcome(acceptance: Acceptance, uncertainty: Uncertainty, verdict: Verdict) -> tuple[str, str]:
+    """``(PASS | FAIL | CONTINUE, why)`` of one look judged at its confidence."""
+    if verdict.deployable:
+        return PASS, "every bound inside its limit"
+    why = certainly_fails(acceptance, uncertainty)
+    return (FAIL, why) if why else (CONTINUE, "; ".join(verdict.reasons))

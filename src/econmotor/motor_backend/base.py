@@ -59,6 +59,10 @@ ADDITIVE_RAW_KEYS = ("units_completed", "units_attempted", "errors", "episode_le
 MEAN_RAW_KEYS = ("risk_score", "novelty_score", "return", "length_steps")
 
 
+#: stop(rows so far, in seed order) -> True to end an evaluation (a sequential evaluation's looks).
+StopFn = Callable[[list[dict[str, Any]]], bool]
+
+
 def no_progress(label: str, completed: float, total: float) -> None:
     """The default progress callback: report nothing."""
 
@@ -293,6 +297,20 @@ class ShadowEnv(NamedTuple):
 
 
 @dataclass(frozen=True)
+class HeldOutCadence:
+    """When evaluation-driven training evaluates by default (``--select-every`` not given).
+
+    Attributes:
+        every_steps: env steps between held-out evaluations, at least (1: after any training iteration).
+        max_share: and only once the training since the last one took at least ``(1 - max_share) /
+            max_share`` times its cost (so by default they cost at most ~10% of a run, whatever the device).
+    """
+
+    every_steps: int = 25_000
+    max_share: float = 0.10
+
+
+@dataclass(frozen=True)
 class RunSize:
     """A training request's size: ``num_envs`` (0: the task's catalog default) and ``max_steps``
     (environment steps); ``task_id`` where the size is meant for one task."""
@@ -329,6 +347,8 @@ class MotorBackendBase:
         environment_options: environment variable -> constructor keyword. A backend never reads the
             environment itself; the edge (the CLI) reads these and passes them
             (:func:`econmotor.motor_backend.factory.environment_options`).
+        held_out_cadence: the default cadence of evaluation-driven training's held-out evaluations
+            (:class:`HeldOutCadence`; ``capabilities.evaluation_driven`` backends).
     """
 
     name: ClassVar[str] = "base"
@@ -339,6 +359,7 @@ class MotorBackendBase:
     final_policy_file: ClassVar[str] = "policy.zip"
     checkpoint_glob: ClassVar[str | None] = None
     environment_options: ClassVar[Mapping[str, str]] = {}
+    held_out_cadence: ClassVar[HeldOutCadence] = HeldOutCadence()
 
     def __init__(self, *, task_files: Sequence[str | Path] = (), runs_dir: str | Path = "runs",
                  catalog: TaskCatalog | None = None) -> None:
@@ -382,6 +403,11 @@ class MotorBackendBase:
     def sweep_resources(cls) -> dict[str, float]:
         """The Ray resources one sweep cell of this backend needs (``num_cpus``, ``num_gpus``)."""
         return {"num_cpus": 1.0, "num_gpus": 0.0}
+
+    def evaluation_batch(self, task_id: str) -> int:
+        """Episodes this backend evaluates together (one batched rollout, or one per worker process): the
+        first look of a sequential evaluation, and how often ``evaluate_policy`` asks ``stop``."""
+        return 16
 
     def device_description(self) -> str | None:
         """The device training runs on, in words (None: the CPU, nothing to announce)."""
@@ -427,8 +453,12 @@ class MotorBackendBase:
     def evaluate_policy(self, policy_id: str, task_id: str, objective: EconomicObjectiveSpec, num_episodes: int,
                         seed: int, *, datapack_configs: Sequence[Any] | None = None,
                         output_dir: str | Path | None = None, progress: ProgressFn = no_progress,
-                        **options: Any) -> MotorEvalResult:
-        """``num_episodes`` deterministic episodes of ``policy_id`` (episode i seeded ``seed + i``)."""
+                        stop: StopFn | None = None, **options: Any) -> MotorEvalResult:
+        """``num_episodes`` deterministic episodes of ``policy_id`` (episode i seeded ``seed + i``).
+
+        ``stop(rows)``: called with the raw episodes finished so far, the first ``len(rows)`` in seed
+        order, whenever a batch has ended (:meth:`evaluation_batch`); True ends the evaluation (a
+        sequential evaluation, ``motor_backend/sequential.py``). Episodes beyond may be returned too."""
         raise NotImplementedError
 
     def deploy_policy_handle(self, policy_id: str) -> PolicyHandle:

@@ -13,10 +13,18 @@ training's seeds, from the post-training evaluation's ``seed + 10,000`` and from
   then the higher J wins; the trainer then saves it as the run's policy;
 - with ``until_deployable``, asks the trainer to stop at the first acceptable evaluation.
 
-A held-out evaluation that cannot pass any more is cut short (:meth:`Selection.hopeless`): the
-episodes still to run are assumed to be copies of its best episode (fall-free first), and if even then
-the report's judgement says not deployable, the rest are not run. So early checkpoints, that
-fall in most episodes, cost a few episodes each; a passing one costs all ``episodes``.
+Each held-out evaluation is sequential (:mod:`econmotor.motor_backend.sequential`, the rule the
+report's evaluation follows): its episodes run in the backend's batches and are judged at pre-set
+looks, each at the look confidence of the alpha-spending plan, until the rule is decided: pass, fail
+(a bound certainly outside its limit, or no way to pass by ``episodes``, the cap), or the cap. So
+early checkpoints that fall in most episodes cost one batch each, and a passing one only the
+episodes its verdict needs.
+
+When held-out evaluations come (:meth:`Selection.due`): every ``every_steps`` env steps and, by
+default, only once the training since the last evaluation is at least ``(1 - max_share) / max_share``
+times that evaluation's cost, so they take at most ``max_share`` of the run's wall time (the
+backend's declared :class:`~econmotor.motor_backend.base.HeldOutCadence`); an explicit
+``--select-every`` drops the share rule, so the cadence is exactly every ``every_steps`` steps.
 
 The report's verdict comes from a separate evaluation on fresh seeds, so it is not selected
 on its own data. :meth:`Selection.record` is what the run's ``run_config.json`` keeps under
@@ -35,18 +43,20 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from econmotor.economics.pricing import price_evaluation
-from econmotor.economics.uncertainty import judge
+from econmotor.economics.uncertainty import CONFIDENCE, SequentialPlan
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.base import SELECTION_SEED_OFFSET, summarize_episodes
+from econmotor.motor_backend.base import SELECTION_SEED_OFFSET
+from econmotor.motor_backend.sequential import FAIL, SequentialEvaluation, judge_raw
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.objectives.loader import objective_weights_vector
 from econmotor.valuation.reward_builder import episode_j
 
-#: a backend's defaults: a held-out evaluation every 25k env steps (a courier's PPO improves over
-#: ~10^5 steps), of 80 episodes (the demo report's evidence: 0 falls in ~80 legs bounds a fall rate at ~3.7%).
+#: the defaults: a held-out evaluation at most every 25k env steps (a courier's PPO improves over
+#: ~10^5 steps); at most 160 episodes each (a sequential evaluation's cap: 0 falls in ~136 legs pass a
+#: 5% limit at the plan's look confidence, 99%, at the look of 128 episodes), batches of 16.
 DEFAULT_SELECT_EVERY = 25_000
-DEFAULT_SELECT_EPISODES = 80
+DEFAULT_SELECT_EPISODES = 160
+DEFAULT_SELECT_BATCH = 16
 
 #: ``evaluate(num_episodes, first_seed, stop) -> raw episodes``; the backend calls ``stop(rows so far)``
 #: whenever a batch of episodes has ended and ends the evaluation when it returns True.
@@ -58,21 +68,33 @@ class SelectionConfig:
     """How a run selects its policy.
 
     Attributes:
-        every_steps: environment steps between held-out evaluations (all envs together).
-        episodes: deterministic episodes per held-out evaluation (the evidence a verdict needs:
-            a courier's 5% fall-rate limit needs ~60 fall-free legs).
+        every_steps: environment steps between held-out evaluations (all envs together), at least.
+        episodes: the cap on deterministic episodes per held-out evaluation (a sequential evaluation
+            stops as soon as its verdict is decided).
         until_deployable: stop training at the first evaluation that passes the acceptance rule.
         seed: the run's seed (held-out seeds start at ``seed + SELECTION_SEED_OFFSET``).
+        batch: episodes of a held-out evaluation's first look (the backend's evaluation batch).
+        max_share: evaluate only while the evaluations so far cost at most this share of the run's wall
+            time (None: exactly every ``every_steps``).
     """
 
     every_steps: int = DEFAULT_SELECT_EVERY
     episodes: int = DEFAULT_SELECT_EPISODES
     until_deployable: bool = False
     seed: int = 0
+    batch: int = DEFAULT_SELECT_BATCH
+    max_share: float | None = None
 
     def __post_init__(self) -> None:
         if self.every_steps < 1 or self.episodes < 1:
             raise ConfigError("<selection>", "every_steps/episodes", "must be >= 1")
+        if self.max_share is not None and not 0 < self.max_share <= 1:
+            raise ConfigError("<selection>", "max_share", "must be in (0, 1]")
+
+    @property
+    def plan(self) -> SequentialPlan:
+        """The sequential plan of one held-out evaluation (a first look no larger than the cap)."""
+        return SequentialPlan(batch=min(self.batch, self.episodes), max_episodes=self.episodes)
 
     @property
     def first_seed(self) -> int:
@@ -86,7 +108,8 @@ class HeldOutResult:
     ``fall_rate_upper`` is the 95% upper bound on the error rate (falls / attempted legs for the
     couriers), ``units_per_hour`` the point throughput and ``units_per_hour_low`` its 95% lower
     bound, ``j_mean`` the mean episode J under the run's objective; ``cut_short`` is True when the
-    evaluation stopped before ``episodes_planned`` because it could no longer pass.
+    evaluation stopped before ``episodes_planned`` (its cap); ``outcome`` is the sequential evaluation's
+    (pass, fail, episode cap, time cap) and ``why`` its reason. Bounds are at the look confidence.
     """
 
     env_steps: int
@@ -103,6 +126,8 @@ class HeldOutResult:
     errors: float
     eval_env_steps: int = 0
     reasons: tuple[str, ...] = ()
+    outcome: str = ""
+    why: str = ""
 
     def status(self) -> str:
         """One short line for a progress bar: ``'@120k: deployable'`` / ``'@40k: falls<=0.31'``."""
@@ -133,41 +158,31 @@ class Selection:
     started: float = field(default_factory=time.perf_counter)
 
     # --- the judgement -------------------------------------------------------------------------
-    def judge(self, raw_episodes: Sequence[Mapping[str, Any]]) -> tuple[Any, Any, float]:
-        """``(Uncertainty, Verdict, mean J)`` of raw episodes: the report's judgement and the objective's J."""
-        economics = self.task.economics
-        _, econ, summaries = summarize_episodes(raw_episodes, economics)
-        pricing = price_evaluation(economics, econ, summaries)
-        uncertainty, verdict = judge(economics, self.task.acceptance, self.task.unit, summaries,
-                                     pricing.aggregate, pricing.policy)
+    def judge(self, raw_episodes: Sequence[Mapping[str, Any]],
+              confidence: float = CONFIDENCE) -> tuple[Any, Any, float]:
+        """``(Uncertainty, Verdict, mean J)`` of raw episodes: the report's judgement (every bound at
+        ``confidence``) and the objective's J."""
+        judged = judge_raw(self.task, raw_episodes, confidence)
         vector = objective_weights_vector(self.objective)
-        js = [episode_j(ep, vector, economics) for ep in summaries]
-        return uncertainty, verdict, (sum(js) / len(js) if js else -math.inf)
-
-    def hopeless(self, raw_episodes: Sequence[Mapping[str, Any]]) -> bool:
-        """True when the evaluation cannot pass even if every episode still to run matched its best one
-        (fall-free first, then the most units)."""
-        rows = list(raw_episodes)
-        left = self.config.episodes - len(rows)
-        if left <= 0 or not rows:
-            return False
-        best = max(rows, key=lambda r: (float(r.get("errors", 0.0)) == 0.0, float(r.get("units_completed", 0.0))))
-        return not self.judge(rows + [best] * left)[1].deployable
+        js = [episode_j(ep, vector, self.task.economics) for ep in judged.summaries]
+        return judged.uncertainty, judged.verdict, (sum(js) / len(js) if js else -math.inf)
 
     def consider(self, env_steps: int, evaluate: EvaluateFn) -> tuple[HeldOutResult, bool]:
-        """Run one held-out evaluation of the current policy; ``(result, is the best so far)``."""
+        """Run one sequential held-out evaluation of the current policy; ``(result, is the best so far)``."""
         t0 = time.perf_counter()
-        rows = evaluate(self.config.episodes, self.config.first_seed, self.hopeless)
-        uncertainty, verdict, j_mean = self.judge(rows)
+        run = SequentialEvaluation(self.task, self.config.plan)
+        rows = run.finish(evaluate(self.config.episodes, self.config.first_seed, run.stop))
+        uncertainty, verdict, j_mean = self.judge(rows, run.plan.look_confidence)
         errors, mpl = uncertainty.intervals["error_rate"], uncertainty.intervals["mpl_units_per_hour"]
-        complete = len(rows) >= self.config.episodes  # a cut-short evaluation never passes
         result = HeldOutResult(
             env_steps=int(env_steps), wall_s=round(time.perf_counter() - self.started, 3),
             eval_s=round(time.perf_counter() - t0, 3), episodes=len(rows), episodes_planned=self.config.episodes,
-            cut_short=not complete, deployable=verdict.deployable and complete, j_mean=float(j_mean),
+            cut_short=len(rows) < self.config.episodes, deployable=run.passed, j_mean=float(j_mean),
             fall_rate_upper=float(errors.high), units_per_hour=float(mpl.point), units_per_hour_low=float(mpl.low),
             errors=float(uncertainty.evidence.errors),
-            eval_env_steps=int(sum(float(r.get("length_steps", 0.0)) for r in rows)), reasons=tuple(verdict.reasons))
+            eval_env_steps=int(sum(float(r.get("length_steps", 0.0)) for r in rows)),
+            reasons=tuple(verdict.reasons) if not run.passed else (),
+            outcome=str(run.outcome), why=run.why if run.outcome == FAIL or not run.passed else "")
         self.history.append(result)
         better = self.best is None or (result.deployable, result.j_mean) > (self.best.deployable, self.best.j_mean)
         if better:
@@ -185,10 +200,26 @@ class Selection:
         self.best = load(record["kept"]) if record.get("kept") else None
 
     # --- what the trainer asks --------------------------------------------------------------
-    def due(self, env_steps: int, last_env_steps: int) -> bool:
-        """An evaluation is due when ``env_steps`` crossed a multiple of ``every_steps`` since the last one."""
+    def due(self, env_steps: int, last_env_steps: int, now: float | None = None) -> bool:
+        """An evaluation is due when ``env_steps`` crossed a multiple of ``every_steps`` since the last one
+        and, with ``max_share``, the wall time since the last evaluation ended is at least
+        ``(1 - max_share) / max_share`` times what it cost, so evaluations take at most ``max_share`` of
+        the run after the first (``now``: ``time.perf_counter()`` unless given)."""
         every = self.config.every_steps
-        return env_steps // every > last_env_steps // every
+        if env_steps // every <= last_env_steps // every:
+            return False
+        if self.config.max_share is None or not self.history:
+            return True
+        # the training since the last evaluation pays for it: at least (1 - share) / share times its cost
+        # (measured from the last evaluation, so a long compile before it buys no burst of evaluations)
+        share, last = self.config.max_share, self.history[-1]
+        since = (time.perf_counter() if now is None else now) - (self.started + last.wall_s)
+        return since * share >= (1.0 - share) * last.eval_s
+
+    @property
+    def evaluation_s(self) -> float:
+        """Wall seconds the held-out evaluations of this run have cost so far."""
+        return sum(r.eval_s for r in self.history)
 
     def final_due(self, env_steps: int, last_env_steps: int) -> bool:
         """Evaluate the last weights too at the end of training: unless they were just evaluated, or training
@@ -230,8 +261,10 @@ class Selection:
         cfg, first = self.config, self.deployable_at
         return {
             "every_steps": cfg.every_steps, "episodes": cfg.episodes, "until_deployable": cfg.until_deployable,
+            "max_share": cfg.max_share, "sequential": cfg.plan.to_dict(),
             "seeds": [cfg.first_seed, cfg.first_seed + cfg.episodes],
-            "judged_by": "economics.uncertainty.judge (the report's acceptance rule), J = mean episode_j",
+            "judged_by": "economics.uncertainty.judge (the report's acceptance rule) at each look of a sequential "
+                         "evaluation (motor_backend/sequential.py), J = mean episode_j",
             "evaluations": [r.to_dict() for r in self.history],
             "kept": self.best.to_dict() if self.best is not None else None,
             "kept_acceptable": bool(self.best and self.best.deployable),
@@ -239,17 +272,26 @@ class Selection:
             "became_deployable": ({"env_steps": first.env_steps, "wall_s": first.wall_s} if first else None),
             "evaluation_cost": {"count": len(self.history), "episodes": sum(r.episodes for r in self.history),
                                 "env_steps": sum(r.eval_env_steps for r in self.history),
-                                "wall_s": round(sum(r.eval_s for r in self.history), 3)},
+                                "wall_s": round(self.evaluation_s, 3)},
         }
 
 
-def selection_for(task: Any, objective: EconomicObjectiveSpec, every_steps: int, episodes: int,
-                  until_deployable: bool, seed: int) -> Selection | None:
+def selection_for(task: Any, objective: EconomicObjectiveSpec, every_steps: int | None, episodes: int | None,
+                  until_deployable: bool, seed: int, cadence: Any = None, batch: int = DEFAULT_SELECT_BATCH
+                  ) -> Selection | None:
     """A backend's :class:`Selection` from its ``train_policy`` arguments; None when ``every_steps``
-    is 0 (no held-out evaluations: the last weights are kept). ``until_deployable`` needs them."""
-    if every_steps <= 0:
+    is 0 (no held-out evaluations: the last weights are kept). ``until_deployable`` needs them.
+
+    ``every_steps`` None: the backend's ``cadence`` (a :class:`~econmotor.motor_backend.base.HeldOutCadence`;
+    its steps and its share of wall time), else exactly every ``every_steps``. ``episodes`` None: the
+    default cap. ``batch``: the backend's evaluation batch (the first look)."""
+    if every_steps is None:
+        every, share = (cadence.every_steps, cadence.max_share) if cadence is not None else (DEFAULT_SELECT_EVERY, None)
+    else:
+        every, share = int(every_steps), None
+    if every <= 0:
         if until_deployable:
             raise ConfigError("<train>", "until_deployable", "needs held-out evaluations (select_every_steps > 0)")
         return None
-    return Selection(task, objective, SelectionConfig(int(every_steps), int(episodes), bool(until_deployable),
-                                                      int(seed)))
+    return Selection(task, objective, SelectionConfig(every, int(episodes or DEFAULT_SELECT_EPISODES),
+                                                      bool(until_deployable), int(seed), int(batch), share))

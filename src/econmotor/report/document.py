@@ -28,6 +28,10 @@ Schema ``econmotor.task_pricing_report`` version :data:`REPORT_SCHEMA_VERSION`::
     started_from: null, or what the training run's actor started from (``--init-policy``, the mjx
                  backend's ``init_policy`` record): {policy, sha256, hidden_sizes, activation,
                  critic_warmup_iterations}
+    evaluation:  how the episode count was chosen and why the evaluation stopped: {rule: sequential |
+                 fixed | after training, episodes, and for a sequential one method, plan {batch, max_episodes,
+                 max_wall_s, looks, look_confidence}, looks [{episodes, outcome, why, wall_s}], outcome
+                 (pass, fail, episode cap, time cap), why, confidence (the verdict's), wall_s}
     registry:    {db_url, report_id}
 
 JSON has no infinity: non-finite numbers are written as ``null`` (a robot that
@@ -179,10 +183,30 @@ def acceptance_inputs(verdict: Verdict) -> list[dict[str, Any]]:
              "source": acc.sources.get("min_units_per_hour", "")}]
 
 
+def evaluation_facts(priced: Any, num_episodes: int) -> dict[str, Any]:
+    """How the priced run's episode count was chosen and why its evaluation stopped (the document's
+    ``evaluation``): ``rule`` "sequential" (with the run's recorded ``sequential``: method, plan, looks,
+    outcome, why, confidence, wall_s), "fixed" (``--eval-episodes N``) or "after training"."""
+    config = getattr(priced, "config", None) or {}
+    sequential = (config.get("backend_config") or {}).get("sequential")
+    if sequential:
+        return {"rule": "sequential", "episodes": num_episodes, **sequential}
+    if getattr(priced, "kind", None) == "eval":
+        return {"rule": "fixed", "episodes": num_episodes}
+    return {"rule": "after training", "episodes": num_episodes}
+
+
 def assess_context(ctx: ReportContext) -> tuple[Uncertainty, Verdict]:
-    """Intervals and the deployability verdict of the priced episodes."""
-    return judge(ctx.task.economics, ctx.task.acceptance, ctx.task.unit, ctx.episodes, ctx.pricing.aggregate,
-                 ctx.pricing.policy)
+    """Intervals and the deployability verdict of the priced episodes. The intervals are at the report's
+    confidence; a sequential evaluation's verdict is judged at the confidence of its looks (the bounds
+    that stay valid under its optional stopping, :class:`~econmotor.economics.uncertainty.SequentialPlan`)."""
+    args = (ctx.task.economics, ctx.task.acceptance, ctx.task.unit, ctx.episodes, ctx.pricing.aggregate,
+            ctx.pricing.policy)
+    uncertainty, verdict = judge(*args)
+    facts = evaluation_facts(ctx.eval_run or ctx.train_run, len(ctx.episodes))
+    if facts["rule"] == "sequential":
+        verdict = judge(*args, confidence=float(facts["confidence"]))[1]
+    return uncertainty, verdict
 
 
 def build_document(ctx: ReportContext, generated_at: dt.datetime | None = None) -> dict[str, Any]:
@@ -222,6 +246,7 @@ def build_document(ctx: ReportContext, generated_at: dt.datetime | None = None) 
         "training_curve": list(ctx.training_curve),
         "selection": selection_facts(ctx.train_run, priced, len(ctx.episodes)),
         "started_from": started_from(ctx.train_run),
+        "evaluation": evaluation_facts(priced, len(ctx.episodes)),
         "registry": {"db_url": ctx.db_url, "report_id": None},
     }
     return json_ready(doc)

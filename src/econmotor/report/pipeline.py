@@ -22,9 +22,11 @@ from typing import Any
 
 from econmotor.config.loading import path_name
 from econmotor.economics.pricing import PricingPolicy, price_evaluation
+from econmotor.economics.uncertainty import SequentialPlan
 from econmotor.errors import BackendError, ConfigError, RegistryError, UnknownNameError
 from econmotor.motor_backend.base import REPORT_EVAL_SEED_OFFSET, ProgressFn, new_run_dir, no_progress
 from econmotor.motor_backend.datapacks import DatapackConfig
+from econmotor.motor_backend.sequential import evaluate_sequentially
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.report.document import ReportContext, build_document
 from econmotor.report.render import report_paths, write_report
@@ -43,7 +45,9 @@ class TrainRequest:
         datapacks: datapack configs, in order (ids are their ``id``).
         num_envs / max_steps / seed: passed to ``train_policy``.
         train_eval_episodes: episodes the backend evaluates right after training.
-        eval_episodes: episodes of an extra evaluation run (0: none).
+        eval_episodes: episodes of an extra evaluation run (0: none, unless ``eval_plan``).
+        eval_plan: a sequential evaluation run instead (``eval_episodes`` 0): episodes in batches until
+            the acceptance rule is decided or a cap is reached (``motor_backend/sequential.py``).
         notes: free text recorded with the runs.
         runs_dir: where the backend writes policies (``<runs_dir>/<task>-<time>-s<seed>-<pid>``).
         output_dir: the run directory itself (``econmotor train --output-dir``), instead of a new one
@@ -60,6 +64,7 @@ class TrainRequest:
     seed: int = 0
     train_eval_episodes: int = 5
     eval_episodes: int = 0
+    eval_plan: SequentialPlan | None = None
     notes: str = ""
     runs_dir: Path = Path("runs")
     output_dir: Path | None = None
@@ -68,6 +73,25 @@ class TrainRequest:
     @property
     def datapack_ids(self) -> list[str]:
         return [p.id for p in self.datapacks]
+
+    @property
+    def evaluates(self) -> bool:
+        """An evaluation run follows (a fixed count, or a sequential plan)."""
+        return self.eval_episodes > 0 or self.eval_plan is not None
+
+    def eval_config(self) -> dict[str, Any]:
+        """What the evaluation run records of how its episodes are chosen."""
+        if self.eval_episodes > 0:
+            return {"num_episodes": self.eval_episodes, "episodes_chosen": "fixed: --eval-episodes"}
+        return {"num_episodes": None, "episodes_chosen": "sequential", "plan": self.eval_plan.to_dict()}
+
+    def evaluate(self, backend: Any, policy_id: str, seed: int, output_dir: Path, progress: ProgressFn) -> Any:
+        """The evaluation run's episodes: ``eval_episodes`` of them, or a sequential evaluation under ``eval_plan``."""
+        kwargs = {"datapack_configs": list(self.datapacks), "output_dir": output_dir, "progress": progress}
+        if self.eval_episodes > 0:
+            return backend.evaluate_policy(policy_id, self.task.task_id, self.objective, self.eval_episodes, seed,
+                                           **kwargs)
+        return evaluate_sequentially(backend, policy_id, self.task, self.objective, self.eval_plan, seed, **kwargs)
 
 
 @dataclass(frozen=True)
@@ -163,17 +187,15 @@ def train_and_record(request: TrainRequest, backend: Any, open_registry: Callabl
     registry = run.registry
     used_envs = (result.config or {}).get("num_envs")  # e.g. the catalog default behind num_envs=0
     registry.finish_run(train_id, result, **({"num_envs": used_envs} if isinstance(used_envs, int) else {}))
-    if request.eval_episodes <= 0:
+    if not request.evaluates:
         return registry, train_id, None
     eval_seed = request.seed + REPORT_EVAL_SEED_OFFSET
     try:
         with registry.track_run("eval", task_id, request.backend_name, seed=eval_seed, parent_run_id=train_id,
-                                config={"num_episodes": request.eval_episodes}, policy_path=result.policy_id,
+                                config=request.eval_config(), policy_path=result.policy_id,
                                 **run.common()) as eval_id:
-            evaluation = backend.evaluate_policy(
-                result.policy_id, task_id, request.objective, request.eval_episodes, eval_seed,
-                datapack_configs=list(request.datapacks), output_dir=Path(f"{run.run_dir}-eval{eval_id}"),
-                progress=progress)
+            evaluation = request.evaluate(backend, result.policy_id, eval_seed, Path(f"{run.run_dir}-eval{eval_id}"),
+                                          progress)
             registry.finish_run(eval_id, evaluation)
     except (KeyboardInterrupt, SystemExit):
         raise
@@ -288,13 +310,11 @@ def evaluate_and_record(request: TrainRequest, backend: Any, policy_id: str, ope
     registry.record_robot(robot_id, name, f"imported policy {policy_id} on {request.task.description}", entry)
     run_dir = request.output_dir or new_run_dir(request.runs_dir, task_id, request.seed)
     eval_seed = request.seed + REPORT_EVAL_SEED_OFFSET
-    config = {"num_episodes": request.eval_episodes, "imported_policy": policy_id, "run_dir": str(run_dir),
+    config = {**request.eval_config(), "imported_policy": policy_id, "run_dir": str(run_dir),
               "datapacks": [p.to_dict() for p in request.datapacks], "task_backend_entry": entry}
     with registry.track_run("eval", task_id, name, seed=eval_seed, config=config, policy_path=policy_id,
                             objective=request.objective, datapack_ids=request.datapack_ids, notes=request.notes,
                             robot_id=robot_id) as eval_id:
-        evaluation = backend.evaluate_policy(policy_id, task_id, request.objective, request.eval_episodes, eval_seed,
-                                             datapack_configs=list(request.datapacks), output_dir=run_dir,
-                                             progress=progress)
+        evaluation = request.evaluate(backend, policy_id, eval_seed, run_dir, progress)
         registry.finish_run(eval_id, evaluation)
     return registry, eval_id

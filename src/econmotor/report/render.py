@@ -82,11 +82,32 @@ def table_rows(doc: Mapping[str, Any]) -> list[tuple[str, ...]]:
 
 
 def evidence_text(doc: Mapping[str, Any]) -> str:
-    """What the figures rest on, in one sentence."""
+    """What the figures rest on, in one sentence; then how the episode count was chosen and why the
+    evaluation stopped."""
     ev = doc["uncertainty"]["evidence"]
-    return (f"Evidence: {ev['episodes']} evaluation episodes, {fmt(ev['units_attempted'])} units attempted "
+    text = (f"Evidence: {ev['episodes']} evaluation episodes, {fmt(ev['units_attempted'])} units attempted "
             f"(unit: {doc['task']['unit']}), {fmt(ev['errors'])} {_errors_word(doc)}, {fmt(ev['robot_hours'])} "
             f"robot-hours ({fmt(ev['robot_hours'] * 60)} robot-minutes).")
+    how = episodes_chosen_text(doc.get("evaluation"))
+    return f"{text} {how}" if how else text
+
+
+def episodes_chosen_text(evaluation: Mapping[str, Any] | None) -> str:
+    """How the priced episode count was chosen and why the evaluation stopped, in one sentence."""
+    if not evaluation:
+        return ""
+    if evaluation["rule"] == "fixed":
+        return f"Episodes: a fixed {evaluation['episodes']}, as asked (--eval-episodes)."
+    if evaluation["rule"] == "after training":
+        return f"Episodes: the {evaluation['episodes']} evaluated right after training."
+    plan, looks = evaluation["plan"], evaluation.get("looks") or []
+    outcome = {"pass": "passed: every bound inside its limit", "fail": f"failed: {evaluation.get('why')}",
+               }.get(evaluation["outcome"], f"{evaluation['outcome']}: {evaluation.get('why')}")
+    return (f"Episodes: sequential, until the acceptance rule was decided (looks at "
+            f"{', '.join(str(n) for n in plan['looks'])} episodes, each bound at "
+            f"{plan['look_confidence'] * 100:.3g}%: alpha-spending over the {len(plan['looks'])} looks, so the "
+            f"verdict holds at 95% however early it stops); stopped after {evaluation['episodes']} episodes at look "
+            f"{len(looks)}, {outcome} ({fmt(evaluation.get('wall_s'))} s).")
 
 
 def _errors_word(doc: Mapping[str, Any]) -> str:

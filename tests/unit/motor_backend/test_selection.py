@@ -1,5 +1,6 @@
 """Evaluation-driven selection (motor_backend/selection.py) on the real hopper_courier economics and
-acceptance rule: the best acceptable policy is kept, not the last; a hopeless evaluation is cut short;
+acceptance rule: the best acceptable policy is kept, not the last; each held-out evaluation is
+sequential (a hopeless one is cut short at its first look, a passing one stops once decided);
 held-out seeds are apart from the report's and the post-training evaluation's."""
 
 from __future__ import annotations
@@ -37,14 +38,15 @@ def evaluation(rows: list[dict]):
     return evaluate
 
 
-SAFE = [episode(1.2, False) for _ in range(80)]  # 96 legs, no fall: upper bound 0.031
-SAFE_SLOW = [episode(1.0, False, energy_wh=0.5) for _ in range(80)]  # passes, lower J (fewer legs, more Wh)
-FAST_FALLING = [episode(3.0, i % 4 == 0) for i in range(80)]  # many legs (the highest J), falls in a quarter
-FALLING = [episode(0.1, True) for _ in range(80)]
+# a held-out evaluation of at most 160 episodes looks at 16, 32, 64, 128 and 160, each bound at 99%
+SAFE = [episode(1.2, False) for _ in range(160)]  # no fall: 153.6 legs at 128 episodes bound it at 0.030
+SAFE_SLOW = [episode(1.0, False, energy_wh=0.5) for _ in range(160)]  # passes, lower J (fewer legs, more Wh)
+FAST_FALLING = [episode(3.0, i % 4 == 0) for i in range(160)]  # many legs (the highest J), falls in a quarter
+FALLING = [episode(0.1, True) for _ in range(160)]
 
 
 def selection(until: bool = False) -> Selection:
-    return Selection(TASK, OBJECTIVE, SelectionConfig(every_steps=1000, episodes=80, until_deployable=until))
+    return Selection(TASK, OBJECTIVE, SelectionConfig(every_steps=1000, episodes=160, until_deployable=until))
 
 
 def test_the_best_acceptable_policy_is_kept_not_the_last():
@@ -82,22 +84,38 @@ def test_until_deployable_stops_at_the_first_pass():
     assert "training stopped there" in sel.kept_reason()
 
 
-def test_a_hopeless_evaluation_is_cut_short_and_a_passing_one_runs_in_full():
+def test_a_hopeless_evaluation_is_cut_short_and_a_passing_one_stops_once_decided():
     sel = selection()
     falling, _ = sel.consider(1000, evaluation(FALLING))
-    assert falling.cut_short and falling.episodes == 16 and not falling.deployable
+    assert falling.cut_short and falling.episodes == 16 and not falling.deployable and falling.outcome == "fail"
     safe, _ = sel.consider(2000, evaluation(SAFE))
-    assert not safe.cut_short and safe.episodes == 80
+    assert safe.deployable and safe.outcome == "pass" and safe.episodes == 128  # 64 (76.8 legs) were too few
+    assert safe.fall_rate_upper == pytest.approx(1 - 0.01 ** (1 / 153.6))  # the look's bound, at 99%
 
 
-def test_a_cut_short_evaluation_never_passes():
+def test_an_evaluation_that_ran_out_before_a_decision_never_passes():
     sel = selection()
     short, _ = sel.consider(1000, lambda n, seed, stop: SAFE[:40])
-    assert short.cut_short and not short.deployable
+    assert short.cut_short and not short.deployable and short.episodes == 32  # the last look it reached
+
+
+def test_the_default_cadence_keeps_held_out_evaluations_under_their_share_of_wall_time():
+    sel = Selection(TASK, OBJECTIVE, SelectionConfig(every_steps=1000, episodes=160, max_share=0.1))
+    sel.started = 0.0
+    assert sel.due(1000, 0, now=500.0)  # the first, whenever it comes (a long compile before it buys nothing)
+    sel.consider(1000, evaluation(FALLING))
+    last = sel.history[-1]
+    ended = sel.started + last.wall_s
+    assert not sel.due(2000, 1000, now=ended + 8.9 * last.eval_s)  # it would be over 10% of the time since
+    assert sel.due(2000, 1000, now=ended + 9.0 * last.eval_s + 1e-6)
+    assert not sel.due(1500, 1000, now=1e9)  # and never before every_steps
+    exact = Selection(TASK, OBJECTIVE, SelectionConfig(every_steps=1000, episodes=160))
+    exact.consider(1000, evaluation(FALLING))
+    assert exact.due(2000, 1000, now=exact.started)  # --select-every N: exactly every N steps
 
 
 def test_held_out_seeds_are_apart_from_the_reports_and_the_post_training_evaluations():
-    cfg = SelectionConfig(episodes=80, seed=7)
+    cfg = SelectionConfig(episodes=160, seed=7)
     held_out = set(range(cfg.first_seed, cfg.first_seed + cfg.episodes))
     report = set(range(7 + 1_000, 7 + 1_000 + 10_000))  # report evaluation: seed + 1000 + i (even 10,000 episodes)
     after_training = set(range(7 + 10_000, 7 + 10_000 + 1_000))

@@ -51,6 +51,7 @@ from econmotor.motor_backend.base import (
     RunSize,
     ShadowEnv,
     StepAlias,
+    StopFn,
     no_progress,
     read_run_config,
     summarize_episodes,
@@ -335,7 +336,7 @@ class DishwashingBackend(MotorBackendBase):
     # ----------------------------------------------------------- evaluation
     def _evaluate(self, model: Any, spec: TaskSpec, params: EconParams, norm: str,
                   objective: EconomicObjectiveSpec, randomization: EconRandomization, num_episodes: int,
-                  seed: int, progress: ProgressFn):
+                  seed: int, progress: ProgressFn, stop: StopFn | None = None):
         # evaluate at the curriculum's final difficulty: the task as it will be met
         rand = replace(randomization, initial_difficulty=randomization.max_difficulty)
         env = self._env_factory(spec, params, norm, objective, rand)()
@@ -343,6 +344,8 @@ class DishwashingBackend(MotorBackendBase):
         raw_episodes = []
         progress("evaluate", 0, num_episodes)
         for i in range(num_episodes):
+            if stop is not None and i and i % self.evaluation_batch(spec.task_id) == 0 and stop(raw_episodes):
+                break
             obs, _ = env.reset(seed=seed + i)
             done = False
             while not done:
@@ -363,8 +366,10 @@ class DishwashingBackend(MotorBackendBase):
         datapack_configs: Sequence[Any] | None = None,
         output_dir: str | Path | None = None,
         progress: ProgressFn = no_progress,
+        stop: StopFn | None = None,
     ) -> MotorEvalResult:
-        """Run ``num_episodes`` deterministic episodes (seeds ``seed + i``) of a saved policy.
+        """Run ``num_episodes`` deterministic episodes (seeds ``seed + i``) of a saved policy; ``stop`` as
+        the contract's.
 
         ``return`` in each episode is the reward the policy is trained on (normalised as the
         backend says, without ``reward_scale``); ``output_dir`` is unused (evaluation writes nothing).
@@ -375,7 +380,7 @@ class DishwashingBackend(MotorBackendBase):
         randomization = self._randomization(task_id, (), datapack_configs)
         model = self.deploy_policy_handle(policy_id).model
         raw, econ, episodes = self._evaluate(model, spec, params, norm, objective, randomization,
-                                             num_episodes, seed, progress)
+                                             num_episodes, seed, progress, stop)
         config = {"backend": BACKEND_NAME, "task_id": task_id, "objective": objective.to_dict(),
                   "num_episodes": num_episodes, "seed": seed, "overlay_normalization": norm}
         return MotorEvalResult(policy_id=policy_id, task_id=task_id, backend=BACKEND_NAME, raw_metrics=raw,

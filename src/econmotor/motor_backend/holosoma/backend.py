@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -55,6 +56,7 @@ from econmotor.motor_backend.base import (
     ProgressFn,
     RunSize,
     StepAlias,
+    StopFn,
     evaluation_result,
     no_progress,
     read_run_config,
@@ -65,7 +67,7 @@ from econmotor.motor_backend.couriers.onnx_policy import ECONMOTOR_PREFIX, econm
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.motor_backend.holosoma.datapack_mapping import map_datapacks
 from econmotor.motor_backend.holosoma.econ_formulas import OVERLAY_TERM_KEYS
-from econmotor.motor_backend.holosoma.jobs import run_job
+from econmotor.motor_backend.holosoma.jobs import run_episode_jobs, run_job
 from econmotor.motor_backend.holosoma.plan import (
     DEFAULT_CPU_MAX_ENV_STEPS,
     HOLOSOMA_TASK_PRESETS,
@@ -198,6 +200,8 @@ class HolosomaBackend(MotorBackendBase):
         command_speed_m_per_s: the sim-to-sim course's commanded speed (default: the catalog's
             ``course_speed_m_per_s``).
         job_timeout_s: kill a job running longer than this.
+        eval_workers: processes a sim-to-sim evaluation runs its episodes in (None: the CPUs this
+            process may use, at most 2); episode i is seeded ``seed + i`` whichever runs it.
     """
 
     name = "holosoma"
@@ -223,6 +227,7 @@ class HolosomaBackend(MotorBackendBase):
         eval_episode_length_s: float | None = None,
         command_speed_m_per_s: float | None = None,
         job_timeout_s: float | None = None,
+        eval_workers: int | None = None,
     ) -> None:
         super().__init__(task_files=task_files, runs_dir=runs_dir, catalog=catalog)
         self.simulator = simulator or "auto"
@@ -234,6 +239,10 @@ class HolosomaBackend(MotorBackendBase):
         self.eval_episode_length_s = eval_episode_length_s
         self.command_speed_m_per_s = command_speed_m_per_s
         self.job_timeout_s = job_timeout_s
+        if eval_workers is not None and eval_workers < 1:
+            raise ConfigError("<holosoma backend>", "eval_workers", f"must be >= 1, got {eval_workers}")
+        self.eval_workers = int(eval_workers or min(2, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                                                    else (os.cpu_count() or 1)))
         self._caps: Capabilities | None = None
 
     @classmethod
@@ -366,9 +375,11 @@ class HolosomaBackend(MotorBackendBase):
         datapack_configs: Sequence[DatapackConfig] | None = None,
         output_dir: str | Path | None = None,
         progress: ProgressFn = no_progress,
+        stop: StopFn | None = None,
     ) -> MotorEvalResult:
         """Evaluate a run directory trained here or an imported policy (``policy.onnx``-style file or
-        ``holosoma:<robot>/<algo>``); episode ``i`` is seeded ``seed + i``.
+        ``holosoma:<robot>/<algo>``); episode ``i`` is seeded ``seed + i``; ``stop`` as the contract's
+        (sim-to-sim: every :meth:`evaluation_batch` episodes finished in order).
 
         Locomotion tasks: the sim-to-sim evaluator (:mod:`.sim2sim`) on the policy's ONNX, the same for a
         policy trained here and one trained elsewhere. Whole-body tracking (a motion clip): Holosoma's
@@ -385,7 +396,7 @@ class HolosomaBackend(MotorBackendBase):
             policy = str(policy_id) if str(policy_id).startswith(NAME_PREFIX) else \
                 str(Path(policy_id if imported else record["onnx"]).resolve())
             return self._sim2sim(policy, str(policy_id), imported, spec, settings, num_episodes, seed,
-                                 list(datapack_configs or ()), run_dir, progress)
+                                 list(datapack_configs or ()), run_dir, progress, stop)
         if imported:
             raise ConfigError("--policy", str(policy_id), f"task '{task_id}' tracks a motion clip; the sim-to-sim "
                               "evaluator walks locomotion courses",
@@ -394,8 +405,9 @@ class HolosomaBackend(MotorBackendBase):
 
     def _sim2sim(self, policy: str, policy_id: str, imported: bool, spec: Any, settings: dict[str, Any],
                  num_episodes: int, seed: int, packs: list[DatapackConfig], run_dir: Path,
-                 progress: ProgressFn) -> MotorEvalResult:
-        """A ``sim2sim`` job: the course, the shared meter and the datapack's stress from the task catalog."""
+                 progress: ProgressFn, stop: StopFn | None = None) -> MotorEvalResult:
+        """``sim2sim`` jobs, one per worker process (:attr:`eval_workers`; worker w runs episodes w, w + W,
+        ...): the course, the shared meter and the datapack's stress from the task catalog."""
         task_id = spec.task_id
         missing = [k for k in SIM2SIM_KEYS if k not in settings]
         if missing:
@@ -421,8 +433,13 @@ class HolosomaBackend(MotorBackendBase):
                          "the default); a datapack such as configs/datapacks/humanoid_stress.yaml adds stress")
         for text in notes:
             progress(f"holosoma: {text}", 1.0, 1.0)
-        outcome = run_job(self.python, job, run_dir, progress, self.job_timeout_s)
-        episodes = outcome.result["episodes"]
+        workers = max(1, min(self.eval_workers, int(num_episodes)))
+        job["sequential"] = stop is not None  # the message says "up to" the cap
+        jobs = [{**job, "worker": w, "announce": w == 0, "episode_indices": list(range(w, int(num_episodes), workers))}
+                for w in range(workers)]
+        stream, wall_s = run_episode_jobs(self.python, jobs, run_dir, progress, int(num_episodes),
+                                          self.evaluation_batch(task_id), stop, self.job_timeout_s)
+        episodes = stream.prefix()
         walking_s = sum(float(e["walking_s"]) for e in episodes)
         achieved = sum(float(e["achieved_speed_m_per_s"]) * float(e["walking_s"]) for e in episodes) / walking_s \
             if walking_s > 0 else 0.0
@@ -433,13 +450,17 @@ class HolosomaBackend(MotorBackendBase):
             "mean_power_w": power_w, "mean_mech_power_w": mechanical_from_electrical_w(
                 power_w, meter["drivetrain_efficiency"], meter["idle_power_w"]),
             "figures_from": "MuJoCo sim-to-sim (plain MuJoCo, the policy's ONNX, holosoma_inference's observations; "
-                            f"{model_text(outcome.result['contract'])})",
+                            f"{model_text(stream.setup['contract'])})",
             "commanded_speed_m_per_s": speed, "achieved_speed_m_per_s": achieved, "episode_length_s": episode_s,
             "course": course, "meter": meter, "datapacks": list(bundle.datapack_ids),
-            "stress": outcome.result["stress"],
-            "contract": outcome.result["contract"], "wall_s": outcome.result["wall_s"],
-            "messages": [*notes, *outcome.messages], "eval_log": outcome.log_path}
+            "stress": stream.setup.get("stress"), "contract": stream.setup.get("contract"), "wall_s": wall_s,
+            "workers": workers, "messages": [*notes, *stream.messages],
+            "eval_log": str(run_dir / "sim2sim_0.log")}
         return evaluation_result(self.name, policy_id, task_id, episodes, spec.economics, config, output_dir=run_dir)
+
+    def evaluation_batch(self, task_id: str) -> int:
+        """Ten episodes per worker process between looks."""
+        return 10 * self.eval_workers
 
     def _eval_agent(self, record: dict[str, Any], policy_id: str, task_id: str, spec: Any,
                     objective: EconomicObjectiveSpec, num_episodes: int, seed: int, run_dir: Path,

@@ -24,6 +24,7 @@ import importlib.util
 import json
 import os
 import sys
+import time
 import traceback
 from pathlib import Path
 from typing import Any
@@ -264,15 +265,26 @@ def sim2sim(job: dict[str, Any]) -> dict[str, Any]:
         emit("message", text="not applied in the sim-to-sim evaluation: " + "; ".join(stress.ignored))
     course = s.CourseSettings(**job["course"])
     meter = s.MeterSettings(**job["meter"])
+    indices = [int(i) for i in job.get("episode_indices") or range(int(job["num_episodes"]))]
     total = int(job["num_episodes"])
-    emit("message", text=f"sim-to-sim: {contract.policy} ({contract.inference_preset} observations, "
-                         f"{contract.control_rate_hz:g} Hz policy, {1 / contract.physics_dt_s:g} Hz PD) in MuJoCo, "
-                         f"{total} episode(s) of {course.legs or 'unlimited'} {course.leg_m:g} m leg(s) with a "
-                         f"{course.dwell_s:g} s dwell each (at most {job['episode_s']:g} s) at "
-                         f"{course.speed_m_per_s:g} m/s commanded")
-    episodes, wall_s = s.evaluate(contract, course, meter, stress, total, float(job["episode_s"]), int(job["seed"]),
-                                  lambda done, n: emit("progress", label="sim-to-sim episodes", done=done, total=n))
-    return {"episodes": episodes, "wall_s": wall_s, "contract": contract.to_dict(),
+    count = f"up to {total}" if job.get("sequential") else str(total)
+    if job.get("announce", True):
+        emit("message", text=f"sim-to-sim: {contract.policy} ({contract.inference_preset} observations, "
+                             f"{contract.control_rate_hz:g} Hz policy, {1 / contract.physics_dt_s:g} Hz PD) in "
+                             f"MuJoCo, {count} episode(s) of {course.legs or 'unlimited'} {course.leg_m:g} m leg(s) "
+                             f"with a {course.dwell_s:g} s dwell each (at most {job['episode_s']:g} s) at "
+                             f"{course.speed_m_per_s:g} m/s commanded")
+    emit("setup", contract=contract.to_dict(), stress=dataclasses.asdict(stress))
+    # episode i is seeded seed + i whichever worker runs it: one process or several give the same episodes
+    robot, policy = s.build_robot(contract), s.onnx_policy(contract)
+    episodes, start = [], time.perf_counter()
+    for done, i in enumerate(indices, 1):
+        episode = s.run_episode(robot, contract, policy, course, meter, stress, float(job["episode_s"]),
+                                int(job["seed"]) + i)
+        episodes.append(episode)
+        emit("episode", index=i, episode=episode)
+        emit("progress", label="sim-to-sim episodes", done=done, total=len(indices))
+    return {"episodes": episodes, "wall_s": time.perf_counter() - start, "contract": contract.to_dict(),
             "stress": dataclasses.asdict(stress)}
 
 

@@ -37,6 +37,7 @@ from econmotor.motor_backend import base
 from econmotor.motor_backend.base import RUN_CONFIG_FILE, ProgressFn, check_resume_request, no_progress
 from econmotor.motor_backend.mjx import checkpoint as ckpt
 from econmotor.motor_backend.mjx import ppo
+from econmotor.motor_backend.mjx.compile import CacheWatch
 from econmotor.motor_backend.selection import Selection
 
 POLICY_FILE = "policy.npz"
@@ -167,6 +168,8 @@ class MjxTrainingRun:
     held_out: Callable[..., list[dict[str, Any]]] | None = None
     #: the learner a fresh run starts from (None: ``ppo.init_learner``); a resumed run starts from its checkpoint
     initial: ppo.Learner | None = None
+    #: JAX's persistent compilation cache (said when a run starts warm from it)
+    cache_dir: str | None = None
 
     def _consider(self, learner: ppo.Learner, key: Any, steps: int, writer: Any) -> None:
         """One held-out evaluation of ``learner``; saved to ``best/`` when the best so far; TensorBoard."""
@@ -187,6 +190,7 @@ class MjxTrainingRun:
               ) -> tuple[ppo.Learner, list[dict[str, float]], dict[str, Any]]:
         """Train to ``max_steps``; returns (learner, training curve, timing)."""
         started = time.perf_counter()
+        watch = CacheWatch()
         self.run_dir.mkdir(parents=True, exist_ok=True)
         found = None
         if resume:
@@ -243,6 +247,10 @@ class MjxTrainingRun:
                         opt_state=ppo.make_optimizer(cfg).init(params)))
                 if first_done is None:  # the first iteration includes XLA compilation
                     first_done, t_loop = time.perf_counter() - started, time.perf_counter()
+                    if watch.hits:
+                        progress(f"mjx: compilation cache warm: {watch.hits} compiled program(s) loaded from "
+                                 f"{self.cache_dir or 'the cache'} (about {watch.saved_s:.0f} s of XLA compilation "
+                                 f"saved); first iteration {first_done:.1f} s", 1.0, 1.0)
                 for name, value in episode_scalars(metrics, env.factors).items():
                     writer.add_scalar(name, value, steps)
                 for name in ("policy_loss", "value_loss", "entropy", "clip_fraction", "reward_mean"):
@@ -281,7 +289,8 @@ class MjxTrainingRun:
         trained = steps - int(self.config["resumed_from_steps"])
         loop_s = time.perf_counter() - t_loop
         timing = {"total_steps": steps, "first_iteration_s": first_done or 0.0, "train_wall_s":
-                  time.perf_counter() - started,
+                  time.perf_counter() - started, "compile_cache_hits": watch.hits,
+                  "compile_s_saved": round(watch.saved_s, 3),
                   "env_steps_per_s_after_compile": (trained - per_iteration) / loop_s
                   if trained > per_iteration and loop_s > 0 else None}
         return learner, curve, timing

@@ -31,6 +31,7 @@ from econmotor.motor_backend.base import (
     ProgressFn,
     RunSize,
     ShadowEnv,
+    StopFn,
     evaluation_result,
     no_progress,
     read_run_config,
@@ -44,11 +45,11 @@ from econmotor.motor_backend.mujoco.evaluation import load_policy, rollout_episo
 from econmotor.motor_backend.mujoco.export import OnnxPolicyHandle, export_onnx
 from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper
 from econmotor.motor_backend.mujoco.randomization import parse_randomization
-from econmotor.motor_backend.mujoco.run import TrainingRun
+from econmotor.motor_backend.mujoco.run import HELD_OUT_BATCH, TrainingRun
 from econmotor.motor_backend.mujoco.settings import MujocoTaskSettings, parse_mujoco_settings
 from econmotor.motor_backend.mujoco.step_summary import MujocoStepSummaryWrapper
 from econmotor.motor_backend.mujoco.training import obs_normalizer
-from econmotor.motor_backend.selection import DEFAULT_SELECT_EPISODES, DEFAULT_SELECT_EVERY, selection_for
+from econmotor.motor_backend.selection import selection_for
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
 from econmotor.tasks.catalog import TaskCatalog, TaskSpec
 
@@ -127,6 +128,11 @@ class MujocoBackend(MotorBackendBase):
         }
         return recipe, described
 
+    def evaluation_batch(self, task_id: str) -> int:
+        """Held-out episodes run :data:`HELD_OUT_BATCH` envs at a time; a report's evaluation asks ``stop``
+        as often."""
+        return HELD_OUT_BATCH
+
     # --- the MotorBackendBase contract ------------------------------------------------------
     def train_policy(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str],
                      num_envs: int, max_steps: int, seed: int, *,
@@ -134,16 +140,17 @@ class MujocoBackend(MotorBackendBase):
                      output_dir: str | Path | None = None, eval_episodes: int = 5,
                      progress: ProgressFn = no_progress, resume: bool = False, algorithm: str | None = None,
                      hyperparameters: dict[str, Any] | None = None,
-                     checkpoint_every_steps: int | None = None, select_every_steps: int = DEFAULT_SELECT_EVERY,
-                     select_episodes: int = DEFAULT_SELECT_EPISODES,
+                     checkpoint_every_steps: int | None = None, select_every_steps: int | None = None,
+                     select_episodes: int | None = None,
                      until_deployable: bool = False) -> MotorTrainingResult:
         """Train a policy and evaluate it on ``eval_episodes`` deterministic episodes.
 
         ``num_envs <= 0`` uses the catalog's default; ``resume=True`` continues the run in
         ``output_dir`` from its newest checkpoint up to ``max_steps`` total environment steps.
         Evaluation-driven training (``motor_backend/selection.py``): every ``select_every_steps``
-        env steps and at the end, ``select_episodes`` held-out episodes judge the policy by the
-        task's acceptance rule; the best is kept (``0`` turns it off: the last weights are kept).
+        env steps (None: :attr:`held_out_cadence`) and at the end, a sequential held-out evaluation of
+        at most ``select_episodes`` episodes judges the policy by the task's acceptance rule; the best is
+        kept (``0`` turns it off: the last weights are kept).
         ``until_deployable`` stops at the first held-out evaluation that passes.
         """
         torch.set_num_threads(self.torch_threads)
@@ -158,7 +165,7 @@ class MujocoBackend(MotorBackendBase):
             vec_env=self.vec_env, checkpoint_every_steps=checkpoint_every_steps or settings.checkpoint_every_steps,
             requested_algorithm=algorithm, eval_recipe=self._eval_recipe(recipe),
             selection=selection_for(self.catalog.get(task_id), objective, select_every_steps, select_episodes,
-                                    until_deployable, seed),
+                                    until_deployable, seed, self.held_out_cadence, self.evaluation_batch(task_id)),
         )
         model, curve = run.train(resume=resume, progress=progress)
         artifacts = {"policy": str(run.run_dir / "policy.zip"), "tensorboard": str(run.run_dir / "tb"),
@@ -180,8 +187,9 @@ class MujocoBackend(MotorBackendBase):
     def evaluate_policy(self, policy_id: str, task_id: str, objective: EconomicObjectiveSpec, num_episodes: int,
                         seed: int, *, datapack_configs: Sequence[DatapackConfig] | None = None,
                         output_dir: str | Path | None = None, progress: ProgressFn = no_progress,
-                        datapack_ids: Sequence[str] = ()) -> MotorEvalResult:
-        """Run ``num_episodes`` deterministic episodes (episode i seeded ``seed + i``).
+                        datapack_ids: Sequence[str] = (), stop: StopFn | None = None) -> MotorEvalResult:
+        """Run ``num_episodes`` deterministic episodes (episode i seeded ``seed + i``); ``stop`` as the
+        contract's (asked every :meth:`evaluation_batch` episodes).
 
         Datapacks given here (e.g. randomization) apply at full difficulty; without them the
         nominal task is evaluated.
@@ -191,7 +199,8 @@ class MujocoBackend(MotorBackendBase):
         recipe, described = self.recipe(task_id, objective, datapack_ids, datapack_configs)
         _, act = load_policy(policy_id, config["algorithm"])
         env = make_env(self._eval_recipe(recipe), seed=seed)
-        raw_eps = rollout_episodes(env, act, num_episodes, seed, progress)
+        raw_eps = rollout_episodes(env, act, num_episodes, seed, progress, stop=stop,
+                                   batch=self.evaluation_batch(task_id))
         env.close()
         eval_config = {**described, "policy_id": str(policy_id), "num_episodes": num_episodes, "seed": seed,
                        "algorithm": config["algorithm"], "deterministic": True}

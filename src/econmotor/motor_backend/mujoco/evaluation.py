@@ -52,11 +52,16 @@ def flatten_episode(info: dict[str, Any]) -> dict[str, Any]:
 
 
 def rollout_episodes(env: gym.Env, act: ActFn, num_episodes: int, seed: int,
-                     progress: ProgressFn = no_progress, label: str = "evaluate") -> list[dict[str, Any]]:
-    """Run ``num_episodes`` episodes (episode i reset with ``seed + i``); one raw-metrics dict each."""
-    episodes = []
+                     progress: ProgressFn = no_progress, label: str = "evaluate",
+                     stop: Callable[[list[dict[str, Any]]], bool] | None = None,
+                     batch: int = 16) -> list[dict[str, Any]]:
+    """Run ``num_episodes`` episodes (episode i reset with ``seed + i``); one raw-metrics dict each.
+    After every ``batch`` episodes ``stop(episodes so far)`` may end the evaluation early."""
+    episodes: list[dict[str, Any]] = []
     progress(label, 0, num_episodes)
     for i in range(num_episodes):
+        if stop is not None and i and i % batch == 0 and stop(episodes):
+            break
         obs, _ = env.reset(seed=seed + i)
         while True:
             obs, _, terminated, truncated, info = env.step(act(obs))
@@ -74,7 +79,8 @@ def rollout_batched(envs: Sequence[gym.Env], act: ActFn, num_episodes: int, seed
     policy's forward pass, most of a single-env step's cost, is shared by the batch.
 
     After each ``len(envs)`` finished episodes ``stop(rows so far)`` may end the evaluation early
-    (episodes still running are dropped). Rows are returned in episode order.
+    (episodes still running are dropped); it sees the episodes finished in an unbroken run from the
+    first (episode order), as a sequential evaluation's looks need. Rows are returned in episode order.
     """
     rows: dict[int, dict[str, Any]] = {}
     next_episode, running = 0, {}  # env index -> episode index
@@ -99,6 +105,9 @@ def rollout_batched(envs: Sequence[gym.Env], act: ActFn, num_episodes: int, seed
                 next_episode += 1
         if stop is not None and len(rows) - checked >= len(envs) and running:
             checked = len(rows)
-            if stop([rows[i] for i in sorted(rows)]):
+            prefix = []
+            while len(prefix) in rows:
+                prefix.append(rows[len(prefix)])
+            if stop(prefix):
                 break
     return [rows[i] for i in sorted(rows)]

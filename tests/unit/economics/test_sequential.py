@@ -1,0 +1,108 @@
+"""The sequential rule (evidence sized to the verdict) under optional stopping, checked by simulation.
+
+Each simulated evaluation walks episodes of ``legs`` legs; each leg falls with the policy's true
+fall rate and a fall ends the episode (one error). The rule judges the first ``n_k`` episodes at each
+look of a :class:`SequentialPlan` with the report's own ``decide`` on exact binomial bounds at the
+look's confidence, and stops at the first look that passes or certainly fails.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from econmotor.config.acceptance import Acceptance
+from econmotor.economics.pricing import PricingPolicy, price_task
+from econmotor.economics.uncertainty import (
+    CONTINUE,
+    FAIL,
+    PASS,
+    Evidence,
+    Interval,
+    SequentialPlan,
+    Uncertainty,
+    clopper_pearson,
+    decide,
+    look_outcome,
+)
+from econmotor.errors import ConfigError
+from econmotor.tasks import get_task
+
+LIMIT = 0.01  # the G1 walkers' accepted fall rate
+ACCEPT = Acceptance(max_error_rate=LIMIT, min_units_per_hour=0.0, error_name="fall")
+PRICE = price_task(get_task("humanoid_locomotion_g1").economics, 90.0, LIMIT, 0.1, PricingPolicy())
+
+
+def counts_uncertainty(errors: float, attempted: float, confidence: float) -> Uncertainty:
+    """What ``assess`` gives the verdict for a fall count (the error rate's exact bounds; throughput fine)."""
+    low, high = clopper_pearson(errors, attempted, confidence)
+    intervals = {"error_rate": Interval(errors / attempted, low, high, "Clopper-Pearson exact binomial"),
+                 "mpl_units_per_hour": Interval(90.0, 80.0, 100.0, "given")}
+    evidence = Evidence(episodes=1, units_attempted=attempted, units_completed=attempted - errors, errors=errors,
+                        episodes_with_errors=int(errors > 0), robot_hours=1.0)
+    return Uncertainty(confidence, evidence, intervals, PRICE, 0, 0)  # decide reads no price
+
+
+def simulate(plan: SequentialPlan, fall_rate: float, runs: int, legs: int, seed: int,
+             confidence: float | None = None) -> tuple[float, float]:
+    """(share of runs judged deployable, mean episodes used) of ``runs`` simulated sequential evaluations.
+    ``confidence``: judge every look at it instead of the plan's look confidence (a naive rule)."""
+    rng = np.random.default_rng(seed)
+    conf = plan.look_confidence if confidence is None else confidence
+    passes, used = 0, 0
+    for _ in range(runs):
+        # legs walked before the first fall: geometric; a fall ends the episode with one error
+        first_fall = rng.geometric(fall_rate, size=plan.max_episodes)
+        falls = (first_fall <= legs).astype(float)
+        attempted = np.where(falls > 0, first_fall, legs).astype(float)
+        outcome, n = CONTINUE, 0
+        for n in plan.looks:
+            k, att = float(falls[:n].sum()), float(attempted[:n].sum())
+            unc = counts_uncertainty(k, att, conf)
+            outcome, _ = look_outcome(ACCEPT, unc, decide(ACCEPT, unc, 0.01, "10 m leg"))
+            if outcome != CONTINUE:
+                break
+        passes += outcome == PASS
+        used += n
+    return passes / runs, used / runs
+
+
+def test_a_policy_at_the_limit_is_judged_deployable_at_most_5_percent_of_the_time():
+    plan = SequentialPlan(batch=20, max_episodes=640)
+    rate, _ = simulate(plan, LIMIT, runs=3000, legs=3, seed=1)
+    assert rate <= 0.05
+    # the same looks, each judged at 95% without spending: optional stopping inflates false passes
+    naive, _ = simulate(plan, LIMIT, runs=1000, legs=3, seed=1, confidence=0.95)
+    assert naive > 0.05 and naive > 2 * rate
+
+
+def test_a_policy_far_inside_the_limit_stops_early_and_one_far_outside_fails_early():
+    plan = SequentialPlan(batch=20, max_episodes=640)
+    rate, episodes = simulate(plan, LIMIT / 20, runs=500, legs=3, seed=2)
+    assert rate > 0.9 and episodes < plan.max_episodes / 2  # 0 falls in 476 legs pass: 159 episodes
+    rate, episodes = simulate(plan, 0.2, runs=500, legs=3, seed=3)
+    assert rate == 0 and episodes < plan.looks[1]  # decided at the first look, almost always
+
+
+def test_looks_double_from_one_batch_to_the_cap_and_split_the_alpha():
+    plan = SequentialPlan(batch=20, max_episodes=300)
+    assert plan.looks == (20, 40, 80, 160, 300)
+    assert plan.look_confidence == pytest.approx(1 - 0.05 / 5)
+    assert SequentialPlan(batch=16, max_episodes=16).looks == (16,)
+
+
+def test_a_certain_failure_is_told_apart_from_an_undecided_look():
+    conf = 0.99
+    unc = counts_uncertainty(8, 60, conf)  # 8 falls in 60 legs: certainly above 0.01
+    assert look_outcome(ACCEPT, unc, decide(ACCEPT, unc, 0.01, "leg"))[0] == FAIL
+    unc = counts_uncertainty(0, 60, conf)  # no fall in 60 legs: not enough to pass, nothing certain
+    assert look_outcome(ACCEPT, unc, decide(ACCEPT, unc, 0.01, "leg"))[0] == CONTINUE
+
+
+@pytest.mark.parametrize(("kwargs", "key"), [({"batch": 16, "max_episodes": 8}, "below one evaluation batch"),
+                                             ({"batch": 16, "max_episodes": -5}, "below one evaluation batch"),
+                                             ({"batch": 16, "max_wall_s": -1.0}, "positive number of seconds"),
+                                             ({"batch": 0}, "must be >= 1")])
+def test_a_plan_that_cannot_run_is_a_config_error(kwargs, key):
+    with pytest.raises(ConfigError, match=key):
+        SequentialPlan(**kwargs)
