@@ -119,3 +119,33 @@ def test_a_resumed_run_keeps_its_earlier_best_unless_beaten():
     assert resumed.best == sel.best and resumed.history == sel.history
     _, better = resumed.consider(2000, evaluation(SAFE_SLOW))  # acceptable, lower J: the earlier one stays
     assert not better and resumed.best.env_steps == 1000
+
+
+# mixed evaluations: a fall among clean episodes. 1 fall in 80 episodes of 1.2 legs: 97 legs, bound 0.048 (passes)
+ONE_FALL_FIRST = [episode(1.2, i == 0) for i in range(80)]
+ONE_FALL_IN_BATCH = [episode(1.2, i == 9) for i in range(80)]
+ONE_FALL_LATE = [episode(1.2, i == 70) for i in range(80)]
+ONE_FALL_FAST = [episode(3.0, i == 3) for i in range(80)]  # 1 fall in 241 legs: a wide margin
+
+
+@pytest.mark.parametrize("rows", [ONE_FALL_FIRST, ONE_FALL_IN_BATCH, ONE_FALL_LATE, ONE_FALL_FAST],
+                         ids=["first", "in-first-batch", "late", "fast"])
+def test_a_passing_evaluation_with_a_fall_among_clean_episodes_runs_in_full_and_passes(rows):
+    sel = selection()
+    assert sel.judge(rows)[1].deployable  # judged whole, it passes: cutting it short would lose a pass
+    result, better = sel.consider(1000, evaluation(rows))
+    assert (result.episodes, result.cut_short) == (80, False)
+    assert result.deployable and better and result.errors == 1.0
+
+
+# hopeless mixed evaluations: even if every episode still to run were clean, too many falls to pass
+TWO_FALLS_EARLY = [episode(1.2, i in (2, 11)) for i in range(80)]  # 2 falls in ~98 legs: bound ~0.07 > 0.05
+EVERY_THIRD_FALLS = [episode(1.2, i % 3 == 0) for i in range(80)]
+
+
+@pytest.mark.parametrize("rows", [TWO_FALLS_EARLY, EVERY_THIRD_FALLS], ids=["two-early", "every-third"])
+def test_a_hopeless_mixed_evaluation_is_cut_short_at_the_first_check(rows):
+    sel = selection()
+    assert not sel.judge(rows[:16] + [episode(1.2, False)] * 64)[1].deployable  # hopeless after 16 episodes
+    result, _ = sel.consider(1000, evaluation(rows))
+    assert result.cut_short and result.episodes == 16 and not result.deployable
