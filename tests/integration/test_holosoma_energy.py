@@ -70,9 +70,8 @@ print("@@energy " + json.dumps(out))
 @pytest.fixture(scope="module")
 def measured() -> dict:
     python = find_holosoma_python(REPO / ".venv-holosoma")
-    env = {**job_environment(), "PYTHONPATH": str(REPO / "src")}  # this checkout's sim2sim, not the venv's install
     proc = subprocess.run([str(python), "-c", INDEPENDENT, "holosoma:g1_29dof/ppo", "holosoma:t1_29dof/fastsac"],
-                          capture_output=True, text=True, env=env, timeout=300)
+                          capture_output=True, text=True, env=job_environment(), timeout=300)
     line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("@@energy ")), None)
     assert line is not None, proc.stdout[-2000:] + proc.stderr[-4000:]
     return json.loads(line[len("@@energy "):])

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from econmotor.errors import BackendError
+from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.holosoma.protocol import parse_line
 
 _ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
@@ -58,7 +58,13 @@ def job_environment() -> dict[str, str]:
     env.update(WANDB_MODE="disabled", PYTHONUNBUFFERED="1", LOGURU_LEVEL=env.get("LOGURU_LEVEL", "INFO"))
     env.setdefault("OMP_NUM_THREADS", "1")
     env.setdefault("MKL_NUM_THREADS", env["OMP_NUM_THREADS"])
-    env.pop("PYTHONPATH", None)  # the Holosoma venv has its own econmotor (editable) and numpy 1.x
+    # the Holosoma venv has its own numpy 1.x: nothing of the caller's path, except the source tree of the econmotor
+    # it runs, so a job runs the caller's code (say a worktree) rather than the venv's editable install of another
+    root = Path(__file__).resolve().parents[3]
+    if root.name in ("site-packages", "dist-packages"):  # installed, not a source tree: the venv's own
+        env.pop("PYTHONPATH", None)
+    else:
+        env["PYTHONPATH"] = str(root)
     return env
 
 
@@ -115,6 +121,8 @@ def run_job(
                 proc.kill()
                 proc.wait()
     if rc != 0 or result is None:
+        if error is not None and error.get("config_error"):  # the job's bad input: the same ConfigError here
+            raise ConfigError(*error["config_error"])
         if error is not None:
             text = f"{error['text']}\n{error.get('traceback', '')}".strip()
         else:
