@@ -190,3 +190,8 @@ def test_a_run_with_a_missing_figure_is_never_on_the_front_unless_alone_in_it():
     front = pareto_front(runs)
     assert front.indices == (0, 1)  # NaN energy counts as the worst energy: 0 still wins on MPL and error
     assert front.hypervolume == pytest.approx(50.0 * (1.1 * 2.0 - 2.0) * 0.9 * 0.8)
+
+
+def test_a_missing_figure_counts_as_the_worst_so_a_run_better_elsewhere_dominates_it():
+    runs = np.array([[50.0, np.nan, 0.1, 0.2], [60.0, 2.0, 0.05, 0.1]])
+    assert pareto_front(runs).indices == (1,)  # NaN compared as-is would dominate nothing and be dominated by none
