@@ -125,3 +125,20 @@ def test_parse_errors_name_the_source_and_the_full_key(tmp_path):
     with pytest.raises(ConfigError) as info:
         load_constraint_sets(path)
     assert str(path) in str(info.value) and "extra" in str(info.value)
+
+
+def test_a_missing_wage_parity_counts_as_none_and_the_defaults_are_named():
+    from econmotor.valuation.constraints import parse_constraint_set
+
+    assert ConstraintSet(min_wage_parity=0.75).violations({}) == {"min_wage_parity": 0.75}
+    assert parse_constraint_set({}).name == "constraints" and ConstraintSet().name == "constraints"
+    for bad in ({"max_error_rate": -0.1}, {"name": 3}):
+        with pytest.raises(ConfigError) as info:
+            parse_constraint_set(bad, "c.yaml", "sets.x")
+        assert info.value.source == "c.yaml" and info.value.key == f"sets.x.{next(iter(bad))}"
+    with pytest.raises(ConfigError) as info:
+        parse_constraint_set({"colour": 1}, "c.yaml", "sets.x")
+    assert info.value.source == "c.yaml" and "sets.x" in str(info.value) and "colour" in str(info.value)
+    with pytest.raises(ConfigError) as info:
+        parse_constraint_set([1], "c.yaml", "sets.x")
+    assert info.value.source == "c.yaml" and info.value.key == "sets.x"
