@@ -142,3 +142,30 @@ def test_a_missing_wage_parity_counts_as_none_and_the_defaults_are_named():
     with pytest.raises(ConfigError) as info:
         parse_constraint_set([1], "c.yaml", "sets.x")
     assert info.value.source == "c.yaml" and info.value.key == "sets.x"
+
+
+def test_constraint_files_name_a_bare_set_by_its_file_and_errors_by_file_and_key(tmp_path):
+    bare = tmp_path / "tight.yaml"
+    bare.write_text("max_error_rate: 0.02\n")
+    (only,) = load_constraint_sets(bare)
+    assert (only.name, only.max_error_rate) == ("tight", 0.02)
+    nested = tmp_path / "sets.yaml"
+    nested.write_text("constraint_sets:\n  a: {max_error_rate: 2.0}\n")
+    with pytest.raises(ConfigError) as info:
+        load_constraint_sets(nested)
+    assert (info.value.source, info.value.key) == (str(nested), "constraint_sets.a.max_error_rate")
+    bare.write_text("max_error_rate: 2.0\n")
+    with pytest.raises(ConfigError) as info:
+        load_constraint_sets(bare)
+    assert (info.value.source, info.value.key) == (str(bare), "max_error_rate")
+    nested.write_text("constraint_sets: [1, 2]\n")
+    with pytest.raises(ConfigError) as info:
+        load_constraint_sets(nested)
+    assert (info.value.source, info.value.key) == (str(nested), "constraint_sets")
+
+
+def test_an_object_summary_without_a_per_unit_energy_is_infinitely_far_from_the_limit():
+    class Summary:
+        wage_parity = 1.0
+
+    assert ConstraintSet(max_energy_Wh=5.0).energy_value(Summary()) == math.inf
