@@ -116,3 +116,17 @@ def test_episode_metric_of_each_overlay_key():
     empty = {"units_completed": 0.0, "errors": 0.0, "episode_length_s": 0.0, "energy_wh": 0.0}
     assert cf.episode_metric(empty, "mpl_per_hour") == 0.0 and cf.episode_metric(empty, "error_rate") == 0.0
     assert math.isclose(cf.SECONDS_PER_HOUR, 3600.0) and cf.WH_PER_KWH == 1000.0
+
+
+def test_batched_power_sums_each_env_over_its_own_dofs():
+    forces = np.array([[1.0, -2.0], [3.0, 0.0]])
+    velocities = np.array([[2.0, 1.0], [-1.0, 5.0]])
+    assert np.array_equal(cf.mechanical_power_w(forces, velocities, np), [4.0, 3.0])  # |2| + |-2|, |-3| + 0
+
+
+def test_errors_accumulate_over_steps_and_small_denominators_still_divide():
+    sums = cf.MeterSums()
+    for fell in (True, False, True):  # under vmap an env's episode sums go on after a fall until reset
+        cf.meter_step(sums, step(0.0, 0.0, 0.0, fell=fell), CONSTANTS, cf.PY)
+    assert sums.errors == 2.0
+    assert cf.safe_div(3.0, 0.5, cf.PY) == 6.0
