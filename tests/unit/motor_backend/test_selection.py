@@ -7,6 +7,7 @@ from __future__ import annotations
 import pytest
 
 from econmotor.cli.demo import DEMO_OBJECTIVE
+from econmotor.errors import ConfigError
 from econmotor.motor_backend.selection import SELECTION_SEED_OFFSET, Selection, SelectionConfig, selection_for
 from econmotor.objectives import load_objective_spec
 from econmotor.tasks import get_task
@@ -229,3 +230,27 @@ def test_the_best_episode_is_a_fall_free_one_with_the_most_units():
     # or like a 0.2-leg one, it could not
     assert sel.judge(rows + [episode(2.0, False)] * 64)[1].deployable
     assert not sel.hopeless(rows)
+
+
+def test_selection_for_builds_the_requested_selection_and_names_its_refusal():
+    sel = selection_for(TASK, OBJECTIVE, 1, 40, True, 3)
+    assert sel.task is TASK and sel.objective is OBJECTIVE
+    assert sel.config == SelectionConfig(every_steps=1, episodes=40, until_deployable=True, seed=3)
+    with pytest.raises(ConfigError) as info:
+        selection_for(TASK, OBJECTIVE, 0, 80, True, 0)
+    assert (info.value.source, info.value.key, info.value.detail) == (
+        "<train>", "until_deployable", "needs held-out evaluations (select_every_steps > 0)")
+    with pytest.raises(ConfigError) as info:
+        SelectionConfig(every_steps=0)
+    assert (info.value.source, info.value.key, info.value.detail) == ("<selection>", "every_steps/episodes",
+                                                                      "must be >= 1")
+    SelectionConfig(every_steps=1, episodes=1)  # the smallest allowed
+
+
+def test_a_status_rounds_to_thousands_of_steps_and_a_record_without_a_kept_one_restores_none():
+    sel = selection()
+    result, _ = sel.consider(1_500_000, evaluation(SAFE))
+    assert result.status() == "@1500k: deployable"
+    resumed = selection()
+    resumed.restore({"evaluations": [result.to_dict()], "kept": None})
+    assert resumed.history == [result] and resumed.best is None
