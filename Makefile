@@ -6,7 +6,7 @@ STAMP := $(VENV)/.econmotor-installed
 export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
-.PHONY: demo test venv holosoma bench lint clean
+.PHONY: demo test venv holosoma bench lint clean mutation
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -45,5 +45,11 @@ test: $(STAMP) $(HSTAMP)
 lint: $(STAMP)
 	$(PY) -m ruff check src tests
 
+# Mutation testing (mutmut, [tool.mutmut] in pyproject.toml) of the modules that decide and price, against
+# their fast unit tests; results are cached in mutants/ (a rerun tests only what changed). docs/mutation.md
+mutation: $(STAMP)
+	env -u PYTHONPATH nice -n 10 $(VENV)/bin/mutmut run --max-children 2
+	$(PY) scripts/mutation_score.py
+
 clean:
-	rm -rf $(VENV) .econmotor runs .pytest_cache
+	rm -rf $(VENV) .econmotor runs .pytest_cache mutants

@@ -2,9 +2,12 @@
 
 Parametrised over ``known_backends()``: a backend added to the registry is covered here without
 editing this file. Each one trains its declared ``smoke_run`` into ``output_dir`` (which must be
-the run directory, holding ``run_config.json``), is evaluated by the ``policy_id`` it returned,
-deploys a handle answering ``act`` and ``step``, and declares its capabilities, defaults and
-limits, which the CLI reads instead of knowing backends by name.
+the run directory, holding ``run_config.json`` that names the backend), is evaluated by the
+``policy_id`` it returned (the same seed gives the same episodes; another seed, or another policy
+on the same seed, other episodes), deploys a handle answering ``act`` and ``step``, and declares its
+capabilities, defaults and limits, which the CLI reads instead of knowing backends by name. A
+backend that declares ``evaluation_driven`` selects its policy by held-out evaluations: the policy
+it keeps, evaluated again on the recorded held-out seeds, gives the J its kept evaluation recorded.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from econmotor.motor_backend.base import (
     RunSize,
 )
 from econmotor.motor_backend.factory import backend_class, environment_options, known_backends, make_motor_backend
+from econmotor.motor_backend.selection import SELECTION_SEED_OFFSET, Selection, SelectionConfig
 from econmotor.objectives import EconomicObjectiveSpec
 from econmotor.tasks import load_catalog
 
@@ -84,6 +88,15 @@ def test_train_into_output_dir_evaluate_by_policy_id_and_deploy(name: str, tmp_p
     evaluated = backend.evaluate_policy(trained.policy_id, task_id, objective, 1, 11)
     assert evaluated.raw_metrics["num_episodes"] == 1 and len(evaluated.episodes) == 1
     assert np.isfinite(evaluated.econ_metrics["mpl_units_per_hour"])
+    # an evaluation is a function of its seed and its policy
+    again = backend.evaluate_policy(trained.policy_id, task_id, objective, 1, 11)
+    other_seed = backend.evaluate_policy(trained.policy_id, task_id, objective, 1, 12)
+    other = backend.train_policy(task_id, objective, [], size.num_envs, size.max_steps, 4,
+                                 output_dir=tmp_path / "other", eval_episodes=0)
+    other_policy = backend.evaluate_policy(other.policy_id, task_id, objective, 1, 11)
+    assert outcome(again) == outcome(evaluated)
+    assert outcome(other_seed) != outcome(evaluated)
+    assert outcome(other_policy) != outcome(evaluated)
 
     handle = backend.deploy_policy_handle(trained.policy_id)
     assert isinstance(handle, PolicyHandle)
@@ -121,6 +134,38 @@ def test_a_duck_typed_plugin_is_refused_with_one_clear_line() -> None:
         assert "\n" not in str(info.value)
     finally:
         factory._REGISTRY.pop("duck")
+
+
+def outcome(result) -> tuple[float, ...]:
+    """What an evaluation measured, episode by episode (the raw metrics every backend reports)."""
+    keys = ("units_completed", "units_attempted", "errors", "episode_length_s", "energy_wh", "risk_score")
+    return tuple(float(ep[k]) for ep in result.episodes for k in keys)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", [n for n in BACKENDS if backend_class(n).capabilities.evaluation_driven])
+def test_an_evaluation_driven_backend_keeps_the_policy_its_held_out_evaluations_select(name: str,
+                                                                                      tmp_path: Path) -> None:
+    cls = backend_class(name)
+    backend = make_motor_backend(name, runs_dir=tmp_path / "runs", **environment_options(name, os.environ))
+    task_id, size = smoke_task(cls), cls.smoke_run
+    objective = EconomicObjectiveSpec(name="contract", mpl_weight=1.0, error_weight=1.0)
+    episodes, seed = 3, 5
+    trained = backend.train_policy(task_id, objective, [], size.num_envs, size.max_steps, seed,
+                                   output_dir=tmp_path / "run", eval_episodes=0,
+                                   select_every_steps=max(1, size.max_steps // 2), select_episodes=episodes)
+    record = json.loads((Path(trained.policy_id) / RUN_CONFIG_FILE).read_text())["selection"]
+    first = seed + SELECTION_SEED_OFFSET
+    assert record["seeds"] == [first, first + episodes]
+    evaluations = record["evaluations"]
+    assert len(evaluations) >= 2 and all(e["episodes"] + e["cut_short"] >= 1 for e in evaluations)
+    assert record["kept"] == max(evaluations, key=lambda e: (e["deployable"], e["j_mean"]))
+    # the policy kept, evaluated again on the recorded held-out seeds, is the checkpoint that was judged
+    kept = record["kept"]
+    again = backend.evaluate_policy(trained.policy_id, task_id, objective, kept["episodes"], first)
+    task = load_catalog().get(task_id)
+    j_mean = Selection(task, objective, SelectionConfig(episodes=episodes, seed=seed)).judge(again.episodes)[2]
+    assert j_mean == pytest.approx(kept["j_mean"], rel=1e-6)
 
 
 def test_default_run_directories_are_new_and_under_runs_dir(tmp_path: Path) -> None:

@@ -2,7 +2,8 @@
 
 The four policies holosoma_inference ships walk their course through the backend's real
 ``sim2sim`` job; the observation econmotor builds equals the one holosoma_inference's own
-``LocomotionPolicy`` code builds from the same MuJoCo states; a policy that does not fit
+``LocomotionPolicy`` code builds from the same MuJoCo states and the actions the policy returned
+(its last-action term is not read from our builder); a policy that does not fit
 the robot (joint names, observation width) is a clear error naming both sides; and the
 evaluation's metering equals the shared courier formulas replayed on its recorded steps.
 """
@@ -53,10 +54,17 @@ for name in sys.argv[1:]:
     ref._init_phase_components()
     ref.is_standing = False
     ref.stand_command[0, 0] = 1
-    diffs = []
+    diffs, returned = [], []
+    act = s.onnx_policy(c)
+
+    def policy(row):  # what the policy returned, clipped as the contract says: the reference's last action
+        action = act(row)
+        returned.append(np.clip(np.asarray(action, dtype=np.float32).reshape(-1), -c.action_clip, c.action_clip))
+        return action
 
     def check(robot, builder, row, vx, yaw_rate):
-        ref.last_policy_action = builder.last_action[None, :].astype(np.float64)
+        last = returned[-1] if returned else np.zeros(c.action_dim, dtype=np.float32)
+        ref.last_policy_action = last[None, :].astype(np.float64)  # not our builder's: checked independently
         ref.lin_vel_command[0] = (vx, 0.0)
         ref.ang_vel_command[0, 0] = yaw_rate
         ref.update_phase_time()
@@ -72,7 +80,7 @@ for name in sys.argv[1:]:
     self_pairs = sum(1 for i in colliders for j in colliders if i < j and m.geom_bodyid[i] != m.geom_bodyid[j]
                      and bool(m.geom_contype[i] & m.geom_conaffinity[j] or m.geom_contype[j] & m.geom_conaffinity[i]))
     # a 2 m leg with a 1 s dwell: the episode walks, stands (the gait phase's stand branch) and walks again
-    ep = s.run_episode(robot, c, s.onnx_policy(c), s.CourseSettings(2.0, 1.0, 0.8), meter,
+    ep = s.run_episode(robot, c, policy, s.CourseSettings(2.0, 1.0, 0.8), meter,
                        s.Stress(payload_kg_range=(3.0, 3.0), initial_joint_noise_rad=0.05), 7.0, 5,
                        record=record, on_observation=check)
     qpos = np.array([r["qpos"] for r in record])
@@ -82,6 +90,7 @@ for name in sys.argv[1:]:
     units = (np.max(qpos[:, 0]) - c.card.init_pos[0]) / meter.leg_distance_m
     out[name] = {"steps": len(diffs), "max_abs_diff": max(diffs), "obs_dim": c.obs_dim,
                  "self_collisions": c.card.self_collisions, "colliders": len(colliders), "self_pairs": self_pairs,
+                 "actions_nonzero": bool(np.any(np.abs(np.array(returned)) > 1e-3)),
                  "episode": ep, "replayed": {"units_completed": float(max(units, 0.0)),
                  "energy_wh": float(np.sum(energy)), "risk_score": float(np.mean(risk)),
                  "episode_length_s": len(record) * c.physics_dt_s}}
@@ -127,7 +136,8 @@ def test_shipped_policy_walks_its_course_without_falling(backend: HolosomaBacken
 def test_observation_equals_holosoma_inferences_own(checks: dict) -> None:
     for name, got in checks.items():
         assert got["steps"] == 350, name  # 7 s at 50 Hz: every observation compared
-        assert got["max_abs_diff"] == 0.0, name
+        assert got["max_abs_diff"] == 0.0, name  # every term, the last action's included
+        assert got["actions_nonzero"], name  # the action term was compared on actions the policy returned
         assert got["episode"]["legs_reached"] >= 1.0, name  # it walked, stood at the leg end and walked on
 
 

@@ -2,10 +2,12 @@
 
 An alias bomb ("billion laughs": 2 KB on disk, 9^9 strings once its aliases are written out)
 as a datapack, a task file, an objective or a constraint set: every command that reads that
-kind of YAML exits 2 with one line naming the file, in under 5 s (CPU time of the child: start-up
-included; refusing the file itself takes milliseconds). And SIGTERM during a long
-sweep (in this process, and on Ray) ends it within 10 s, the cell in flight recorded as
-``interrupted``. Every child runs in its own process group, killed and reaped in ``finally``.
+kind of YAML exits 2 with one line naming the file (the refusal never writes the aliases out:
+tests/unit/config/test_yaml_aliases.py counts its work; the child's times are printed, not asserted). And
+SIGTERM during a long sweep (in this process, and on Ray) ends it through KeyboardInterrupt, before the
+interrupt deadline, the cell in flight recorded as ``interrupted``; a sweep stuck in a call that cannot be
+interrupted is ended by the deadline. Every child runs in its own process group, killed and reaped in
+``finally``. Speed lives in benchmarks/: nothing here asserts a wall-clock time.
 """
 
 from __future__ import annotations
@@ -93,7 +95,7 @@ def kill_group(proc: subprocess.Popen) -> None:
 
 
 @pytest.mark.parametrize(("kind", "command"), COMMANDS, ids=[f"{c.split(' --')[0]}-{k}" for k, c in COMMANDS])
-def test_alias_bomb_is_one_error_line_in_seconds(tmp_path, kind, command):
+def test_alias_bomb_is_one_error_line(tmp_path, kind, command):
     path = tmp_path / f"bomb_{kind}.yaml"
     path.write_text(BOMBS[kind])
     assert path.stat().st_size < 2_048
@@ -105,7 +107,6 @@ def test_alias_bomb_is_one_error_line_in_seconds(tmp_path, kind, command):
     assert rc == 2, err
     assert len(lines) == 1, err
     assert lines[0].startswith("error: ") and str(path) in lines[0] and "alias" in lines[0], err
-    assert cpu < 5 and wall < 30, f"{cpu:.1f} s CPU, {wall:.1f} s wall: {err}"
     print(f"{args[0]} {kind}: {wall:.2f} s wall, {cpu:.2f} s CPU")
 
 
@@ -131,7 +132,7 @@ SWEEPS = {
 
 @pytest.mark.slow
 @pytest.mark.parametrize("sweep", list(SWEEPS))
-def test_sigterm_ends_a_long_sweep_within_10_s(tmp_path, sweep):
+def test_sigterm_ends_a_long_sweep_before_the_interrupt_deadline(tmp_path, sweep):
     pytest.importorskip({"ray": "ray", "mjx": "mujoco.mjx"}.get(sweep, "econmotor"))
     db = tmp_path / "registry.sqlite"
     args = ["sweep", *SWEEPS[sweep], "--preset", "throughput", "--db-url", f"sqlite:///{db}",
@@ -147,12 +148,12 @@ def test_sigterm_ends_a_long_sweep_within_10_s(tmp_path, sweep):
         time.sleep(3)  # well inside the cell (on Ray: inside the task)
         sent = time.monotonic()
         proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=10)
+        _, err = proc.communicate(timeout=120)  # a hang guard, not the claim
         took = time.monotonic() - sent
     finally:
         kill_group(proc)
     assert proc.returncode == 143, err  # 128 + SIGTERM, as a shell reports it
-    assert took < 10
+    assert "still busy" not in err  # ended by KeyboardInterrupt, not by the deadline 6 s after the signal
     assert run_status(db) == ["interrupted"]
     assert "interrupted" in err and "Resume by running the same command again" in err
     with pytest.raises(ProcessLookupError):  # nothing of its group (Ray's workers included) outlives it
@@ -166,6 +167,30 @@ conn.execute("BEGIN IMMEDIATE")
 print("locked", flush=True)
 time.sleep(120)
 """
+
+
+#: sleep system calls (x86_64, aarch64): SQLite's busy handler sleeps between tries for a lock
+SLEEP_SYSCALLS = {"x86_64": {35, 230}, "aarch64": {101, 115}}
+
+
+def wait_inside_sqlite(proc: subprocess.Popen, db: Path) -> None:
+    """Until ``proc`` has ``db`` open and its main thread sleeps in a system call: waiting for the lock inside
+    SQLite's busy handler (nothing else in the sweep sleeps after it opens the registry)."""
+    sleeps = SLEEP_SYSCALLS.get(os.uname().machine)
+    if sleeps is None:
+        pytest.skip(f"no sleep system call numbers for {os.uname().machine}")
+    deadline, target, fds = time.monotonic() + 180, os.path.realpath(db), f"/proc/{proc.pid}/fd"  # a hang guard
+    while True:
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline, "the sweep never waited for the registry's lock"
+        try:
+            opened = any(os.readlink(f"{fds}/{fd}") == target for fd in os.listdir(fds))
+            call = Path(f"/proc/{proc.pid}/syscall").read_text().split()[0]
+        except OSError:  # a file descriptor closed while listed
+            continue
+        if opened and call.isdigit() and int(call) in sleeps:
+            return
+        time.sleep(0.05)
 
 
 @pytest.mark.slow
@@ -185,18 +210,16 @@ def test_sigterm_ends_a_sweep_stuck_in_a_call_that_cannot_be_interrupted(tmp_pat
                                  "--max-steps", "100000", "--db-url", f"sqlite:///{db}", "--output-dir",
                                  str(tmp_path / "sweep")], cwd=tmp_path, env=CHILD_ENV, stdout=subprocess.PIPE,
                                 stderr=subprocess.PIPE, text=True, start_new_session=True)
-        time.sleep(8)  # started up, and waiting for the lock
-        assert proc.poll() is None, proc.communicate()
+        wait_inside_sqlite(proc, db)
         sent = time.monotonic()
         proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=10)
+        _, err = proc.communicate(timeout=120)  # a hang guard, not the claim
         took = time.monotonic() - sent
     finally:
         for child in (proc, holder):
             if child is not None:
                 kill_group(child)
     assert proc.returncode == 143, err  # 128 + SIGTERM, as a shell reports it
-    assert took < 10
     assert "still busy 6 s later in a call that cannot be interrupted" in err
     assert "Resume by running the same command again" in err  # the sweep's own note, said by the watcher
     print(f"SIGTERM to exit, stuck in SQLite: {took:.2f} s")

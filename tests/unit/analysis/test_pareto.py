@@ -110,3 +110,88 @@ def test_hypervolume_matches_inclusion_exclusion_on_random_sets(d):
         pts = rng.integers(0, 4, size=(n, d)).astype(float) if trial % 2 else rng.random((n, d)) * 3
         ref = np.full(d, 4.0)
         assert hypervolume(pts, ref) == pytest.approx(_inclusion_exclusion(pts, ref), rel=1e-9, abs=1e-12)
+
+
+# ---------------------------------------------------------------- what mutation testing found unchecked
+def _config_error(call) -> ConfigError:
+    with pytest.raises(ConfigError) as info:
+        call()
+    return info.value
+
+
+def test_bad_shapes_and_references_name_the_source_the_key_and_the_problem():
+    err = _config_error(lambda: pareto_mask(np.ones(3)))
+    assert (err.source, err.key, err.detail) == ("<pareto>", None, "expected an (n, d) array, got shape (3,)")
+    err = _config_error(lambda: hypervolume(np.ones((2, 3)), [1.0, 1.0]))
+    assert (err.source, err.key, err.detail) == ("<pareto>", "reference",
+                                                 "points (2, 3) and reference (2,) disagree")
+    err = _config_error(lambda: hypervolume(np.ones(3), [1.0, 1.0, 1.0]))
+    assert (err.source, err.key) == ("<pareto>", "reference") and "points (3,)" in err.detail
+    err = _config_error(lambda: hypervolume(np.ones((1, 2)), [1.0, np.inf]))
+    assert (err.source, err.key, err.detail) == ("<pareto>", "reference",
+                                                 "reference point must be finite, got [1.0, inf]")
+    err = _config_error(lambda: pareto_front(np.ones((1, 4)), {"speed": 1.0}))
+    assert (err.source, err.key, err.detail) == ("<pareto>", "reference_point.speed", "unknown criterion")
+    assert err.allowed == ", ".join(sorted(PARETO_CRITERIA))
+
+
+def test_an_empty_set_has_an_empty_mask_and_no_volume():
+    mask = pareto_mask(np.zeros((0, 4)))
+    assert mask.shape == (0,) and mask.dtype == bool
+    assert hypervolume(np.zeros((0, 2)), [1.0, 1.0]) == 0.0
+
+
+def test_a_point_on_the_reference_boundary_adds_nothing():
+    assert hypervolume(np.array([[1.0, 2.0], [0.0, 1.0]]), [2.0, 2.0]) == pytest.approx(2.0)
+    assert hypervolume(np.array([[2.0, 0.0]]), [2.0, 2.0]) == 0.0
+
+
+@pytest.mark.parametrize("d", [1, 2])
+def test_low_dimensional_hypervolume_matches_inclusion_exclusion(d):
+    rng = np.random.default_rng(10 + d)
+    for _ in range(20):
+        pts = rng.random((int(rng.integers(1, 6)), d)) * 3
+        ref = np.full(d, 4.0) + np.arange(d)  # unequal bounds: each axis uses its own
+        assert hypervolume(pts, ref) == pytest.approx(_inclusion_exclusion(pts, ref), rel=1e-12)
+    assert hypervolume(np.array([[1.0], [3.0]]), [5.0]) == pytest.approx(4.0)
+    assert hypervolume(np.array([[1.0, 3.0], [2.0, 1.0]]), [4.0, 5.0]) == pytest.approx(3 * 2 + 2 * 2)
+
+
+@pytest.mark.parametrize("d", [3, 4, 5])
+def test_hypervolume_with_unequal_reference_bounds_matches_inclusion_exclusion(d):
+    rng = np.random.default_rng(20 + d)
+    ref = 4.0 + np.arange(d, dtype=float)  # a slab or a face read against the wrong bound would show
+    for _ in range(25):
+        pts = rng.random((int(rng.integers(1, 7)), d)) * 4
+        assert hypervolume(pts, ref) == pytest.approx(_inclusion_exclusion(pts, ref), rel=1e-9, abs=1e-12)
+
+
+def test_default_reference_point_without_runs_or_with_no_positive_energy():
+    assert default_reference_point(np.zeros((0, 4))) == {"mpl_units_per_hour": 0.0, "energy_wh_per_unit": 1.0,
+                                                         "error_rate": 1.0, "risk_score": 1.0}
+    runs = np.array([[10.0, 0.0, 0.1, 0.5], [20.0, np.inf, 0.2, 0.2]])
+    assert default_reference_point(runs) == {"mpl_units_per_hour": 0.0, "energy_wh_per_unit": 1.0,
+                                             "error_rate": 1.0, "risk_score": 1.0}
+    assert default_reference_point(np.array([[10.0, 0.5, 0.1, 0.2]]))["energy_wh_per_unit"] == pytest.approx(0.55)
+
+
+def test_pareto_front_to_dict_says_every_field():
+    front = pareto_front(np.array([[60.0, 2.0, 0.05, 0.1], [50.0, 2.5, 0.1, 0.2]]))
+    assert front.to_dict() == {
+        "criteria": {"mpl_units_per_hour": "max", "energy_wh_per_unit": "min", "error_rate": "min",
+                     "risk_score": "min"},
+        "indices": [0], "reference_point": front.reference_point, "hypervolume": front.hypervolume,
+        "hypervolume_method": "exact, hypervolume by slicing objectives (HSO)"}
+    assert front.hypervolume == pytest.approx(60.0 * (1.1 * 2.5 - 2.0) * 0.95 * 0.9)
+
+
+def test_a_run_with_a_missing_figure_is_never_on_the_front_unless_alone_in_it():
+    runs = np.array([[60.0, np.nan, 0.05, 0.1], [50.0, 2.0, 0.1, 0.2]])
+    front = pareto_front(runs)
+    assert front.indices == (0, 1)  # NaN energy counts as the worst energy: 0 still wins on MPL and error
+    assert front.hypervolume == pytest.approx(50.0 * (1.1 * 2.0 - 2.0) * 0.9 * 0.8)
+
+
+def test_a_missing_figure_counts_as_the_worst_so_a_run_better_elsewhere_dominates_it():
+    runs = np.array([[50.0, np.nan, 0.1, 0.2], [60.0, 2.0, 0.05, 0.1]])
+    assert pareto_front(runs).indices == (1,)  # NaN compared as-is would dominate nothing and be dominated by none

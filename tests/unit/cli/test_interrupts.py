@@ -1,7 +1,6 @@
 """The interrupt guard every command runs under: SIGTERM raises KeyboardInterrupt, and when the command
 returns everything is as before (handlers, wakeup fd, SIGALRM), so an in-process caller goes on."""
 
-import re
 import signal
 import subprocess
 import sys
@@ -43,17 +42,17 @@ from econmotor.cli._interrupts import InterruptGuard
 sent = []
 def raise_inside_a_gc_callback(phase, info):  # as JAX's XLA collector: the handler runs in here
     if phase == "start" and not sent:
-        sent.append(time.monotonic())
+        sent.append(phase)
         signal.raise_signal(signal.SIGTERM)
 
-guard = InterruptGuard(grace_s=5.0)
+guard = InterruptGuard(grace_s=3600.0)  # the deadline cannot end it: only the raise again can
 gc.callbacks.append(raise_inside_a_gc_callback)
 try:
     while True:
         gc.collect()
         sum(range(20_000))
 except KeyboardInterrupt as exc:
-    print(f"caught {exc} after {time.monotonic() - sent[0]:.2f} s")
+    print(f"caught {exc}")
 finally:
     guard.close()
 """
@@ -64,9 +63,10 @@ def test_an_interrupt_swallowed_in_a_gc_callback_is_raised_again():
     one at every collection, and an MJX sweep's SIGTERM was lost there until the 6 s deadline."""
     proc = subprocess.run([sys.executable, "-c", SWALLOWED], capture_output=True, text=True, timeout=30)
     assert proc.returncode == 0, proc.stderr
-    caught = re.fullmatch(r"caught signal SIGTERM after (\d+\.\d+) s\n", proc.stdout)
-    assert caught, proc.stdout + proc.stderr
-    assert float(caught[1]) < 1.0  # raised again at once, not ended by the watcher's deadline
+    # raised again by the watcher: with an hour's grace, its deadline (which exits 143 and says "still busy")
+    # cannot be what ended the loop
+    assert proc.stdout == "caught signal SIGTERM\n", proc.stdout + proc.stderr
+    assert "still busy" not in proc.stderr
     assert "Exception ignored" not in proc.stderr
 
 

@@ -61,3 +61,14 @@ def test_value_per_unit_defaults_to_wage_over_throughput():
 def test_task_economics_rejects_bad_values(field, value):
     with pytest.raises(ConfigError, match=field):
         TaskEconomics(**{field: value})
+
+
+def test_fractions_below_one_are_divided_not_treated_as_zero():
+    """Half a unit attempted, half a unit per hour, half a dollar an hour: each still a real figure."""
+    assert labour.error_rate(0.25, 0.5) == pytest.approx(0.5)
+    assert labour.robot_unit_cost(2.0, 0.5) == pytest.approx(4.0)
+    assert labour.energy_productivity(0.5, 0.0) == math.inf  # work done on no energy
+    assert labour.energy_productivity(0.0, 0.0) == 0.0
+    assert labour.wage_parity(0.25, 0.5) == pytest.approx(0.5)
+    with pytest.raises(ValueError, match=r"human wage must be > 0 for wage parity, got 0"):
+        labour.wage_parity(1.0, 0)

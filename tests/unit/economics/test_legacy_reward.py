@@ -19,3 +19,10 @@ def test_wage_gap_is_symmetric_and_zero_at_parity():
 def test_rejects_non_positive_human_wage():
     with pytest.raises(ValueError):
         compute_econ_reward(1.0, 0.0, 1.0, 0.0)
+
+
+def test_a_small_positive_human_wage_is_accepted_and_the_refusal_says_the_value():
+    # wage 0.5 USD/h, robot 1.0: gap |2 - 1| = 1, times gamma 0.1
+    assert compute_econ_reward(0.0, 0.0, 1.0, 0.5, LegacyRewardWeights()) == pytest.approx(-0.1)
+    with pytest.raises(ValueError, match=r"human_wage must be > 0, got -2\.0"):
+        compute_econ_reward(0.0, 0.0, 1.0, -2.0)

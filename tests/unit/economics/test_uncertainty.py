@@ -79,3 +79,12 @@ def test_acceptance_defaults_to_the_human_error_rate_and_the_catalog_can_set_it(
     hopper = get_task("hopper_courier").acceptance
     assert (hopper.max_error_rate, hopper.min_units_per_hour, hopper.error_name) == (0.05, 100.0, "fall")
     assert "assumption" in hopper.sources["max_error_rate"] and not math.isnan(hopper.max_error_rate)
+
+
+def test_the_default_acceptance_rule_says_where_each_limit_comes_from():
+    rule = Acceptance.default_for(0.03)
+    assert (rule.max_error_rate, rule.min_units_per_hour, rule.error_name) == (0.03, 0.0, "error")
+    assert rule.sources == {"max_error_rate": "default: the human's error rate (error_rate_human)",
+                            "min_units_per_hour": "default: any positive throughput"}
+    assert rule.to_dict() == {"max_error_rate": 0.03, "min_units_per_hour": 0.0, "error_name": "error",
+                              "sources": rule.sources}

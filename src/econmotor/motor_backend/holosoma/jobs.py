@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from econmotor.errors import BackendError
+from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.holosoma.protocol import parse_line
 
 _ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
@@ -118,6 +118,8 @@ def run_job(
                 proc.kill()
                 proc.wait()
     if rc != 0 or result is None:
+        if error is not None and error.get("config_error"):  # the job's bad input: the same ConfigError here
+            raise ConfigError(*error["config_error"])
         if error is not None:
             text = f"{error['text']}\n{error.get('traceback', '')}".strip()
         else:

@@ -29,6 +29,7 @@ import traceback
 from pathlib import Path
 from typing import Any
 
+from econmotor.errors import ConfigError
 from econmotor.motor_backend.holosoma.protocol import emit
 
 OVERLAY_TERM = "econmotor.motor_backend.holosoma.reward_terms:EconOverlayTerm"
@@ -301,6 +302,9 @@ def main(argv: list[str]) -> int:
 
             torch.set_num_threads(int(os.environ.get("OMP_NUM_THREADS", "1")))
         result = actions[job["action"]](job)
+    except ConfigError as exc:  # bad input (e.g. an imported policy's metadata): the caller raises it again
+        emit("error", text=f"{type(exc).__name__}: {exc}", config_error=[exc.source, exc.key, exc.detail, exc.allowed])
+        return 1
     except Exception as exc:
         emit("error", text=f"{type(exc).__name__}: {exc}", traceback=traceback.format_exc())
         return 1

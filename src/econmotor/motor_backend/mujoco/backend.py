@@ -159,7 +159,8 @@ class MujocoBackend(MotorBackendBase):
         if output_dir is None and resume:
             raise ConfigError("<train>", "output_dir", "resume needs the run directory to continue")
         run = TrainingRun(
-            run_dir=self.run_dir(output_dir, task_id, seed), recipe=recipe, described=described,
+            run_dir=self.run_dir(output_dir, task_id, seed), recipe=recipe,
+            described={"backend": self.name, **described},
             algorithm=algorithm or settings.algorithm, hyperparameters=hyperparameters,
             num_envs=num_envs if num_envs > 0 else settings.num_envs, max_steps=int(max_steps), seed=int(seed),
             vec_env=self.vec_env, checkpoint_every_steps=checkpoint_every_steps or settings.checkpoint_every_steps,
