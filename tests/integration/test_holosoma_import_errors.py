@@ -16,8 +16,9 @@ import onnx
 import pytest
 
 from econmotor.cli import main
-from econmotor.motor_backend.holosoma.backend import find_holosoma_python, shipped_policy_file
+from econmotor.motor_backend.holosoma.backend import find_holosoma_python
 from econmotor.motor_backend.holosoma.jobs import job_environment
+from econmotor.motor_backend.holosoma.policy_import import shipped_policy_path
 
 pytestmark = [pytest.mark.holosoma]
 REPO = Path(__file__).resolve().parents[2]
@@ -25,7 +26,7 @@ REPO = Path(__file__).resolve().parents[2]
 
 def altered(path: Path, change) -> Path:
     """The shipped G1 PPO policy with ``change(metadata dict)`` applied, saved at ``path``."""
-    model = onnx.load(str(shipped_policy_file(find_holosoma_python(REPO / ".venv-holosoma"), "holosoma:g1_29dof/ppo")))
+    model = onnx.load(str(shipped_policy_path("holosoma:g1_29dof/ppo", find_holosoma_python(REPO / ".venv-holosoma"))))
     meta = {p.key: p.value for p in model.metadata_props}
     change(meta)
     del model.metadata_props[:]
