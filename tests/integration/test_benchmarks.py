@@ -81,22 +81,26 @@ def interpreter(script: Path) -> str:
 
 
 def run_group(command: list[str], cwd: Path, env: dict[str, str], timeout_s: float) -> tuple[int, str]:
-    """(exit code, stdout and stderr) of ``command``; on timeout, or any error, its process group is killed."""
-    proc = subprocess.Popen(command, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            start_new_session=True)
-    try:
-        out, _ = proc.communicate(timeout=timeout_s)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        out, _ = proc.communicate()
-        pytest.fail(f"{command[1]} ran past {timeout_s} s and was killed:\n{out[-4000:]}", pytrace=False)
-    finally:
+    """(exit code, stdout and stderr) of ``command``. Its output goes to a file, not a pipe, so a process
+    it left behind cannot hold the test; its whole process group is killed when it ends or times out."""
+    log = cwd / "output.txt"
+    with log.open("w", encoding="utf-8") as out:
+        proc = subprocess.Popen(command, cwd=cwd, env=env, stdout=out, stderr=subprocess.STDOUT,
+                                start_new_session=True)
         try:
-            os.killpg(proc.pid, signal.SIGKILL)  # anything it started and left behind
-        except ProcessLookupError:
-            pass
-        proc.wait()
-    return proc.returncode, out
+            code: int | None = proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            code = None
+        finally:
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)  # on timeout, and anything it started and left behind
+            except ProcessLookupError:
+                pass
+            proc.wait()
+    text = log.read_text(encoding="utf-8", errors="replace")
+    if code is None:
+        pytest.fail(f"{Path(command[1]).name} ran past {timeout_s} s and was killed:\n{text[-4000:]}", pytrace=False)
+    return code, text
 
 
 def marks(name: str) -> list[pytest.MarkDecorator]:
