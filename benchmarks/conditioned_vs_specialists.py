@@ -33,6 +33,8 @@ from econmotor.config.objective_profile import OBJECTIVE_PRESETS
 from econmotor.rl.train_sac_objective import ShadowConfig, train_sac_objective
 
 PRESETS = ("throughput", "energy_saver", "safety")
+#: the smallest run (tests/integration/test_benchmarks.py): one 60-step episode per specialist, no gradient step
+SMOKE_ARGS: list[str] = ["--steps", "60", "--eval-episodes", "1"]
 
 
 def train(label: str, sampling: str, steps: int, seed: int, eval_episodes: int) -> dict:

@@ -66,6 +66,8 @@ FAST_SAC = {"net_arch": (64, 64), "batch_size": 64, "train_freq": 2, "learning_s
 #: 5-minute control steps (~8 attempts a step instead of ~2): a step's error rate is far less
 #: noisy, so 4,000 SAC steps suffice; 60 steps = a 5-hour shift.
 WORKCELL = {"econ_overrides": {"time_step_s": 300.0}, "max_episode_steps": 60}
+#: the smallest run (tests/integration/test_benchmarks.py): one 60-step episode per arm, no gradient step
+SMOKE_ARGS: list[str] = ["--steps", "60", "--seeds", "1", "--eval-episodes", "1"]
 
 
 def run(mode: str, seed: int, steps: int, cap: float | None, eval_episodes: int, lagrange_lr: float,

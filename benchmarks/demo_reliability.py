@@ -23,6 +23,10 @@ from econmotor.economics.uncertainty import clopper_pearson
 from econmotor.motor_backend.factory import make_motor_backend
 from econmotor.objectives.loader import objective_from_vector
 
+#: the smallest run (tests/integration/test_benchmarks.py): one PPO iteration of 4 x 16 steps
+SMOKE_ARGS: list[str] = ["--max-steps", "64", "--eval-episodes", "1", "--hp", '{"n_steps": 16, "n_epochs": 1}',
+                         "--out", "run"]
+
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -27,15 +27,16 @@ quartiles, over the whole run (from the first step, as ``train`` runs it) and ov
 half (longer episodes). Last, the layers' own time *in situ* in a separate overlay run (the
 clock read when the Gymnasium env inside returns and when the wrapper returns, plus the
 callback's ``_on_step``) as a share of ``learn``'s wall time: a figure that moves less, to
-compare code changes by.
+compare code changes by. ``--hp`` overrides the catalog's PPO hyperparameters in every arm.
 
-    .venv/bin/python benchmarks/economic_layers_cost.py [--rounds 30] [--insitu-steps 16384]
+    .venv/bin/python benchmarks/economic_layers_cost.py [--rounds 30] [--insitu-steps 16384] [--hp '{}']
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import os
 import random
 import statistics
@@ -54,6 +55,7 @@ from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.motor_backend.mujoco.backend import MujocoBackend
 from econmotor.motor_backend.mujoco.env_factory import EnvRecipe, make_env
 from econmotor.motor_backend.mujoco.randomization import make_base_env
+from econmotor.motor_backend.mujoco.settings import merge_hyperparameters
 from econmotor.motor_backend.mujoco.training import EconEpisodeLogCallback, policy_kwargs_from
 from econmotor.motor_backend.sb3_callbacks import quiet_logger
 from econmotor.objectives.loader import objective_from_vector
@@ -61,6 +63,8 @@ from econmotor.valuation import default_objective_vector
 
 TASK = "hopper_courier"
 ARMS = ("bare", "layers", "overlay")
+#: the smallest run (tests/integration/test_benchmarks.py): one round of PPO iterations of 4 x 16 steps
+SMOKE_ARGS: list[str] = ["--rounds", "1", "--insitu-steps", "64", "--hp", '{"n_steps": 16, "n_epochs": 1}']
 
 
 def arm_recipe(recipe: EnvRecipe, arm: str) -> EnvRecipe:
@@ -116,9 +120,11 @@ def set_rng_state(state: tuple) -> None:
 
 
 class Run:
-    """One arm's PPO run, advanced one iteration at a time. ``own_s``: time the layers in situ into it."""
+    """One arm's PPO run, advanced one iteration at a time. ``own_s``: time the layers in situ into it;
+    ``hp``: overrides of the catalog's PPO hyperparameters."""
 
-    def __init__(self, recipe: EnvRecipe, arm: str, seed: int, own_s: list[float] | None = None) -> None:
+    def __init__(self, recipe: EnvRecipe, arm: str, seed: int, own_s: list[float] | None = None,
+                 hp: dict | None = None) -> None:
         s = recipe.settings
 
         def build(i: int):
@@ -136,7 +142,7 @@ class Run:
             venv = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0)
         self.venv = venv
         self.model = PPO("MlpPolicy", venv, seed=seed, device="cpu", verbose=0,
-                         **policy_kwargs_from(s.algo_hyperparameters("ppo")))
+                         **policy_kwargs_from(merge_hyperparameters(s.algo_hyperparameters("ppo"), hp)))
         self.model.set_logger(quiet_logger())  # (SB3's default makes a temp folder at every learn)
         self.iteration_steps = self.model.n_steps * s.num_envs
         self.rng_state = rng_state()  # PPO draws from the global generators the model's seed set
@@ -173,12 +179,14 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=30, help="rounds of two PPO iterations per arm")
     parser.add_argument("--insitu-steps", type=int, default=16384, help="env steps of the in-situ run")
+    parser.add_argument("--hp", default="{}", help="JSON overrides of the catalog's PPO hyperparameters")
     args = parser.parse_args()
     torch.set_num_threads(1)
     objective = objective_from_vector(ObjectiveVector.from_list(default_objective_vector()), "default")
     recipe, _ = MujocoBackend().recipe(TASK, objective)
     s = recipe.settings
-    runs = {arm: Run(recipe, arm, seed=0) for arm in ARMS}
+    hp = json.loads(args.hp)
+    runs = {arm: Run(recipe, arm, seed=0, hp=hp) for arm in ARMS}
     steps = runs["bare"].iteration_steps
     print(f"{TASK}: PPO, {s.num_envs} envs, {steps} env steps per iteration, {args.rounds} rounds of 2 iterations "
           f"per arm ({2 * args.rounds * steps:,} steps per run), overlay keys {sorted(recipe.scales)}")
@@ -206,7 +214,7 @@ def main() -> None:
         print(f"{arm:8s}/ bare, median round: whole run {summary(rs)}{note}")
         print(f"{'':10s}second half: {summary(rs[half:])}")
     own_s = [0.0]
-    timed = Run(recipe, "overlay", seed=0, own_s=own_s)
+    timed = Run(recipe, "overlay", seed=0, own_s=own_s, hp=hp)
     wall, _ = timed.advance(args.insitu_steps)
     timed.finish()
     print(f"layers in situ (a separate overlay run, {args.insitu_steps} steps): {own_s[0]:.3f} s of {wall:.2f} s "

@@ -24,6 +24,8 @@ from econmotor.objectives import EconomicObjectiveSpec, load_objective_spec
 
 REPO = Path(__file__).resolve().parents[1]
 WARMUP = 3
+#: the smallest run (tests/integration/test_benchmarks.py): one round of 4 iterations (the warm-up's 3 dropped)
+SMOKE_ARGS: list[str] = ["--iterations", "4", "--rounds", "1"]
 
 
 def iteration_times(backend: HolosomaBackend, objective: EconomicObjectiveSpec, iterations: int,

@@ -17,6 +17,9 @@ import numpy as np
 
 from econmotor.analysis.pareto import hypervolume, pareto_mask
 
+#: the smallest run (tests/integration/test_benchmarks.py)
+SMOKE_ARGS: list[str] = ["--sizes", "8"]
+
 
 def hso(pts: np.ndarray, ref: np.ndarray) -> float:
     """Recursive hypervolume by slicing objectives (While et al. 2006), the reference."""

@@ -21,6 +21,9 @@ os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_
 
 from mjx_throughput import side_by_side
 
+#: the smallest run (tests/integration/test_benchmarks.py): the hopper, one env, one step per block
+SMOKE_ARGS: list[str] = ["--tasks", "hopper_courier", "--num-envs", "1", "--steps", "1", "--rounds", "1"]
+
 
 def gymnasium_model_catalog(task_id: str):
     """The catalog with ``task_id``'s mjx entry stripped of its ``model_options``."""

@@ -29,6 +29,8 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 from mjx_model_options import gymnasium_model_catalog
 
+#: the smallest run (tests/integration/test_benchmarks.py): 20 env steps on one env, one episode per arm
+SMOKE_ARGS: list[str] = ["--max-steps", "20", "--num-envs", "1", "--episodes", "1"]
 FIGURES = (("mpl_units_per_hour", "legs/h"), ("error_rate", "error rate"), ("energy_wh_per_unit", "Wh/leg"),
            ("robot_unit_cost_usd", "USD/leg"))
 

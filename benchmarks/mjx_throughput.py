@@ -12,7 +12,8 @@
    in-process Gymnasium envs on the CPU), same task (hopper_courier), same objective
    (``ppo_vs_sb3``). Each is timed from its first to its last progress report after the first
    report, i.e. without env creation, XLA compilation (mjx: the first iteration) or
-   evaluation. Goal on a GPU: ratio >= 100; on 2 CPU cores it is reported as it is.
+   evaluation (neither runs held-out evaluations: ``select_every_steps=0``). Goal on a GPU:
+   ratio >= 100; on 2 CPU cores it is reported as it is.
 
     .venv/bin/python benchmarks/mjx_throughput.py                   # GPU: catalog num_envs
     .venv/bin/python benchmarks/mjx_throughput.py --mjx-envs 32 --mjx-steps 20000 --sb3-steps 8192 \
@@ -31,6 +32,9 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1")
 
 TASK = "hopper_courier"
+#: the smallest run (tests/integration/test_benchmarks.py): 1 env everywhere, one SB3 PPO rollout (4 x 512 steps)
+SMOKE_ARGS: list[str] = ["--env-envs", "1", "--env-steps", "1", "--env-rounds", "1", "--mjx-envs", "1",
+                         "--mjx-steps", "60", "--sb3-steps", "2048"]
 
 
 def env_step_throughput(task_id: str = TASK, num_envs: int = 0, steps_per_block: int = 0, rounds: int = 5,
@@ -137,7 +141,7 @@ def mjx_ppo_throughput(steps: int, num_envs: int, seed: int = 0) -> tuple[float,
     stamps, progress = _timed_progress()
     with tempfile.TemporaryDirectory() as out:
         result = backend.train_policy(TASK, EconomicObjectiveSpec(), [], num_envs, steps, seed, output_dir=out,
-                                      eval_episodes=0, progress=progress)
+                                      eval_episodes=0, progress=progress, select_every_steps=0)
     return _rate(stamps), int(result.config["num_envs"]), device_description()
 
 
@@ -153,7 +157,7 @@ def sb3_ppo_throughput(steps: int, seed: int = 0) -> tuple[float, int]:
     stamps, progress = _timed_progress()
     with tempfile.TemporaryDirectory() as out:
         result = backend.train_policy(TASK, EconomicObjectiveSpec(), [], 0, steps, seed, output_dir=out,
-                                      eval_episodes=0, progress=progress, algorithm="ppo")
+                                      eval_episodes=0, progress=progress, algorithm="ppo", select_every_steps=0)
     return _rate(stamps), int(result.config["num_envs"])
 
 

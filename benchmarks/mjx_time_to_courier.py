@@ -32,6 +32,11 @@ from econmotor.motor_backend.mjx.backend import MjxBackend, device_description  
 from econmotor.motor_backend.mjx.training import evaluate_episodes  # noqa: E402
 from econmotor.objectives import EconomicObjectiveSpec  # noqa: E402
 
+#: the smallest run (tests/integration/test_benchmarks.py): the hopper (compiles in a fraction of the
+#: humanoid's time), one env, one evaluation of one episode after one PPO iteration
+SMOKE_ARGS: list[str] = ["--task-id", "hopper_courier", "--num-envs", "1", "--max-steps", "20",
+                         "--eval-every-steps", "20", "--eval-episodes", "1"]
+
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -48,6 +48,8 @@ from econmotor.objectives.loader import objective_from_vector
 from econmotor.valuation import default_objective_vector
 
 TASKS = {"hopper_courier": "Hopper-v5", "humanoid_courier": "Humanoid-v5"}
+#: the smallest run (tests/integration/test_benchmarks.py): one round of one 200-step block, the hopper
+SMOKE_ARGS: list[str] = ["--steps", "200", "--rounds", "1", "--tasks", "hopper_courier"]
 
 
 def time_block(env: gym.Env, actions: np.ndarray) -> tuple[float, float, int]:

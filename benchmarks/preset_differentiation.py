@@ -54,6 +54,8 @@ from econmotor.tasks import get_task
 
 PRESETS = ("throughput", "energy_saver", "safety")
 EVAL_SEED = 900_000
+#: the smallest run (tests/integration/test_benchmarks.py): no gradient step (SAC starts learning later)
+SMOKE_ARGS: list[str] = ["--steps", "60", "--num-envs", "1", "--seeds", "1", "--eval-episodes", "1"]
 
 
 def policy_row(backend: DishwashingBackend, policy_id: str, task_id: str, objective, episodes: int) -> dict:

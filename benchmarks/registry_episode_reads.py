@@ -18,6 +18,9 @@ from econmotor.motor_backend.base import MotorEvalResult, summarize_episodes
 from econmotor.store import Registry
 from econmotor.tasks import get_task
 
+#: the smallest run (tests/integration/test_benchmarks.py)
+SMOKE_ARGS: list[str] = ["--runs", "2", "--episodes-per-run", "2"]
+
 
 def main() -> None:
     parser = argparse.ArgumentParser()

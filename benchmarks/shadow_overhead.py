@@ -6,9 +6,10 @@ per step, per-term sums, running Pearson/Spearman, JSONL per episode, plot at th
 end) and its callback. Arms run in A B B A order per repeat, so a machine whose load
 drifts during the run (2 shared cores) hits both arms alike. A second line times the
 env alone (no learner) for the wrapper's raw cost per step, and a third gives the
-ratio that cost implies at the measured SAC speed (load-independent).
+ratio that cost implies at the measured SAC speed (load-independent); ``--env-steps`` (20,000)
+random actions per env-alone arm.
 
-    .venv/bin/python benchmarks/shadow_overhead.py [--steps 2000] [--repeats 1]
+    .venv/bin/python benchmarks/shadow_overhead.py [--steps 2000] [--repeats 1] [--env-steps 20000]
 """
 
 from __future__ import annotations
@@ -25,6 +26,9 @@ import torch
 
 from econmotor.rl.shadow_log import ShadowRecorder
 from econmotor.rl.train_sac_objective import ShadowConfig, build_env, train_sac_objective
+
+#: the smallest run (tests/integration/test_benchmarks.py): 4 SAC runs of 20 steps, 200 env-alone steps
+SMOKE_ARGS: list[str] = ["--steps", "20", "--env-steps", "200"]
 
 
 def sac_steps_per_s(shadow: bool, steps: int, seed: int) -> float:
@@ -54,6 +58,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--repeats", type=int, default=1)
+    parser.add_argument("--env-steps", type=int, default=20_000, help="random actions per env-alone arm")
     args = parser.parse_args()
     torch.set_num_threads(1)
     plain, shadow = [], []
@@ -62,8 +67,8 @@ def main() -> None:
             (shadow if arm else plain).append(sac_steps_per_s(arm, args.steps, seed=r))
             print(f"repeat {r}: SAC {'with' if arm else 'without'} shadow "
                   f"{(shadow if arm else plain)[-1]:.1f} steps/s", flush=True)
-    env_plain = env_steps_per_s(False, 20_000)
-    env_shadow = env_steps_per_s(True, 20_000)
+    env_plain = env_steps_per_s(False, args.env_steps)
+    env_shadow = env_steps_per_s(True, args.env_steps)
     print(f"env only (no learner): without shadow {env_plain:.0f} steps/s, with shadow {env_shadow:.0f} steps/s, "
           f"ratio {env_shadow / env_plain:.3f}")
     cost_s = 1.0 / env_shadow - 1.0 / env_plain

@@ -25,6 +25,9 @@ import time
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
+#: the smallest run (tests/integration/test_benchmarks.py): one round of 0.2 simulated seconds
+SMOKE_ARGS: list[str] = ["--episode-s", "0.2", "--rounds", "1"]
+
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])

@@ -27,6 +27,10 @@ from econmotor.analysis.objective_surface import (
 from econmotor.valuation import ConstraintSet, build_reward_terms, combine_reward
 from econmotor.valuation.reward_builder import REWARD_TERM_NAMES
 
+#: the smallest run (tests/integration/test_benchmarks.py)
+SMOKE_ARGS: list[str] = ["--episodes", "200", "--runs", "4", "--objectives", "8", "--constraint-sets", "2",
+                         "--loop-runs", "1", "--repeats", "1"]
+
 
 class _Price:
     energy_price_usd_per_kwh = 0.12

@@ -4,16 +4,18 @@ Same algorithm, env (Hopper-v5), number of in-process envs, observation normalis
 hyperparameters (the hopper_courier catalog entry's). Plain SB3: ``DummyVecEnv`` of
 ``Monitor(gym.make("Hopper-v5"))`` + ``VecNormalize`` + ``model.learn``. Backend:
 ``MujocoBackend.train_policy`` (metering + overlay wrappers, progress, curve, checkpoint,
-TensorBoard and econ-logging callbacks), timed from its first to its last progress report
-(env creation, evaluation and ONNX export excluded). Runs alternate: plain, backend, ...
-Goal: ratio >= 0.95.
+TensorBoard and econ-logging callbacks; no held-out evaluations, ``select_every_steps=0``: plain
+SB3 runs none), timed from its first to its last progress report (env creation, evaluation and
+ONNX export excluded). Runs alternate: plain, backend, ... Goal: ratio >= 0.95. ``--hp`` overrides
+the catalog's hyperparameters in both arms (e.g. ``'{"n_steps": 256}'``).
 
-    .venv/bin/python benchmarks/training_throughput.py [--algorithm ppo] [--steps 20480] [--rounds 2]
+    .venv/bin/python benchmarks/training_throughput.py [--algorithm ppo] [--steps 20480] [--rounds 2] [--hp '{}']
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import tempfile
 import time
@@ -32,6 +34,8 @@ from econmotor.motor_backend.sb3_callbacks import quiet_logger
 from econmotor.objectives import EconomicObjectiveSpec
 
 TASK = "hopper_courier"
+#: the smallest run (tests/integration/test_benchmarks.py): one PPO iteration of 4 x 16 steps per arm
+SMOKE_ARGS: list[str] = ["--steps", "64", "--rounds", "1", "--hp", '{"n_steps": 16, "n_epochs": 1}']
 
 
 def plain_sb3(algorithm: str, hp: dict, num_envs: int, steps: int, seed: int, normalize: bool) -> float:
@@ -56,7 +60,8 @@ def backend_run(algorithm: str, hp: dict, num_envs: int, steps: int, seed: int) 
 
     with tempfile.TemporaryDirectory() as out:
         MujocoBackend().train_policy(TASK, EconomicObjectiveSpec(), [], num_envs, steps, seed, output_dir=out,
-                                     eval_episodes=0, progress=progress, algorithm=algorithm, hyperparameters=hp)
+                                     eval_episodes=0, progress=progress, algorithm=algorithm, hyperparameters=hp,
+                                     select_every_steps=0)
     (t0, n0), (t1, n1) = stamps[0], stamps[-1]
     return (n1 - n0) / (t1 - t0)
 
@@ -66,10 +71,11 @@ def main() -> None:
     parser.add_argument("--algorithm", default="ppo", choices=["ppo", "sac"])
     parser.add_argument("--steps", type=int, default=20_480)
     parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--hp", default="{}", help="JSON overrides of the catalog's hyperparameters (both arms)")
     args = parser.parse_args()
     torch.set_num_threads(1)
     _, settings = MujocoBackend().task(TASK)
-    hp = merge_hyperparameters(settings.algo_hyperparameters(args.algorithm), {})
+    hp = merge_hyperparameters(settings.algo_hyperparameters(args.algorithm), json.loads(args.hp))
     num_envs = settings.num_envs if args.algorithm == "ppo" else 1
     if args.algorithm == "sac":
         hp.update(buffer_size=max(args.steps, 1000), learning_starts=min(hp.get("learning_starts", 100), 1000))
