@@ -6,7 +6,7 @@ STAMP := $(VENV)/.econmotor-installed
 export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
-.PHONY: demo test venv holosoma bench lint clean mutation
+.PHONY: demo test venv holosoma bench-smoke lint clean mutation
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -41,6 +41,10 @@ holosoma: $(HSTAMP)
 
 test: $(STAMP) $(HSTAMP)
 	$(PY) -m pytest -q
+
+# every benchmark at its smallest sizes, the MJX / Holosoma-training ones included (tens of minutes on a CPU)
+bench-smoke: $(STAMP) $(HSTAMP)
+	ECONMOTOR_BENCHMARKS=all $(PY) -m pytest -q tests/integration/test_benchmarks.py
 
 lint: $(STAMP)
 	$(PY) -m ruff check src tests

@@ -41,6 +41,10 @@ EVAL_SEED = 700_000
 RESAMPLES = 2000
 
 
+#: the smallest run: one PPO iteration of 1 env x 20 steps (tests/integration/test_benchmarks.py)
+SMOKE_ARGS: list[str] = ["--steps", "20", "--num-envs", "1", "--episodes", "1"]
+
+
 def wh_per_leg(wh: np.ndarray, legs: np.ndarray) -> float:
     return float(wh.sum() / legs.sum()) if legs.sum() > 0 else float("inf")
 

@@ -45,6 +45,10 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 
 
+#: the smallest run; HEAD as the 'before' (a CI clone may have no main branch)
+SMOKE_ARGS: list[str] = ["--num-envs", "1", "--max-steps", "20", "--eval-episodes", "1", "--before-ref", "HEAD"]
+
+
 def arm(args: argparse.Namespace) -> dict:
     """One arm, in this process (``econmotor`` from ``PYTHONPATH``): the run's timeline as a dict."""
     started = time.perf_counter()

@@ -12,6 +12,10 @@ A run past its time limit is killed with its whole process group.
 JAX's persistent compilation cache (the suite's ``$ECONMOTOR_JAX_CACHE_DIR``, see tests/conftest.py) serves
 later runs the MJX programs the first one compiled: the MJX scripts then take about a minute each instead of
 several (measured on 2 shared cores: the whole file 1,445 s wall cold, 580 s warm).
+
+The :data:`HEAVY` scripts (they compile MJX programs for minutes on a CPU, or run Holosoma training
+jobs) run only with ``ECONMOTOR_BENCHMARKS=all`` (``make bench-smoke``): with them ``make test``
+would outgrow CI's 30 minutes on a cold compilation cache. Every other script runs in ``make test``.
 """
 
 from __future__ import annotations
@@ -36,7 +40,10 @@ FIGURES = {
     "demo_reliability.py": '"fall_rate_upper95":',
     "economic_layers_cost.py": "layers in situ",
     "holosoma_overlay_overhead.py": "in-run ratio",
+    "g1_objectives.py": "energy_saver - throughput, Wh/leg",
     "hypervolume.py": "ratio HSO/grid",
+    "mjx_eval_timeline.py": "evaluation per episode: before",
+    "mjx_humanoid_throughput.py": "ratio",
     "mjx_model_options.py": "ratio",
     "mjx_physics_gap.py": "(ratio to mjx options in brackets)",
     "mjx_throughput.py": "PPO training throughput ratio mjx / mujoco",
@@ -55,8 +62,11 @@ SLOW = {"conditioned_vs_specialists.py", "constraints_dishwashing.py", "demo_rel
         "economic_layers_cost.py", "holosoma_overlay_overhead.py", "mjx_model_options.py", "mjx_physics_gap.py",
         "mjx_throughput.py", "mjx_time_to_courier.py", "preset_differentiation.py", "time_to_deployable.py",
         "training_throughput.py", "shadow_overhead.py"}
+#: minutes each on a CPU (MJX compilation, Holosoma training): only with ECONMOTOR_BENCHMARKS=all
+HEAVY = {"mjx_model_options.py", "mjx_physics_gap.py", "mjx_throughput.py", "mjx_time_to_courier.py",
+         "mjx_humanoid_throughput.py", "mjx_eval_timeline.py", "g1_objectives.py", "holosoma_overlay_overhead.py"}
 #: need the isolated Holosoma environment (the script runs in it, or starts jobs in it)
-HOLOSOMA = {"holosoma_overlay_overhead.py", "sim2sim_throughput.py"}
+HOLOSOMA = {"holosoma_overlay_overhead.py", "sim2sim_throughput.py", "g1_objectives.py"}
 TIMEOUT_S = 900  # generous: minutes on 2 shared cores with a cold compilation cache
 
 
@@ -104,7 +114,11 @@ def run_group(command: list[str], cwd: Path, env: dict[str, str], timeout_s: flo
 
 
 def marks(name: str) -> list[pytest.MarkDecorator]:
-    return ([pytest.mark.slow] if name in SLOW else []) + ([pytest.mark.holosoma] if name in HOLOSOMA else [])
+    heavy = pytest.mark.skipif(name in HEAVY and os.environ.get("ECONMOTOR_BENCHMARKS") != "all",
+                               reason="minutes of MJX compilation or Holosoma training on a CPU: "
+                                      "ECONMOTOR_BENCHMARKS=all (make bench-smoke) runs it")
+    return ([pytest.mark.slow] if name in SLOW | HEAVY else []) + \
+        ([pytest.mark.holosoma] if name in HOLOSOMA else []) + [heavy]
 
 
 @pytest.mark.timeout(TIMEOUT_S + 60)
