@@ -24,7 +24,6 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 from mjx_throughput import side_by_side
 
-
 #: the smallest run (tests/integration/test_benchmarks.py)
 SMOKE_ARGS: list[str] = ["--envs", "1", "--steps", "1", "--rounds", "1"]
 
