@@ -8,8 +8,10 @@ from __future__ import annotations
 import pytest
 
 from econmotor.cli.demo import DEMO_OBJECTIVE
+from econmotor.economics.uncertainty import SequentialPlan
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.selection import SELECTION_SEED_OFFSET, Selection, SelectionConfig, selection_for
+from econmotor.motor_backend.sequential import SequentialEvaluation, judge_raw
 from econmotor.objectives import load_objective_spec
 from econmotor.tasks import get_task
 
@@ -140,32 +142,32 @@ def test_a_resumed_run_keeps_its_earlier_best_unless_beaten():
     assert not better and resumed.best.env_steps == 1000
 
 
-# mixed evaluations: a fall among clean episodes. 1 fall in 80 episodes of 1.2 legs: 97 legs, bound 0.048 (passes)
-ONE_FALL_FIRST = [episode(1.2, i == 0) for i in range(80)]
-ONE_FALL_IN_BATCH = [episode(1.2, i == 9) for i in range(80)]
-ONE_FALL_LATE = [episode(1.2, i == 70) for i in range(80)]
-ONE_FALL_FAST = [episode(3.0, i == 3) for i in range(80)]  # 1 fall in 241 legs: a wide margin
+# mixed evaluations: a fall among clean episodes. 1 fall in 160 episodes of 1.2 legs: 193 legs, bound ~0.034 at
+# the looks' 99% (passes once enough legs are in); cutting it short at the fall would lose a pass
+ONE_FALL_FIRST = [episode(1.2, i == 0) for i in range(160)]
+ONE_FALL_IN_BATCH = [episode(1.2, i == 9) for i in range(160)]
+ONE_FALL_LATE = [episode(1.2, i == 70) for i in range(160)]
+ONE_FALL_FAST = [episode(3.0, i == 3) for i in range(160)]  # 1 fall in ~481 legs: a wide margin
 
 
 @pytest.mark.parametrize("rows", [ONE_FALL_FIRST, ONE_FALL_IN_BATCH, ONE_FALL_LATE, ONE_FALL_FAST],
                          ids=["first", "in-first-batch", "late", "fast"])
-def test_a_passing_evaluation_with_a_fall_among_clean_episodes_runs_in_full_and_passes(rows):
+def test_a_passing_evaluation_with_a_fall_among_clean_episodes_runs_on_and_passes(rows):
     sel = selection()
-    assert sel.judge(rows)[1].deployable  # judged whole, it passes: cutting it short would lose a pass
     result, better = sel.consider(1000, evaluation(rows))
-    assert (result.episodes, result.cut_short) == (80, False)
-    assert result.deployable and better and result.errors == 1.0
+    assert result.deployable and better and result.errors == 1.0  # not cut short as hopeless at its fall
+    assert result.outcome == "pass" and result.episodes > 16  # it ran past the look where it fell
 
 
 # hopeless mixed evaluations: even if every episode still to run were clean, too many falls to pass
-TWO_FALLS_EARLY = [episode(1.2, i in (2, 11)) for i in range(80)]  # 2 falls in ~98 legs: bound ~0.07 > 0.05
-EVERY_THIRD_FALLS = [episode(1.2, i % 3 == 0) for i in range(80)]
+FOUR_FALLS_EARLY = [episode(1.2, i in (2, 5, 11, 14)) for i in range(160)]  # 4 falls: bound > 0.05 even at 160
+EVERY_THIRD_FALLS = [episode(1.2, i % 3 == 0) for i in range(160)]
 
 
-@pytest.mark.parametrize("rows", [TWO_FALLS_EARLY, EVERY_THIRD_FALLS], ids=["two-early", "every-third"])
+@pytest.mark.parametrize("rows", [FOUR_FALLS_EARLY, EVERY_THIRD_FALLS], ids=["four-early", "every-third"])
 def test_a_hopeless_mixed_evaluation_is_cut_short_at_the_first_check(rows):
     sel = selection()
-    assert not sel.judge(rows[:16] + [episode(1.2, False)] * 64)[1].deployable  # hopeless after 16 episodes
+    assert not sel.judge(rows[:16] + [episode(1.2, False)] * 144, confidence=0.99)[1].deployable
     result, _ = sel.consider(1000, evaluation(rows))
     assert result.cut_short and result.episodes == 16 and not result.deployable
 
@@ -175,13 +177,13 @@ def test_a_held_out_result_carries_the_evaluations_figures():
     sel = selection()
     sel.started -= 1.0  # the run started a second before this evaluation
     result, _ = sel.consider(123_456, evaluation(SAFE))
-    assert (result.env_steps, result.episodes, result.episodes_planned, result.cut_short) == (123_456, 80, 80, False)
+    assert (result.env_steps, result.episodes, result.episodes_planned) == (123_456, 128, 160)  # passed at 128
     assert result.units_per_hour == pytest.approx(1.2 * 3600 / 8.0)  # 540 legs/h
     assert result.units_per_hour_low <= result.units_per_hour and result.units_per_hour_low > 100.0
-    assert result.errors == 0.0 and result.eval_env_steps == 80 * 1000
+    assert result.errors == 0.0 and result.eval_env_steps == 128 * 1000
     assert 0.0 <= result.eval_s <= result.wall_s and result.wall_s >= 1.0 and result.wall_s < 3600.0
     assert result.wall_s == round(result.wall_s, 3) and result.eval_s == round(result.eval_s, 3)
-    assert result.fall_rate_upper == pytest.approx(1 - 0.05 ** (1 / 96))  # Clopper-Pearson, 0 falls in 96 legs
+    assert result.fall_rate_upper == pytest.approx(1 - 0.01 ** (1 / 153.6))  # Clopper-Pearson at 99%, 0 in 153.6
     assert result.status() == "@123k: deployable" and sel.status() == result.status()
     falling, _ = sel.consider(40_000, evaluation(FALLING))
     assert falling.status() == f"@40k: not deployable (fall rate<={falling.fall_rate_upper:.2f})"
@@ -204,11 +206,12 @@ def test_the_run_record_says_every_field():
     record = sel.record()
     first = SELECTION_SEED_OFFSET
     assert {k: record[k] for k in ("every_steps", "episodes", "until_deployable", "seeds", "judged_by")} == {
-        "every_steps": 1000, "episodes": 80, "until_deployable": False, "seeds": [first, first + 80],
-        "judged_by": "economics.uncertainty.judge (the report's acceptance rule), J = mean episode_j"}
+        "every_steps": 1000, "episodes": 160, "until_deployable": False, "seeds": [first, first + 160],
+        "judged_by": "economics.uncertainty.judge (the report's acceptance rule) at each look of a sequential "
+                     "evaluation (motor_backend/sequential.py), J = mean episode_j"}
     assert record["kept"] == sel.history[1].to_dict() and record["kept_acceptable"] is True
     assert record["became_deployable"] == {"env_steps": 2000, "wall_s": sel.history[1].wall_s}
-    assert record["evaluation_cost"] == {"count": 2, "episodes": 16 + 80, "env_steps": 96 * 1000,
+    assert record["evaluation_cost"] == {"count": 2, "episodes": 16 + 128, "env_steps": 144 * 1000,
                                          "wall_s": round(sel.history[0].eval_s + sel.history[1].eval_s, 3)}
     assert record["why"] == sel.kept_reason() == (
         f"the checkpoint at 2,000 env steps: the best J ({sel.history[1].j_mean:.4g}) of the 1 held-out "
@@ -219,7 +222,7 @@ def test_the_kept_reason_in_words():
     sel = selection(until=True)
     sel.consider(3000, evaluation(SAFE))
     assert sel.kept_reason() == ("the checkpoint at 3,000 env steps: the first to pass the task's acceptance rule on "
-                                 "80 held-out episodes (training stopped there: --until-deployable)")
+                                 "128 held-out episodes (training stopped there: --until-deployable)")
     sel = selection()
     sel.consider(4000, evaluation(FALLING))
     assert sel.kept_reason() == (f"the checkpoint at 4,000 env steps: none of 1 held-out evaluations passed the task's "
@@ -234,20 +237,24 @@ def test_an_equal_later_evaluation_does_not_replace_the_kept_one():
     assert first and not again and sel.best.env_steps == 1000
 
 
+def sequential(max_episodes: int = 160) -> SequentialEvaluation:
+    return SequentialEvaluation(TASK, SequentialPlan(batch=16, max_episodes=max_episodes))
+
+
 def test_a_full_evaluation_is_never_hopeless():
-    sel = selection()
-    assert not sel.hopeless([]) and not sel.hopeless(FALLING)  # nothing left to run: not "hopeless"
-    assert sel.hopeless(FALLING[:79])  # one episode left cannot rescue 79 falls
-    assert not sel.hopeless(SAFE[:16])
+    ev = sequential()
+    assert not ev.hopeless([]) and not ev.hopeless(FALLING)  # nothing left to run: not "hopeless"
+    assert ev.hopeless(FALLING[:159])  # one episode left cannot rescue 159 falls
+    assert not ev.hopeless(SAFE[:16])
 
 
 def test_the_best_episode_is_a_fall_free_one_with_the_most_units():
-    sel = selection()
+    ev = sequential(80)
     rows = [episode(3.0, True)] + [episode(0.2, False)] * 14 + [episode(2.0, False)]
-    # 64 more like the 2-leg fall-free episode: 1 fall in ~137 attempted legs passes; like the 3-leg one that fell,
-    # or like a 0.2-leg one, it could not
-    assert sel.judge(rows + [episode(2.0, False)] * 64)[1].deployable
-    assert not sel.hopeless(rows)
+    # 64 more like the 2-leg fall-free episode: 1 fall in ~137 attempted legs passes at the looks' confidence;
+    # like the 3-leg one that fell, or like a 0.2-leg one, it could not
+    assert judge_raw(TASK, rows + [episode(2.0, False)] * 64, ev.plan.look_confidence).verdict.deployable
+    assert not ev.hopeless(rows)
 
 
 def test_selection_for_builds_the_requested_selection_and_names_its_refusal():
