@@ -40,8 +40,8 @@ for name in sys.argv[1:]:
     targets, starts, record = [], [], []
 
     def policy(row):
-        a = np.clip(np.asarray(act(row), dtype=np.float32).reshape(-1), -c.action_clip, c.action_clip)
-        targets.append(np.asarray(c.default_dof_angles) + c.action_scale * a.astype(np.float64))
+        a = np.clip(np.asarray(act(row), dtype=np.float32).reshape(-1), -c.card.action_clip, c.card.action_clip)
+        targets.append(np.asarray(c.card.default_dof_angles) + c.card.action_scale * a.astype(np.float64))
         return a
 
     def before_control_step(robot, builder, row, vx, yaw_rate):
@@ -51,7 +51,7 @@ for name in sys.argv[1:]:
                             fall_tilt_rad=0.8)
     ep = s.run_episode(robot, c, policy, s.CourseSettings(2.0, 1.0, 0.8), meter, s.Stress(initial_joint_noise_rad=0.05),
                        7.0, 5, record=record, on_observation=before_control_step)
-    kp, kd, limit = np.asarray(c.kp), np.asarray(c.kd), np.asarray(c.effort_limits)
+    kp, kd, limit = np.asarray(c.kp), np.asarray(c.kd), np.asarray(c.card.effort_limits)
     ends = [start for start, _, _ in starts[1:]] + [len(record)]
     work_j = 0.0
     for (start, q, qd), end, target in zip(starts, ends, targets):

@@ -45,7 +45,7 @@ for name, path in (("ours", sys.argv[1]), ("shipped", sys.argv[2])):
     c = resolve_contract(path)
     out[name] = {"inputs": policy.onnx_input_names, "outputs": policy.onnx_output_names,
                  "kp": policy.onnx_kp.tolist(), "kd": policy.onnx_kd.tolist(), "actions": actions.tolist(),
-                 "contract": {"obs_dim": c.obs_dim, "preset": c.inference_preset, "action_scale": c.action_scale,
+                 "contract": {"obs_dim": c.obs_dim, "preset": c.inference_preset, "action_scale": c.card.action_scale,
                               "dof_names": list(c.dof_names), "command_ranges": c.command_ranges}}
 print("@@loaded " + json.dumps(out))
 """

@@ -51,7 +51,7 @@ def swap_joints(meta: dict) -> None:
 
 CASES = {"no-kp": (drop_kp, "metadata", "lacks Holosoma export metadata ['kp']"),
          "short-kd": (short_kd, "kd", "28 gains for 29 dof_names"),
-         "joints-reordered": (swap_joints, "dof_names", "the joints of preset 'g1-29dof-loco' in another order")}
+         "joints-reordered": (swap_joints, "dof_names", "the joints of robot card 'g1_29dof' in another order")}
 
 RESOLVE = r"""
 import sys

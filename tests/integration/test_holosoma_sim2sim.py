@@ -59,7 +59,7 @@ for name in sys.argv[1:]:
 
     def policy(row):  # what the policy returned, clipped as the contract says: the reference's last action
         action = act(row)
-        returned.append(np.clip(np.asarray(action, dtype=np.float32).reshape(-1), -c.action_clip, c.action_clip))
+        returned.append(np.clip(np.asarray(action, dtype=np.float32).reshape(-1), -c.card.action_clip, c.card.action_clip))
         return action
 
     def check(robot, builder, row, vx, yaw_rate):

@@ -226,6 +226,8 @@ def run_episode_jobs(python: str | Path, jobs: list[dict[str, Any]], run_dir: st
             log.close()
     if errors:
         k, error = next(iter(errors.items()))
+        if error.get("config_error"):  # the job's bad input: the same ConfigError here, as run_job raises it
+            raise ConfigError(*error["config_error"])
         text = f"{error['text']}\n{error.get('traceback', '')}".strip()
         raise BackendError(f"Holosoma sim2sim worker {k} failed:\n{text}\nlogs: {run_dir}")
     return stream, time.monotonic() - start
