@@ -13,9 +13,10 @@ JAX's persistent compilation cache (the suite's ``$ECONMOTOR_JAX_CACHE_DIR``, se
 later runs the MJX programs the first one compiled: the MJX scripts then take about a minute each instead of
 several (measured on 2 shared cores: the whole file 1,445 s wall cold, 580 s warm).
 
-The :data:`HEAVY` scripts (they compile MJX programs for minutes on a CPU, or run Holosoma training
-jobs) run only with ``ECONMOTOR_BENCHMARKS=all`` (``make bench-smoke``): with them ``make test``
-would outgrow CI's 30 minutes on a cold compilation cache. Every other script runs in ``make test``.
+The :data:`SLOW` and :data:`HEAVY` scripts (they train policies, compile MJX programs for minutes on a
+CPU, or run Holosoma jobs) run only with ``ECONMOTOR_BENCHMARKS=all`` (``make bench-smoke``): with
+them ``make test`` would come too close to CI's 30 minutes. The quick ones run in ``make test``, and
+every script's ``SMOKE_ARGS`` and figures line are checked there.
 """
 
 from __future__ import annotations
@@ -114,8 +115,8 @@ def run_group(command: list[str], cwd: Path, env: dict[str, str], timeout_s: flo
 
 
 def marks(name: str) -> list[pytest.MarkDecorator]:
-    heavy = pytest.mark.skipif(name in HEAVY and os.environ.get("ECONMOTOR_BENCHMARKS") != "all",
-                               reason="minutes of MJX compilation or Holosoma training on a CPU: "
+    heavy = pytest.mark.skipif(name in SLOW | HEAVY and os.environ.get("ECONMOTOR_BENCHMARKS") != "all",
+                               reason="trains a policy, compiles MJX programs or runs Holosoma jobs: "
                                       "ECONMOTOR_BENCHMARKS=all (make bench-smoke) runs it")
     return ([pytest.mark.slow] if name in SLOW | HEAVY else []) + \
         ([pytest.mark.holosoma] if name in HOLOSOMA else []) + [heavy]
@@ -135,3 +136,11 @@ def test_benchmark_runs_at_its_smallest_sizes(script: Path, tmp_path: Path) -> N
     code, out = run_group([interpreter(script), str(script), *args], tmp_path, env, TIMEOUT_S)
     assert code == 0, f"{script.name} {' '.join(args)} exited {code}:\n{out[-6000:]}"
     assert FIGURES[script.name] in out, f"{script.name} did not print {FIGURES[script.name]!r}:\n{out[-4000:]}"
+
+
+@pytest.mark.parametrize("script", BENCHMARKS, ids=[p.stem for p in BENCHMARKS])
+def test_every_benchmark_declares_its_smallest_run_and_figures_line(script: Path) -> None:
+    """Checked for every script, also those only ``make bench-smoke`` runs."""
+    args = smoke_args(script)
+    assert args is None or args, f"{script.name}: SMOKE_ARGS is an empty list"
+    assert script.name in FIGURES, f"add {script.name}'s figures line (a substring it prints) to FIGURES"

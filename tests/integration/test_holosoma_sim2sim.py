@@ -59,7 +59,8 @@ for name in sys.argv[1:]:
 
     def policy(row):  # what the policy returned, clipped as the contract says: the reference's last action
         action = act(row)
-        returned.append(np.clip(np.asarray(action, dtype=np.float32).reshape(-1), -c.card.action_clip, c.card.action_clip))
+        clip = c.card.action_clip
+        returned.append(np.clip(np.asarray(action, dtype=np.float32).reshape(-1), -clip, clip))
         return action
 
     def check(robot, builder, row, vx, yaw_rate):
