@@ -288,5 +288,8 @@ def test_a_stop_after_the_first_batch_ends_the_workers_early(python: Path, tmp_p
 
     result = backend.evaluate_policy("holosoma:g1_29dof/fastsac", "humanoid_locomotion_g1", EconomicObjectiveSpec(),
                                      60, 0, output_dir=tmp_path, stop=stop)
-    assert seen == [backend.evaluation_batch("humanoid_locomotion_g1")]
+    # asked once, at the first batch: two workers stream episodes out of order, so the contiguous prefix
+    # the stop sees can pass the batch by an episode or two
+    batch = backend.evaluation_batch("humanoid_locomotion_g1")
+    assert len(seen) == 1 and batch <= seen[0] < batch + backend.eval_workers
     assert backend.evaluation_batch("humanoid_locomotion_g1") <= len(result.episodes) < 60
