@@ -289,7 +289,7 @@ def test_a_stop_after_the_first_batch_ends_the_workers_early(python: Path, tmp_p
     result = backend.evaluate_policy("holosoma:g1_29dof/fastsac", "humanoid_locomotion_g1", EconomicObjectiveSpec(),
                                      60, 0, output_dir=tmp_path, stop=stop)
     # asked once, at the first batch: two workers stream episodes out of order, so the contiguous prefix
-    # the stop sees can pass the batch by an episode or two
+    # the stop sees can pass the batch when one worker runs ahead
     batch = backend.evaluation_batch("humanoid_locomotion_g1")
-    assert len(seen) == 1 and batch <= seen[0] < batch + backend.eval_workers
+    assert len(seen) == 1 and batch <= seen[0] < 60
     assert backend.evaluation_batch("humanoid_locomotion_g1") <= len(result.episodes) < 60
