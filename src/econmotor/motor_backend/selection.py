@@ -158,11 +158,11 @@ class Selection:
     started: float = field(default_factory=time.perf_counter)
 
     # --- the judgement -------------------------------------------------------------------------
-    def judge(self, raw_episodes: Sequence[Mapping[str, Any]],
-              confidence: float = CONFIDENCE) -> tuple[Any, Any, float]:
+    def judge(self, raw_episodes: Sequence[Mapping[str, Any]], confidence: float = CONFIDENCE,
+              sequential: bool = False) -> tuple[Any, Any, float]:
         """``(Uncertainty, Verdict, mean J)`` of raw episodes: the report's judgement (every bound at
-        ``confidence``) and the objective's J."""
-        judged = judge_raw(self.task, raw_episodes, confidence)
+        ``confidence``; ``sequential``: a sequential look's) and the objective's J."""
+        judged = judge_raw(self.task, raw_episodes, confidence, sequential)
         vector = objective_weights_vector(self.objective)
         js = [episode_j(ep, vector, self.task.economics) for ep in judged.summaries]
         return judged.uncertainty, judged.verdict, (sum(js) / len(js) if js else -math.inf)
@@ -172,7 +172,7 @@ class Selection:
         t0 = time.perf_counter()
         run = SequentialEvaluation(self.task, self.config.plan)
         rows = run.finish(evaluate(self.config.episodes, self.config.first_seed, run.stop))
-        uncertainty, verdict, j_mean = self.judge(rows, run.plan.look_confidence)
+        uncertainty, verdict, j_mean = self.judge(rows, run.plan.look_confidence, sequential=True)
         errors, mpl = uncertainty.intervals["error_rate"], uncertainty.intervals["mpl_units_per_hour"]
         result = HeldOutResult(
             env_steps=int(env_steps), wall_s=round(time.perf_counter() - self.started, 3),

@@ -1,7 +1,8 @@
 """Sequential evaluation: run episodes in batches until the task's acceptance rule is decided.
 
-The rule and its looks are :class:`econmotor.economics.uncertainty.SequentialPlan` (alpha-spending
-over pre-set looks, so the bounds stay valid under this optional stopping). This module drives a
+The rule and its looks are :class:`econmotor.economics.uncertainty.SequentialPlan` (a look after every
+batch; the error rate's confidence sequence and alpha-spending for the other bounds keep them valid under
+this optional stopping). This module drives a
 backend's evaluation with it: a backend's ``evaluate_policy(..., stop=...)`` (or a held-out
 evaluation's ``evaluate(n, first_seed, stop)``) calls ``stop(rows)`` with the episodes finished so
 far, in seed order, whenever a batch has ended; :meth:`SequentialEvaluation.stop` judges every look
@@ -54,14 +55,16 @@ class Judged:
     verdict: Verdict
 
 
-def judge_raw(task: Any, raw_episodes: Sequence[Mapping[str, Any]], confidence: float = CONFIDENCE) -> Judged:
+def judge_raw(task: Any, raw_episodes: Sequence[Mapping[str, Any]], confidence: float = CONFIDENCE,
+              sequential: bool = False) -> Judged:
     """The report's judgement (:func:`econmotor.economics.uncertainty.judge`) of raw-metric episodes
-    (``base.py``'s keys) under ``task``'s economics and acceptance rule, every bound at ``confidence``."""
+    (``base.py``'s keys) under ``task``'s economics and acceptance rule, every bound at ``confidence``
+    (``sequential``: a look of a sequential evaluation, the error rate by its confidence sequence)."""
     economics = task.economics
     _, econ, summaries = summarize_episodes(raw_episodes, economics)
     pricing = price_evaluation(economics, econ, summaries)
     uncertainty, verdict = judge(economics, task.acceptance, task.unit, summaries, pricing.aggregate,
-                                 pricing.policy, confidence)
+                                 pricing.policy, confidence, sequential)
     return Judged(summaries, pricing, uncertainty, verdict)
 
 
@@ -80,7 +83,7 @@ class SequentialEvaluation:
 
     def _look(self, rows: Sequence[Mapping[str, Any]], n: int) -> str:
         conf = self.plan.look_confidence
-        judged = judge_raw(self.task, rows[:n], conf)
+        judged = judge_raw(self.task, rows[:n], conf, sequential=True)
         outcome, why = look_outcome(self.task.acceptance, judged.uncertainty, judged.verdict)
         if outcome == CONTINUE and n < self.plan.max_episodes and self.hopeless(rows[:n]):
             outcome, why = FAIL, (f"cannot pass within {self.plan.max_episodes} episodes even if every episode "
@@ -105,7 +108,8 @@ class SequentialEvaluation:
         if left <= 0 or not rows:
             return False
         best = max(rows, key=lambda r: (float(r.get("errors", 0.0)) == 0.0, float(r.get("units_completed", 0.0))))
-        return not judge_raw(self.task, rows + [best] * left, self.plan.look_confidence).verdict.deployable
+        return not judge_raw(self.task, rows + [best] * left, self.plan.look_confidence,
+                             sequential=True).verdict.deployable
 
     def stop(self, rows: Sequence[Mapping[str, Any]]) -> bool:
         """Judge every look the first ``len(rows)`` episodes reach; True once decided (a backend's ``stop``)."""

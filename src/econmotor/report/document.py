@@ -198,14 +198,14 @@ def evaluation_facts(priced: Any, num_episodes: int) -> dict[str, Any]:
 
 def assess_context(ctx: ReportContext) -> tuple[Uncertainty, Verdict]:
     """Intervals and the deployability verdict of the priced episodes. The intervals are at the report's
-    confidence; a sequential evaluation's verdict is judged at the confidence of its looks (the bounds
-    that stay valid under its optional stopping, :class:`~econmotor.economics.uncertainty.SequentialPlan`)."""
+    confidence; a sequential evaluation's verdict is judged as its looks were (the bounds that stay valid
+    under its optional stopping, :class:`~econmotor.economics.uncertainty.SequentialPlan`)."""
     args = (ctx.task.economics, ctx.task.acceptance, ctx.task.unit, ctx.episodes, ctx.pricing.aggregate,
             ctx.pricing.policy)
     uncertainty, verdict = judge(*args)
     facts = evaluation_facts(ctx.eval_run or ctx.train_run, len(ctx.episodes))
     if facts["rule"] == "sequential":
-        verdict = judge(*args, confidence=float(facts["confidence"]))[1]
+        verdict = judge(*args, confidence=float(facts["confidence"]), sequential=True)[1]
     return uncertainty, verdict
 
 

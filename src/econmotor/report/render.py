@@ -103,11 +103,12 @@ def episodes_chosen_text(evaluation: Mapping[str, Any] | None) -> str:
     plan, looks = evaluation["plan"], evaluation.get("looks") or []
     outcome = {"pass": "passed: every bound inside its limit", "fail": f"failed: {evaluation.get('why')}",
                }.get(evaluation["outcome"], f"{evaluation['outcome']}: {evaluation.get('why')}")
-    return (f"Episodes: sequential, until the acceptance rule was decided (looks at "
-            f"{', '.join(str(n) for n in plan['looks'])} episodes, each bound at "
-            f"{plan['look_confidence'] * 100:.3g}%: alpha-spending over the {len(plan['looks'])} looks, so the "
-            f"verdict holds at 95% however early it stops); stopped after {evaluation['episodes']} episodes at look "
-            f"{len(looks)}, {outcome} ({fmt(evaluation.get('wall_s'))} s).")
+    return (f"Episodes: sequential, until the acceptance rule was decided (a look after every {plan['batch']} "
+            f"episodes, at most {plan['max_episodes']}; the error rate's bounds a confidence sequence valid at every "
+            f"look, the bootstrap bounds at {plan['look_confidence'] * 100:.3g}%: alpha-spending over the "
+            f"{len(plan['looks'])} looks, so the verdict holds at {plan['confidence'] * 100:.3g}% however early it "
+            f"stops); stopped after {evaluation['episodes']} episodes at look {len(looks)}, {outcome} "
+            f"({fmt(evaluation.get('wall_s'))} s).")
 
 
 def _errors_word(doc: Mapping[str, Any]) -> str:

@@ -2,8 +2,9 @@
 
 Each simulated evaluation walks episodes of ``legs`` legs; each leg falls with the policy's true
 fall rate and a fall ends the episode (one error). The rule judges the first ``n_k`` episodes at each
-look of a :class:`SequentialPlan` with the report's own ``decide`` on exact binomial bounds at the
-look's confidence, and stops at the first look that passes or certainly fails.
+look of a :class:`SequentialPlan` with the report's own ``decide`` on the error rate's confidence sequence
+(a naive rule: the exact fixed-n binomial bounds at 95% at every look), and stops at the first look that
+passes or certainly fails.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from econmotor.economics.uncertainty import (
     Uncertainty,
     clopper_pearson,
     decide,
+    error_rate_sequence,
     look_outcome,
 )
 from econmotor.errors import ConfigError
@@ -33,9 +35,11 @@ ACCEPT = Acceptance(max_error_rate=LIMIT, min_units_per_hour=0.0, error_name="fa
 PRICE = price_task(get_task("humanoid_locomotion_g1").economics, 90.0, LIMIT, 0.1, PricingPolicy())
 
 
-def counts_uncertainty(errors: float, attempted: float, confidence: float) -> Uncertainty:
-    """What ``assess`` gives the verdict for a fall count (the error rate's exact bounds; throughput fine)."""
-    low, high = clopper_pearson(errors, attempted, confidence)
+def counts_uncertainty(errors: float, attempted: float, confidence: float, naive: bool = False) -> Uncertainty:
+    """What ``assess`` gives the verdict for a fall count at a sequential look (the error rate's confidence
+    sequence; ``naive``: the exact fixed-n bounds at ``confidence``); throughput fine."""
+    bounds = clopper_pearson if naive else lambda k, n, c: error_rate_sequence(k, n, c, LIMIT)
+    low, high = bounds(errors, attempted, confidence)
     intervals = {"error_rate": Interval(errors / attempted, low, high, "Clopper-Pearson exact binomial"),
                  "mpl_units_per_hour": Interval(90.0, 80.0, 100.0, "given")}
     evidence = Evidence(episodes=1, units_attempted=attempted, units_completed=attempted - errors, errors=errors,
@@ -46,9 +50,9 @@ def counts_uncertainty(errors: float, attempted: float, confidence: float) -> Un
 def simulate(plan: SequentialPlan, fall_rate: float, runs: int, legs: int, seed: int,
              confidence: float | None = None) -> tuple[float, float]:
     """(share of runs judged deployable, mean episodes used) of ``runs`` simulated sequential evaluations.
-    ``confidence``: judge every look at it instead of the plan's look confidence (a naive rule)."""
+    ``confidence``: judge every look by the exact fixed-n bounds at it (a naive rule)."""
     rng = np.random.default_rng(seed)
-    conf = plan.look_confidence if confidence is None else confidence
+    conf = 0.95 if confidence is None else confidence
     passes, used = 0, 0
     for _ in range(runs):
         # legs walked before the first fall: geometric; a fall ends the episode with one error
@@ -58,7 +62,7 @@ def simulate(plan: SequentialPlan, fall_rate: float, runs: int, legs: int, seed:
         outcome, n = CONTINUE, 0
         for n in plan.looks:
             k, att = float(falls[:n].sum()), float(attempted[:n].sum())
-            unc = counts_uncertainty(k, att, conf)
+            unc = counts_uncertainty(k, att, conf, naive=confidence is not None)
             outcome, _ = look_outcome(ACCEPT, unc, decide(ACCEPT, unc, 0.01, "10 m leg"))
             if outcome != CONTINUE:
                 break
@@ -68,8 +72,8 @@ def simulate(plan: SequentialPlan, fall_rate: float, runs: int, legs: int, seed:
 
 
 def test_a_policy_at_the_limit_is_judged_deployable_at_most_5_percent_of_the_time():
-    plan = SequentialPlan(batch=20, max_episodes=640)
-    rate, _ = simulate(plan, LIMIT, runs=3000, legs=3, seed=1)
+    plan = SequentialPlan(batch=40, max_episodes=640)
+    rate, _ = simulate(plan, LIMIT, runs=2000, legs=3, seed=1)
     assert rate <= 0.05
     # the same looks, each judged at 95% without spending: optional stopping inflates false passes
     naive, _ = simulate(plan, LIMIT, runs=1000, legs=3, seed=1, confidence=0.95)
@@ -79,15 +83,30 @@ def test_a_policy_at_the_limit_is_judged_deployable_at_most_5_percent_of_the_tim
 def test_a_policy_far_inside_the_limit_stops_early_and_one_far_outside_fails_early():
     plan = SequentialPlan(batch=20, max_episodes=640)
     rate, episodes = simulate(plan, LIMIT / 20, runs=500, legs=3, seed=2)
-    assert rate > 0.9 and episodes < plan.max_episodes / 2  # 0 falls in 476 legs pass: 159 episodes
+    # 0 falls in 324 legs pass (108 episodes: the look at 120); at most 1 fall in about 700 legs
+    assert rate > 0.9 and episodes < 200
     rate, episodes = simulate(plan, 0.2, runs=500, legs=3, seed=3)
-    assert rate == 0 and episodes < plan.looks[1]  # decided at the first look, almost always
+    assert rate == 0 and episodes < plan.looks[2]  # decided at the first looks, almost always
 
 
-def test_looks_double_from_one_batch_to_the_cap_and_split_the_alpha():
-    plan = SequentialPlan(batch=20, max_episodes=300)
-    assert plan.looks == (20, 40, 80, 160, 300)
-    assert plan.look_confidence == pytest.approx(1 - 0.05 / 5)
+def test_fall_free_legs_bound_the_rate_nearly_as_tightly_as_a_fixed_count_and_at_every_look():
+    # 0 falls: the sequence's bound is within 10% of the exact fixed-n bound, and decreases with every leg
+    for legs in (50, 120, 324):
+        exact = clopper_pearson(0, legs)[1]
+        assert exact < error_rate_sequence(0, legs, 0.95, LIMIT)[1] < 1.1 * exact
+    assert error_rate_sequence(0, 323, 0.95, LIMIT)[1] > LIMIT >= error_rate_sequence(0, 324, 0.95, LIMIT)[1]
+    # each end holds its side: a fall moves both up, and the bounds bracket the observed rate
+    low0, high0 = error_rate_sequence(1, 500, 0.95, LIMIT)
+    low1, high1 = error_rate_sequence(2, 500, 0.95, LIMIT)
+    assert 0 < low0 < low1 < 2 / 500 < high0 < high1
+    assert error_rate_sequence(0, 0, 0.95, LIMIT) == (0.0, 1.0)
+    assert error_rate_sequence(4, 4, 0.95, LIMIT)[1] == 1.0
+
+
+def test_looks_come_after_every_batch_up_to_the_cap_and_split_the_bootstrap_alpha():
+    plan = SequentialPlan(batch=20, max_episodes=110)
+    assert plan.looks == (20, 40, 60, 80, 100, 110)
+    assert plan.look_confidence == pytest.approx(1 - 0.05 / 6)
     assert SequentialPlan(batch=16, max_episodes=16).looks == (16,)
 
 

@@ -41,8 +41,9 @@ def evaluation(rows: list[dict]):
     return evaluate
 
 
-# a held-out evaluation of at most 160 episodes looks at 16, 32, 64, 128 and 160, each bound at 99%
-SAFE = [episode(1.2, False) for _ in range(160)]  # no fall: 153.6 legs at 128 episodes bound it at 0.030
+# a held-out evaluation of at most 160 episodes looks after every 16; the fall rate's bounds are its
+# confidence sequence at 95% (0 falls in 64 legs pass the 0.05 limit), the bootstrap ones at 99.5%
+SAFE = [episode(1.2, False) for _ in range(160)]  # no fall: 76.8 legs at 64 episodes bound it at 0.042
 SAFE_SLOW = [episode(1.0, False, energy_wh=0.5) for _ in range(160)]  # passes, lower J (fewer legs, more Wh)
 FAST_FALLING = [episode(3.0, i % 4 == 0) for i in range(160)]  # many legs (the highest J), falls in a quarter
 FALLING = [episode(0.1, True) for _ in range(160)]
@@ -92,8 +93,10 @@ def test_a_hopeless_evaluation_is_cut_short_and_a_passing_one_stops_once_decided
     falling, _ = sel.consider(1000, evaluation(FALLING))
     assert falling.cut_short and falling.episodes == 16 and not falling.deployable and falling.outcome == "fail"
     safe, _ = sel.consider(2000, evaluation(SAFE))
-    assert safe.deployable and safe.outcome == "pass" and safe.episodes == 128  # 64 (76.8 legs) were too few
-    assert safe.fall_rate_upper == pytest.approx(1 - 0.01 ** (1 / 153.6))  # the look's bound, at 99%
+    assert safe.deployable and safe.outcome == "pass" and safe.episodes == 64  # 48 (57.6 legs) were too few
+    b = 4 / 0.05 - 1  # the sequence's closed form for 0 falls (economics.uncertainty.error_rate_sequence)
+    assert safe.fall_rate_upper == pytest.approx(1 - (0.05 * (0.5 + 0.5 * b / (76.8 + b))) ** (1 / 76.8))
+    assert 0.04 < safe.fall_rate_upper < 0.05
 
 
 def test_an_evaluation_that_ran_out_before_a_decision_never_passes():
@@ -142,11 +145,11 @@ def test_a_resumed_run_keeps_its_earlier_best_unless_beaten():
     assert not better and resumed.best.env_steps == 1000
 
 
-# mixed evaluations: a fall among clean episodes. 1 fall in 160 episodes of 1.2 legs: 193 legs, bound ~0.034 at
-# the looks' 99% (passes once enough legs are in); cutting it short at the fall would lose a pass
+# mixed evaluations: a fall among clean episodes, before the 64 episodes that would pass it fall-free. 1 fall
+# passes once ~140 legs are in (117 episodes of 1.2 legs); cutting it short at the fall would lose a pass
 ONE_FALL_FIRST = [episode(1.2, i == 0) for i in range(160)]
 ONE_FALL_IN_BATCH = [episode(1.2, i == 9) for i in range(160)]
-ONE_FALL_LATE = [episode(1.2, i == 70) for i in range(160)]
+ONE_FALL_LATE = [episode(1.2, i == 50) for i in range(160)]
 ONE_FALL_FAST = [episode(3.0, i == 3) for i in range(160)]  # 1 fall in ~481 legs: a wide margin
 
 
@@ -167,7 +170,7 @@ EVERY_THIRD_FALLS = [episode(1.2, i % 3 == 0) for i in range(160)]
 @pytest.mark.parametrize("rows", [FOUR_FALLS_EARLY, EVERY_THIRD_FALLS], ids=["four-early", "every-third"])
 def test_a_hopeless_mixed_evaluation_is_cut_short_at_the_first_check(rows):
     sel = selection()
-    assert not sel.judge(rows[:16] + [episode(1.2, False)] * 144, confidence=0.99)[1].deployable
+    assert not sel.judge(rows[:16] + [episode(1.2, False)] * 144, sel.config.plan.look_confidence, True)[1].deployable
     result, _ = sel.consider(1000, evaluation(rows))
     assert result.cut_short and result.episodes == 16 and not result.deployable
 
@@ -177,13 +180,13 @@ def test_a_held_out_result_carries_the_evaluations_figures():
     sel = selection()
     sel.started -= 1.0  # the run started a second before this evaluation
     result, _ = sel.consider(123_456, evaluation(SAFE))
-    assert (result.env_steps, result.episodes, result.episodes_planned) == (123_456, 128, 160)  # passed at 128
+    assert (result.env_steps, result.episodes, result.episodes_planned) == (123_456, 64, 160)  # passed at 64
     assert result.units_per_hour == pytest.approx(1.2 * 3600 / 8.0)  # 540 legs/h
     assert result.units_per_hour_low <= result.units_per_hour and result.units_per_hour_low > 100.0
-    assert result.errors == 0.0 and result.eval_env_steps == 128 * 1000
+    assert result.errors == 0.0 and result.eval_env_steps == 64 * 1000
     assert 0.0 <= result.eval_s <= result.wall_s and result.wall_s >= 1.0 and result.wall_s < 3600.0
     assert result.wall_s == round(result.wall_s, 3) and result.eval_s == round(result.eval_s, 3)
-    assert result.fall_rate_upper == pytest.approx(1 - 0.01 ** (1 / 153.6))  # Clopper-Pearson at 99%, 0 in 153.6
+    assert result.fall_rate_upper == pytest.approx(0.04179, abs=1e-5)  # the confidence sequence, 0 in 76.8 legs
     assert result.status() == "@123k: deployable" and sel.status() == result.status()
     falling, _ = sel.consider(40_000, evaluation(FALLING))
     assert falling.status() == f"@40k: not deployable (fall rate<={falling.fall_rate_upper:.2f})"
@@ -211,7 +214,7 @@ def test_the_run_record_says_every_field():
                      "evaluation (motor_backend/sequential.py), J = mean episode_j"}
     assert record["kept"] == sel.history[1].to_dict() and record["kept_acceptable"] is True
     assert record["became_deployable"] == {"env_steps": 2000, "wall_s": sel.history[1].wall_s}
-    assert record["evaluation_cost"] == {"count": 2, "episodes": 16 + 128, "env_steps": 144 * 1000,
+    assert record["evaluation_cost"] == {"count": 2, "episodes": 16 + 64, "env_steps": 80 * 1000,
                                          "wall_s": round(sel.history[0].eval_s + sel.history[1].eval_s, 3)}
     assert record["why"] == sel.kept_reason() == (
         f"the checkpoint at 2,000 env steps: the best J ({sel.history[1].j_mean:.4g}) of the 1 held-out "
@@ -222,7 +225,7 @@ def test_the_kept_reason_in_words():
     sel = selection(until=True)
     sel.consider(3000, evaluation(SAFE))
     assert sel.kept_reason() == ("the checkpoint at 3,000 env steps: the first to pass the task's acceptance rule on "
-                                 "128 held-out episodes (training stopped there: --until-deployable)")
+                                 "64 held-out episodes (training stopped there: --until-deployable)")
     sel = selection()
     sel.consider(4000, evaluation(FALLING))
     assert sel.kept_reason() == (f"the checkpoint at 4,000 env steps: none of 1 held-out evaluations passed the task's "
@@ -250,10 +253,11 @@ def test_a_full_evaluation_is_never_hopeless():
 
 def test_the_best_episode_is_a_fall_free_one_with_the_most_units():
     ev = sequential(80)
-    rows = [episode(3.0, True)] + [episode(0.2, False)] * 14 + [episode(2.0, False)]
-    # 64 more like the 2-leg fall-free episode: 1 fall in ~137 attempted legs passes at the looks' confidence;
-    # like the 3-leg one that fell, or like a 0.2-leg one, it could not
-    assert judge_raw(TASK, rows + [episode(2.0, False)] * 64, ev.plan.look_confidence).verdict.deployable
+    rows = [episode(3.0, True)] + [episode(0.2, False)] * 14 + [episode(2.5, False)]
+    # 64 more like the 2.5-leg fall-free episode: 1 fall in ~169 attempted legs passes at the looks; like the
+    # 3-leg one that fell, or like a 0.2-leg one, it could not
+    assert judge_raw(TASK, rows + [episode(2.5, False)] * 64, ev.plan.look_confidence, True).verdict.deployable
+    assert not judge_raw(TASK, rows + [episode(0.2, False)] * 64, ev.plan.look_confidence, True).verdict.deployable
     assert not ev.hopeless(rows)
 
 
