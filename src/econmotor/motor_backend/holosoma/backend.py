@@ -151,6 +151,8 @@ class HolosomaPolicyHandle(StepAlias):
         Whole-body-tracking exports also take the motion clip's ``time_step`` (frame index).
         """
         x = np.asarray(obs, dtype=np.float32)
+        if x.shape == (1, self.obs_dim) and not self.takes_time_step:  # one row, as an evaluator steps it
+            return self.session.run(None, {self._input.name: x})[0]
         single = x.ndim == 1
         batch = x[None, :] if single else x
         if batch.shape[-1] != self.obs_dim:

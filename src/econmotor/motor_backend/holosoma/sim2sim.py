@@ -338,12 +338,13 @@ def run_episode(robot: Robot, contract: PolicyContract, policy: Callable[[np.nda
         row = obs.build(lin_vel_cmd=lin, ang_vel_cmd=yaw_rate, **robot_state(robot))
         if on_observation is not None:
             on_observation(robot, obs, row, vx, yaw_rate)
-        action = np.clip(np.asarray(policy(row), dtype=np.float32).reshape(-1), -card.action_clip, card.action_clip)
+        action = np.minimum(np.maximum(np.asarray(policy(row), dtype=np.float32).reshape(-1), -card.action_clip),
+                            card.action_clip)
         obs.last_action = action
         target = default + card.action_scale * action.astype(np.float64)
         for _ in range(card.decimation):
             q, qd = d.qpos[robot.qpos_adr], d.qvel[robot.dof_adr]
-            d.ctrl[robot.actuators] = np.clip(kp * (target - q) - kd * qd, -limit, limit)
+            d.ctrl[robot.actuators] = np.minimum(np.maximum(kp * (target - q) - kd * qd, -limit), limit)
             mujoco.mj_step(m, d)
             qfrc, qvel = d.qfrc_actuator[robot.dof_adr], d.qvel[robot.dof_adr]
             reading = step_reading(d.qpos, qfrc, qvel, card.fall_tilt_rad, card.min_base_z_m)
