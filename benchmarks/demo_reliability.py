@@ -17,7 +17,7 @@ import json
 import time
 
 from econmotor.cli.demo import DEMO_OBJECTIVE, DEMO_TASK
-from econmotor.cli.report import resolve_objective
+from econmotor.cli.options import resolve_objective
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.economics.uncertainty import clopper_pearson
 from econmotor.motor_backend.factory import make_motor_backend

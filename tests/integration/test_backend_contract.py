@@ -5,7 +5,8 @@ editing this file. Each one trains its declared ``smoke_run`` into ``output_dir`
 the run directory, holding ``run_config.json`` that names the backend), is evaluated by the
 ``policy_id`` it returned (the same seed gives the same episodes; another seed, or another policy
 on the same seed, other episodes), deploys a handle answering ``act`` and ``step``, and declares its
-capabilities, defaults and limits, which the CLI reads instead of knowing backends by name. A
+capabilities, defaults and limits, which the CLI reads instead of knowing backends by name, and says
+how an evaluation's figures were made (``MotorEvalResult.provenance``). A
 backend that declares ``evaluation_driven`` selects its policy by held-out evaluations: the policy
 it keeps, evaluated again on the recorded held-out seeds, gives the J its kept evaluation recorded.
 """
@@ -22,8 +23,10 @@ import pytest
 
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import (
+    PROVENANCE_KEY,
     RUN_CONFIG_FILE,
     BackendCapabilities,
+    EvalProvenance,
     MotorBackendBase,
     PolicyHandle,
     RunSize,
@@ -88,6 +91,9 @@ def test_train_into_output_dir_evaluate_by_policy_id_and_deploy(name: str, tmp_p
     evaluated = backend.evaluate_policy(trained.policy_id, task_id, objective, 1, 11)
     assert evaluated.raw_metrics["num_episodes"] == 1 and len(evaluated.episodes) == 1
     assert np.isfinite(evaluated.econ_metrics["mpl_units_per_hour"])
+    # every backend says how its figures were made (report and compare read these declared fields)
+    assert evaluated.provenance.evaluator != EvalProvenance().evaluator and evaluated.provenance.figures_from
+    assert evaluated.config[PROVENANCE_KEY] == evaluated.provenance.to_dict()
     # an evaluation is a function of its seed and its policy
     again = backend.evaluate_policy(trained.policy_id, task_id, objective, 1, 11)
     other_seed = backend.evaluate_policy(trained.policy_id, task_id, objective, 1, 12)

@@ -87,7 +87,8 @@ def test_trained_run_is_priced_by_the_sim2sim_evaluator(trained) -> None:
     _, _, result, _ = trained
     run_dir = Path(result.policy_id)
     assert (run_dir / "run_config.json").is_file() and (run_dir / "policy.onnx").is_file()  # output_dir is the run
-    assert result.config["evaluation"]["evaluator"] == "sim2sim" and not result.config["evaluation"]["imported"]
+    provenance = result.config["evaluation"]["provenance"]  # the post-training evaluation's MotorEvalResult's
+    assert provenance["evaluator"] == "sim2sim" and not provenance["imported"]
     assert result.raw_metrics["num_episodes"] == 2 and len(result.episodes) == 2
     for ep in result.episodes:
         assert 0 < ep["episode_length_s"] <= EPISODE_S + 1e-9

@@ -128,8 +128,8 @@ def test_shipped_policy_walks_its_course_without_falling(backend: HolosomaBacken
     for ep in result.episodes:
         assert ep["distance_m"] > 2.0  # walking at the commanded 1 m/s, it covers metres in 8 s
         assert ep["max_lateral_m"] < 0.5  # the heading controller keeps it on the course
-    assert result.config["imported"] and result.config["evaluator"] == "sim2sim"
-    assert 0.0 < result.config["achieved_speed_m_per_s"] <= result.config["commanded_speed_m_per_s"] + 0.2
+    assert result.provenance.imported and result.provenance.evaluator == "sim2sim"
+    assert 0.0 < result.provenance.achieved_speed_m_per_s <= result.provenance.commanded_speed_m_per_s + 0.2
     assert result.econ_metrics["mpl_units_per_hour"] > 0.0
     assert (tmp_path / "evaluation.json").is_file()
 

@@ -78,9 +78,9 @@ def test_the_finder_sees_a_cycle():
 def test_the_graph_sees_imports_inside_functions():
     graph = import_graph(module_files())
     # motor_backend/factory.py imports a backend module only through importlib; base.py imports the
-    # task catalog at the top; the CLI's train command imports the pipeline inside its function
+    # task catalog at the top; the CLI's shared options import the selection module inside a function
     assert "econmotor.tasks.catalog" in graph["econmotor.motor_backend.base"]
-    assert "econmotor.report.pipeline" in graph["econmotor.cli.train"]
+    assert "econmotor.motor_backend.selection" in graph["econmotor.cli.options"]
 
 
 def test_no_import_cycle():

@@ -21,18 +21,24 @@ from rich.console import Console
 from rich.table import Table
 
 from econmotor.cli._app import app, console, fits_unwrapped, make_backend, set_cpu_threads
-from econmotor.cli.report import (
+from econmotor.cli.options import (
+    EVAL_MAX_EPISODES_OPTION,
+    EVAL_MAX_SECONDS_OPTION,
+    SPREAD_SHARE_OPTION,
+    TASK_ID_OPTION,
+    TASKS_FILE_OPTION,
     check_imports_policies,
-    price_imported,
+    course_speed_options,
     resolve_datapacks,
     resolve_objective,
     split_datapack_values,
 )
-from econmotor.cli.train import EVAL_MAX_EPISODES_OPTION, EVAL_MAX_SECONDS_OPTION
+from econmotor.cli.reporting import ReportInputs, price_imported
 from econmotor.cli.validation import check_db_url, check_flags, check_output_dir, evaluation_plan
 from econmotor.economics.pricing import PricingPolicy
+from econmotor.economics.uncertainty import SequentialPlan
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.base import REPORT_EVAL_SEED_OFFSET
+from econmotor.motor_backend.base import PROVENANCE_KEY, REPORT_EVAL_SEED_OFFSET
 from econmotor.motor_backend.factory import load_checked_catalog
 from econmotor.report.render import fmt
 
@@ -48,18 +54,18 @@ def comparison_row(policy_id: str, doc: dict[str, Any]) -> dict[str, Any]:
     agg = doc["pricing"]["aggregate"]
     intervals = doc["uncertainty"]["intervals"]
     price_iv = intervals.get("price_usd_per_unit") or {}
-    config = ((doc["runs"]["eval"] or {}).get("config") or {}).get("backend_config") or {}
+    provenance = ((doc["runs"]["eval"] or {}).get("config") or {}).get(PROVENANCE_KEY) or {}  # MotorEvalResult's
     return {"policy": policy_id, "price_usd_per_unit": agg.get("price_usd_per_unit"),
             "price_low": price_iv.get("low"), "price_high": price_iv.get("high"),
             # what its report says to charge (the cautious end of the intervals; None: not deployable)
             "charge_usd_per_unit": (doc.get("recommendation") or {}).get("price_usd_per_unit"),
             "units_per_hour": agg.get("mpl_units_per_hour"), "wh_per_unit": doc["metrics"]["econ"].get(
                 "energy_wh_per_unit"), "fall_rate_bound": (intervals.get("error_rate") or {}).get("high"),
-            "commanded_speed_m_per_s": config.get("commanded_speed_m_per_s"),
-            "achieved_speed_m_per_s": config.get("achieved_speed_m_per_s"),
+            "commanded_speed_m_per_s": provenance.get("commanded_speed_m_per_s"),
+            "achieved_speed_m_per_s": provenance.get("achieved_speed_m_per_s"),
             "falls": doc["metrics"]["raw"].get("errors"),
             "units_attempted": doc["metrics"]["raw"].get("units_attempted"),
-            "mean_mech_power_w": config.get("mean_mech_power_w"), "mean_power_w": config.get("mean_power_w"),
+            "mean_mech_power_w": provenance.get("mean_mech_power_w"), "mean_power_w": provenance.get("mean_power_w"),
             "verdict": doc["verdict"]["label"], "deployable": doc["verdict"]["deployable"],
             "report_id": doc["registry"]["report_id"]}
 
@@ -172,64 +178,89 @@ def write_comparison(ranked: list[dict[str, Any]], summary: str, out_dir: Path, 
     return [out_dir / "compare.json", out_dir / "compare.md", out_dir / "compare.png"]
 
 
+def check_policies(policies: list[str]) -> None:
+    """At least two policies, none named twice."""
+    if len(policies) < 2:
+        raise ConfigError("--policy", None, f"compare needs at least two policies, got {len(policies)}")
+    if len(set(policies)) != len(policies):
+        raise ConfigError("--policy", None, f"a policy is named twice: {policies}")
+
+
+def price_each(inputs: ReportInputs, backend: Any, policies: list[str], eval_episodes: int, seed: int,
+               plan: SequentialPlan | None) -> tuple[list[dict[str, Any]], list[int]]:
+    """Each policy evaluated with the same request, recorded and reported: its ranking row and episode count."""
+    for policy_id in policies:  # bad input records nothing
+        backend.check_policy(policy_id)
+    rows, counts = [], []
+    for policy_id in policies:
+        outcome = price_imported(inputs, backend, policy_id, eval_episodes, seed, f"econmotor compare: {policy_id}",
+                                 None, plan)
+        rows.append(comparison_row(policy_id, outcome.document))
+        counts.append(outcome.document["uncertainty"]["evidence"]["episodes"])
+    return rows, counts
+
+
+def show_comparison(ranked: list[dict[str, Any]], summary: str, files: list[Path], title: str) -> None:
+    """The table, the verdict and where the files are."""
+    console.print(comparison_table(ranked, title, console))
+    console.print(summary, highlight=False, soft_wrap=True)
+    for path in files:
+        console.print(f"{path.suffix[1:]:>8}: {path}", highlight=False, soft_wrap=True)
+
+
+POLICIES = typer.Option(..., "--policy", help="A policy to price (repeat, at least two): an ONNX file or a shipped "
+                        "name such as holosoma:g1_29dof/ppo.")
+MOTOR_BACKEND = typer.Option("holosoma", "--motor-backend", help="A backend that imports policies.")
+EVAL_EPISODES = typer.Option(None, "--eval-episodes", help="Exactly N episodes per policy (default: a sequential "
+                             "evaluation of each, until its verdict is decided, or a cap).")
+SEED = typer.Option(0, "--seed", help="Seed of the evaluations (the same for every policy).")
+DATAPACKS = typer.Option([], "--datapacks", help="Datapack YAML paths or registered ids (stress).")
+COMMAND_SPEED = typer.Option(None, "--command-speed", min=0.05, help="Commanded walking speed, m/s (default: the "
+                             "task catalog's course speed).")
+OUTPUT_DIR = typer.Option(None, "--output-dir", help="Where reports and the comparison go (default "
+                          "reports/<task>/compare).")
+DB_URL = typer.Option(None, "--db-url", help="Registry URL (default as for `econmotor report`).")
+
+
 @app.command("compare")
 def compare_command(
-    task_id: str = typer.Option(..., "--task-id", help="Task id from the catalog (`econmotor tasks`)."),
-    policies: list[str] = typer.Option(..., "--policy", help="A policy to price (repeat, at least two): an ONNX "
-                                       "file or a shipped name such as holosoma:g1_29dof/ppo."),
-    motor_backend: str = typer.Option("holosoma", "--motor-backend", help="A backend that imports policies."),
-    eval_episodes: int = typer.Option(None, "--eval-episodes", help="Exactly N episodes per policy (default: a "
-                                      "sequential evaluation of each, until its verdict is decided, or a cap)."),
+    task_id: str = TASK_ID_OPTION,
+    policies: list[str] = POLICIES,
+    motor_backend: str = MOTOR_BACKEND,
+    eval_episodes: int = EVAL_EPISODES,
     eval_max_episodes: int = EVAL_MAX_EPISODES_OPTION,
     eval_max_seconds: float = EVAL_MAX_SECONDS_OPTION,
-    seed: int = typer.Option(0, "--seed", help="Seed of the evaluations (the same for every policy)."),
-    datapacks: list[str] = typer.Option([], "--datapacks", help="Datapack YAML paths or registered ids (stress)."),
-    command_speed: float = typer.Option(None, "--command-speed", min=0.05, help="Commanded walking speed, m/s "
-                                        "(default: the task catalog's course speed)."),
-    output_dir: Path = typer.Option(None, "--output-dir", help="Where reports and the comparison go "
-                                    "(default reports/<task>/compare)."),
-    db_url: str = typer.Option(None, "--db-url", help="Registry URL (default as for `econmotor report`)."),
-    tasks_file: list[Path] = typer.Option([], "--tasks-file", help="Extra task catalog YAML files."),
-    spread_share: float = typer.Option(0.5, "--spread-share", help="Seller's share of the spread, 0..1."),
+    seed: int = SEED,
+    datapacks: list[str] = DATAPACKS,
+    command_speed: float = COMMAND_SPEED,
+    output_dir: Path = OUTPUT_DIR,
+    db_url: str = DB_URL,
+    tasks_file: list[Path] = TASKS_FILE_OPTION,
+    spread_share: float = SPREAD_SHARE_OPTION,
 ) -> None:
     """Price several imported policies on the same seeds, course and conditions; rank them and name the winner."""
     set_cpu_threads()
     check_flags(eval_episodes=eval_episodes, seed=seed, spread_share=spread_share,
                 eval_max_episodes=eval_max_episodes, eval_max_seconds=eval_max_seconds)
-    if len(policies) < 2:
-        raise ConfigError("--policy", None, f"compare needs at least two policies, got {len(policies)}")
-    if len(set(policies)) != len(policies):
-        raise ConfigError("--policy", None, f"a policy is named twice: {policies}")
+    check_policies(policies)
     check_imports_policies(motor_backend, "--motor-backend")
+    speed = course_speed_options(motor_backend, command_speed)  # the contract's keyword, where declared
     url = check_db_url(db_url, create=True)
     catalog = load_checked_catalog(tasks_file)
     task = catalog.get(task_id)
     task.backend_entry(motor_backend)
-    objective = resolve_objective(None, None)
     packs = resolve_datapacks(split_datapack_values(datapacks), url)
     out_dir = check_output_dir("--output-dir", output_dir or Path("reports") / task_id / "compare")
-    options = {"command_speed_m_per_s": command_speed} if command_speed is not None else {}
-    backend = make_backend(motor_backend, tasks_file, catalog=catalog, **options)
+    inputs = ReportInputs(task, catalog, url, resolve_objective(None), packs, out_dir, PricingPolicy(spread_share))
+    backend = make_backend(motor_backend, tasks_file, catalog=catalog, **speed)
     plan = evaluation_plan(backend, task_id, eval_episodes, eval_max_episodes, eval_max_seconds)
-    for policy_id in policies:  # bad input records nothing
-        backend.check_policy(policy_id)
-    pricing = PricingPolicy(spread_share)
-    rows, counts = [], []
-    for policy_id in policies:
-        outcome = price_imported(task, backend, policy_id, objective, packs, eval_episodes or 0, seed,
-                                 f"econmotor compare: {policy_id}", url, out_dir, None, pricing, plan)
-        rows.append(comparison_row(policy_id, outcome.document))
-        counts.append(outcome.document["uncertainty"]["evidence"]["episodes"])
+    rows, counts = price_each(inputs, backend, policies, eval_episodes or 0, seed, plan)
     ranked, summary = rank(rows)
     first = seed + REPORT_EVAL_SEED_OFFSET
     seeds = f"{first}-{first + max(counts) - 1}"
     files = write_comparison(ranked, summary, out_dir, {"task_id": task_id, "seeds": seeds,
                                                          "datapacks": [p.id for p in packs],
-                                                         "command_speed_m_per_s": command_speed})
+                                                         "commanded_speed_m_per_s": command_speed})
     each = f"{eval_episodes} episodes each" if eval_episodes else \
         f"sequential evaluations ({', '.join(map(str, counts))} episodes, until each verdict was decided)"
-    title = f"{task_id}: {len(ranked)} policies, {each}, seeds {seeds}"
-    console.print(comparison_table(ranked, title, console))
-    console.print(summary, highlight=False, soft_wrap=True)
-    for path in files:
-        console.print(f"{path.suffix[1:]:>8}: {path}", highlight=False, soft_wrap=True)
+    show_comparison(ranked, summary, files, f"{task_id}: {len(ranked)} policies, {each}, seeds {seeds}")

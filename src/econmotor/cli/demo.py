@@ -12,15 +12,13 @@ the JSON, Markdown and HTML reports; the HTML path is printed last.
 
 from __future__ import annotations
 
-import inspect
 from pathlib import Path
-from typing import Any
 
 import typer
 
 from econmotor.cli._app import app, console
-from econmotor.cli.report import report_command
-from econmotor.cli.train import EVAL_MAX_EPISODES_OPTION, EVAL_MAX_SECONDS_OPTION
+from econmotor.cli.options import EVAL_MAX_EPISODES_OPTION, EVAL_MAX_SECONDS_OPTION
+from econmotor.cli.reporting import ReportArgs, run_report
 from econmotor.motor_backend.factory import DEFAULT_BACKEND
 
 DEMO_TASK = "hopper_courier"
@@ -35,18 +33,6 @@ DEMO_SELECT_EVERY = 25_000
 #: weighted at the scale of Hopper-v5's own reward, so PPO learns an upright gait within the demo's
 #: steps (the default vector's hopper falls in most episodes; see benchmarks/demo_reliability.py).
 DEMO_OBJECTIVE = Path(__file__).resolve().parent.parent / "objectives" / "courier_demo.yaml"
-
-
-def flag_defaults(command: Any) -> dict[str, Any]:
-    """Every parameter of a Typer command with the default its flag has on the command line (calling the
-    function directly would otherwise pass Typer's option objects for the flags not given)."""
-    from typer.models import ParameterInfo
-
-    defaults = {}
-    for name, param in inspect.signature(command).parameters.items():
-        default = param.default.default if isinstance(param.default, ParameterInfo) else param.default
-        defaults[name] = None if default is ... else default
-    return defaults
 
 
 @app.command("demo")
@@ -67,9 +53,9 @@ def demo_command(
                   f"objective courier_safety_first until a held-out evaluation every {DEMO_SELECT_EVERY:,} steps "
                   f"passes the task's acceptance (at most {max_steps:,} steps), then pricing a 10 m delivery leg "
                   "against a human courier on fresh episodes.")
-    report_command(**{**flag_defaults(report_command), **dict(
+    run_report(ReportArgs(
         task_id=DEMO_TASK, motor_backend=DEFAULT_BACKEND, objective_config=DEMO_OBJECTIVE,
         notes="econmotor demo: hopper courier on the embedded MuJoCo backend", max_steps=max_steps,
         eval_episodes=eval_episodes, eval_max_episodes=eval_max_episodes, eval_max_seconds=eval_max_seconds,
         seed=seed, output_dir=output_dir, db_url=db_url,
-        until_deployable=True, select_every=DEMO_SELECT_EVERY)})
+        until_deployable=True, select_every=DEMO_SELECT_EVERY))

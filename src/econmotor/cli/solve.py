@@ -18,6 +18,7 @@ from econmotor.analysis.episode_table import EpisodeTable, read_episodes_jsonl, 
 from econmotor.analysis.objective_surface import objectives_from_options, solve_objective_surface
 from econmotor.analysis.surface_report import surface_cells, write_surface_outputs
 from econmotor.cli._app import app, console, err_console
+from econmotor.cli.options import open_registry, split_ids
 from econmotor.cli.validation import (
     FLAG_RULES,
     MAX_SOLVE_OBJECTIVES,
@@ -39,18 +40,6 @@ from econmotor.valuation import ConstraintSet, load_constraint_sets
 
 REFERENCE_KEYS = {"mpl": "mpl_units_per_hour", "energy": "energy_wh_per_unit", "error": "error_rate",
                   "risk": "risk_score"}
-
-
-def open_registry(db_url: str | None, create: bool = True):
-    """The registry at ``--db-url``, else ``$ECONMOTOR_DB_URL``, else ``./.econmotor/registry.sqlite``."""
-    from econmotor.store import DB_URL_ENV, Registry
-
-    return Registry(db_url or os.environ.get(DB_URL_ENV) or None, create=create)
-
-
-def split_ids(values: list[str]) -> list[str]:
-    """``["a,b", "c"]`` -> ``["a", "b", "c"]``."""
-    return [v.strip() for value in values for v in value.split(",") if v.strip()]
 
 
 def parse_reference(values: list[str]) -> dict[str, float]:

@@ -12,7 +12,7 @@ from econmotor.analysis.objective_surface import objectives_from_options
 from econmotor.analysis.sweep import RaySettings, completed_cell_keys, plan_sweep, run_sweep
 from econmotor.cli._app import app, console, err_console, progress_bars, set_cpu_threads
 from econmotor.cli._interrupts import set_deadline_note
-from econmotor.cli.solve import open_registry, split_ids
+from econmotor.cli.options import open_registry, split_ids
 from econmotor.cli.validation import (
     MAX_SWEEP_CELLS,
     check_db_url,

@@ -14,29 +14,37 @@ from econmotor.cli._app import (
     announce_num_envs,
     app,
     console,
-    err_console,
     make_backend,
     progress_bars,
     set_cpu_threads,
 )
-from econmotor.cli._interrupts import set_deadline_note
+from econmotor.cli.options import (
+    INIT_POLICY_OPTION,
+    SELECT_EPISODES_OPTION,
+    SELECT_EVERY_OPTION,
+    TRAINING_EVAL_EPISODES,
+    UNTIL_DEPLOYABLE_OPTION,
+    init_policy_options,
+    resolve_objective,
+    selection_options,
+    training_eval_episodes,
+)
+from econmotor.cli.runs import interrupted_note, train_with_bars
 from econmotor.cli.validation import (
     check_choice,
     check_db_url,
     check_flags,
-    check_input_files,
     check_num_envs,
     check_output_dir,
     check_output_file,
     check_task_backend,
 )
-from econmotor.config.objective_profile import OBJECTIVE_PRESETS, ObjectiveVector
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.datapacks import load_datapack_configs
 from econmotor.motor_backend.factory import DEFAULT_BACKEND, backend_class, known_backends
-from econmotor.objectives import EconomicObjectiveSpec
-from econmotor.objectives.loader import load_objective_spec, objective_from_vector
-from econmotor.valuation import default_objective_vector
+from econmotor.report.pipeline import TrainRequest
+from econmotor.store.registry import Registry
+from econmotor.tasks import load_catalog
 
 #: econ metrics shown after training / evaluation.
 SHOWN_METRICS = ("mpl_units_per_hour", "error_rate", "energy_wh_per_unit", "implied_wage_usd_per_hour",
@@ -51,20 +59,23 @@ OBJECTIVE_CONFIG_OPTION = typer.Option(None, "--objective-config", help="Objecti
 OBJECTIVE_PRESET_OPTION = typer.Option(None, "--objective-preset", help="Objective preset name.")
 SEED_OPTION = typer.Option(0, "--seed")
 JSON_OPTION = typer.Option(None, "--json", help="Also write the result as JSON here.")
-
-
-def resolve_objective(config: Path | None, preset: str | None) -> EconomicObjectiveSpec:
-    """The objective from a YAML file, a preset name, or RewardBuilder's default vector [1, 0.2, 0.1, 0.05, 0]."""
-    if config is not None and preset is not None:
-        raise ConfigError("<command line>", "--objective-preset", "give --objective-config or --objective-preset")
-    if config is not None:
-        check_input_files("--objective-config", [config])
-        return load_objective_spec(config)
-    if preset is not None:
-        if preset not in OBJECTIVE_PRESETS:
-            raise ConfigError("<command line>", "--objective-preset", f"unknown preset '{preset}'", OBJECTIVE_PRESETS)
-        return objective_from_vector(ObjectiveVector.from_preset(preset), name=preset)
-    return objective_from_vector(ObjectiveVector.from_list(default_objective_vector()), name="default")
+# train's own
+DATAPACKS_OPTION = typer.Option([], "--datapacks", help="Datapack YAML files (in order).")
+NUM_ENVS_OPTION = typer.Option(None, "--num-envs", min=0, help="Environments (default: the backend's; 0: the task's).")
+MAX_STEPS_OPTION = typer.Option(None, "--max-steps", min=1, help="Total environment steps (default: the backend's).")
+OUTPUT_DIR_OPTION = typer.Option(None, "--output-dir", help="Run directory (the policy id; default: a new "
+                                 "runs/<task>-<time>-s<seed>-<pid>).")
+EVAL_EPISODES_OPTION = typer.Option(None, "--eval-episodes", help="Deterministic episodes after training (default "
+                                    f"{TRAINING_EVAL_EPISODES}; with --until-deployable as many as a held-out "
+                                    "evaluation, enough for a verdict).")
+RESUME_OPTION = typer.Option(False, "--resume", help="Continue the interrupted run in --output-dir from its last "
+                             "checkpoint (a complete run is left as it is).")
+ALGORITHM_OPTION = typer.Option(None, "--algorithm", help="Override the task's algorithm (the backend's "
+                                "capabilities list the choices).")
+VEC_ENV_OPTION = typer.Option(None, "--vec-env", help="Vector env kind, for backends that offer a choice "
+                              "(e.g. dummy: in-process | subproc).")
+DB_URL_OPTION = typer.Option(None, "--db-url", help="Registry URL (default $ECONMOTOR_DB_URL or "
+                             "sqlite:///./.econmotor/registry.sqlite).")
 
 
 def render_result(title: str, raw: dict[str, Any], econ: dict[str, Any]) -> None:
@@ -100,77 +111,6 @@ def completed_run_note(backend: str, run_dir: Path) -> str | None:
             else f"{run_dir} is a complete run (final {final})")
 
 
-# evaluation-driven training (motor_backend/selection.py), shared by train and report
-UNTIL_DEPLOYABLE_OPTION = typer.Option(
-    False, "--until-deployable", help="Stop as soon as a held-out evaluation passes the task's acceptance rule "
-    "(or at --max-steps); the run records when it became deployable.")
-SELECT_EVERY_OPTION = typer.Option(None, "--select-every", help="Env steps between held-out evaluations that "
-                                   "choose the kept checkpoint, exactly (0: none, keep the last weights; default: "
-                                   "the backend's cadence, at most 10% of the run's wall time).")
-SELECT_EPISODES_OPTION = typer.Option(None, "--select-episodes", help="The most episodes of a held-out evaluation "
-                                      "(each is sequential: it stops once its verdict is decided; default 160).")
-# a sequential evaluation's caps (report, compare, demo)
-EVAL_MAX_EPISODES_OPTION = typer.Option(None, "--eval-max-episodes", help="Cap on a sequential evaluation's "
-                                        "episodes (default 640).")
-EVAL_MAX_SECONDS_OPTION = typer.Option(None, "--eval-max-seconds", help="Cap on a sequential evaluation's wall "
-                                       "seconds, checked at each look (default 900).")
-
-
-INIT_POLICY_OPTION = typer.Option(
-    None, "--init-policy", help="Start from a walker that exists: an ONNX file in Holosoma's format or a shipped "
-    "name (holosoma:g1_29dof/ppo); its actor is fine-tuned for the objective after a critic warm-up.")
-
-
-def init_policy_options(backend: str, init_policy: str | None, resume: bool = False) -> dict[str, Any]:
-    """The backend option of ``--init-policy``; an error for a backend that cannot start from one."""
-    if init_policy is None:
-        return {}
-    if not backend_class(backend).capabilities.init_policies:
-        raise ConfigError("--init-policy", init_policy, f"backend '{backend}' cannot start from a policy trained "
-                          "elsewhere", [b for b in known_backends() if backend_class(b).capabilities.init_policies])
-    if resume:
-        raise ConfigError("--init-policy", init_policy, "starts a new run; --resume continues one from its "
-                          "checkpoints (the run records what it started from)")
-    return {"init_policy": init_policy}
-
-
-#: episodes the backend evaluates right after training, unless asked otherwise
-TRAINING_EVAL_EPISODES = 5
-
-
-def training_eval_episodes(requested: int | None, until_deployable: bool, select_episodes: int | None) -> int:
-    """The episodes to evaluate right after training: ``requested``, else enough for a verdict
-    after ``--until-deployable`` (the held-out evaluations' count), else :data:`TRAINING_EVAL_EPISODES`.
-
-    A run trained until deployable is priced on these episodes; five cannot show a fall rate
-    under the acceptance rule's bound, so its report would say NOT DEPLOYABLE for lack of evidence."""
-    from econmotor.motor_backend.selection import DEFAULT_SELECT_EPISODES
-
-    if requested is not None:
-        return requested
-    return (select_episodes or DEFAULT_SELECT_EPISODES) if until_deployable else TRAINING_EVAL_EPISODES
-
-
-def selection_options(backend: str, until_deployable: bool, select_every: int | None,
-                      select_episodes: int | None) -> dict[str, Any]:
-    """The backend options of evaluation-driven training; an error for a backend without it."""
-    check_flags(select_every=select_every, select_episodes=select_episodes)
-    options: dict[str, Any] = {}
-    if until_deployable:
-        options["until_deployable"] = True
-    if select_every is not None:
-        options["select_every_steps"] = select_every
-    if select_episodes is not None:
-        options["select_episodes"] = select_episodes
-    if until_deployable and select_every == 0:
-        raise ConfigError("<command line>", "--until-deployable", "needs held-out evaluations: drop --select-every 0")
-    if options and not backend_class(backend).capabilities.evaluation_driven:
-        raise ConfigError("<command line>", "--until-deployable/--select-every/--select-episodes",
-                          f"backend '{backend}' does not select checkpoints by held-out evaluation",
-                          [b for b in known_backends() if backend_class(b).capabilities.evaluation_driven])
-    return options
-
-
 def selection_note(run_config: dict[str, Any]) -> str | None:
     """Which checkpoint a run kept and why, when it became deployable and what its evaluations cost."""
     selection = run_config.get("selection")
@@ -185,57 +125,8 @@ def selection_note(run_config: dict[str, Any]) -> str | None:
     return f"policy kept: {selection['why']}. {when}{spent}".rstrip()
 
 
-def interrupted_note(backend: str, task: str, run_dir: Path, max_steps: int, command: str = "train") -> str:
-    """What an interrupted training run kept and how to go on (``command``: the one to start again)."""
-    checkpoints = backend_class(backend).checkpoints(run_dir)
-    if checkpoints:
-        return (f"the training run was recorded as interrupted. Kept: {len(checkpoints)} checkpoint(s) in "
-                f"{run_dir}/checkpoints (newest {checkpoints[-1].name}). Resume with: econmotor train --task-id "
-                f"{task} --motor-backend {backend} --output-dir {run_dir} --max-steps {max_steps} --resume")
-    kept = f"the partial run directory {run_dir}" if run_dir.exists() else "no files"
-    return (f"the training run was recorded as interrupted. Kept: {kept}; no checkpoint to resume from, so start "
-            f"again: econmotor {command} --task-id {task} --motor-backend {backend} --max-steps {max_steps}")
-
-
-@app.command("train")
-def train_command(
-    task: str = TASK_OPTION,
-    backend: str = BACKEND_OPTION,
-    objective_config: Path = OBJECTIVE_CONFIG_OPTION,
-    objective_preset: str = OBJECTIVE_PRESET_OPTION,
-    datapacks: list[Path] = typer.Option([], "--datapacks", help="Datapack YAML files (in order)."),
-    num_envs: int = typer.Option(None, "--num-envs", min=0, help="Environments (default: the backend's; 0: the "
-                                 "task's)."),
-    max_steps: int = typer.Option(None, "--max-steps", min=1, help="Total environment steps (default: the "
-                                  "backend's)."),
-    seed: int = SEED_OPTION,
-    output_dir: Path = typer.Option(None, "--output-dir", help="Run directory (the policy id; default: a new "
-                                    "runs/<task>-<time>-s<seed>-<pid>)."),
-    eval_episodes: int = typer.Option(None, "--eval-episodes", help="Deterministic episodes after training "
-                                      f"(default {TRAINING_EVAL_EPISODES}; with --until-deployable as many as a "
-                                      "held-out evaluation, enough for a verdict)."),
-    resume: bool = typer.Option(False, "--resume", help="Continue the interrupted run in --output-dir from its last "
-                                "checkpoint (a complete run is left as it is)."),
-    algorithm: str = typer.Option(None, "--algorithm", help="Override the task's algorithm (the backend's "
-                                  "capabilities list the choices)."),
-    vec_env: str = typer.Option(None, "--vec-env", help="Vector env kind, for backends that offer a choice "
-                                "(e.g. dummy: in-process | subproc)."),
-    until_deployable: bool = UNTIL_DEPLOYABLE_OPTION,
-    select_every: int = SELECT_EVERY_OPTION,
-    select_episodes: int = SELECT_EPISODES_OPTION,
-    init_policy: str = INIT_POLICY_OPTION,
-    db_url: str = typer.Option(None, "--db-url", help="Registry URL (default $ECONMOTOR_DB_URL or "
-                               "sqlite:///./.econmotor/registry.sqlite)."),
-    json_out: Path = JSON_OPTION,
-) -> None:
-    """Train a motor policy for an economic objective, record it in the registry, print its economics."""
-    from econmotor.report.pipeline import TrainRequest, train_and_record
-    from econmotor.store.registry import Registry
-    from econmotor.tasks import load_catalog
-
-    eval_episodes = training_eval_episodes(eval_episodes, until_deployable, select_episodes)
-    check_flags(num_envs=num_envs, max_steps=max_steps, seed=seed, eval_episodes=eval_episodes)
-    check_num_envs(backend, num_envs)
+def check_backend_choices(backend: str, algorithm: str | None, vec_env: str | None, resume: bool) -> None:
+    """``--algorithm``, ``--vec-env`` and ``--resume`` against what the backend declares it offers."""
     capabilities = backend_class(backend).capabilities
     for flag, value, allowed in (("--algorithm", algorithm, capabilities.algorithms),
                                  ("--vec-env", vec_env, capabilities.vec_env_kinds)):
@@ -245,50 +136,21 @@ def train_command(
     if resume and not capabilities.resume:
         raise ConfigError("<command line>", "--resume", f"backend '{backend}' cannot resume a run",
                           [b for b in known_backends() if backend_class(b).capabilities.resume])
-    check_output_dir("--output-dir", output_dir)
-    check_output_file("--json", json_out)
-    set_cpu_threads()
-    objective = resolve_objective(objective_config, objective_preset)
-    configs = load_datapack_configs(datapacks)
-    spec = load_catalog().get(task)
-    check_task_backend(spec, backend)
-    extra: dict[str, Any] = selection_options(backend, until_deployable, select_every, select_episodes)
-    extra.update(init_policy_options(backend, init_policy, resume))
-    if resume:
-        extra["resume"] = True
-    if algorithm:
-        extra["algorithm"] = algorithm
-    if resume and output_dir is None:
+
+
+def nothing_to_resume(backend: str, output_dir: Path | None) -> bool:
+    """``--resume``: True (and says so) when ``output_dir`` already holds a complete run; an error without one."""
+    if output_dir is None:
         raise ConfigError("<command line>", "--resume", "needs --output-dir: the run directory to continue")
-    if resume:
-        complete = completed_run_note(backend, output_dir)
-        if complete is not None:
-            console.print(f"{complete}: nothing to resume, nothing changed. To train further, start a new run "
-                          "(a new --output-dir, or none for a fresh directory).", highlight=False)
-            return
-    motor = make_backend(backend, **({"vec_env": vec_env} if vec_env else {}))
-    if init_policy is not None:
-        motor.check_init_policy(init_policy, task)
-    announce_device(motor)
-    announce_num_envs(motor, task, num_envs)
-    url = check_db_url(db_url)
-    run_dir = motor.run_dir(output_dir, task, seed)
-    size = motor.defaults.filled(num_envs, max_steps)
-    request = TrainRequest(task=spec, backend_name=backend, objective=objective, datapacks=tuple(configs),
-                           num_envs=size.num_envs, max_steps=size.max_steps, seed=seed,
-                           train_eval_episodes=eval_episodes, output_dir=run_dir, backend_options=extra)
-    registry = None
+    complete = completed_run_note(backend, output_dir)
+    if complete is not None:
+        console.print(f"{complete}: nothing to resume, nothing changed. To train further, start a new run "
+                      "(a new --output-dir, or none for a fresh directory).", highlight=False)
+    return complete is not None
 
-    def note() -> str:
-        return f"{interrupted_note(backend, task, run_dir, size.max_steps)} (registry {url})"
 
-    set_deadline_note(note)
-    try:
-        with progress_bars() as progress:
-            registry, run_id, _ = train_and_record(request, motor, lambda: Registry(url), progress)
-    except KeyboardInterrupt:
-        err_console.print(f"[yellow]interrupted[/]: {note()}", highlight=False)
-        raise typer.Abort from None
+def show_trained(registry: Registry, run_id: int, task: str, backend: str, json_out: Path | None) -> None:
+    """A recorded training run's economics, the checkpoint it kept, where it is and how to price it."""
     with registry:
         record = registry.run(run_id)
     render_result(f"{task} on {backend}: run #{run_id}", record.raw_metrics, record.econ_metrics)
@@ -305,6 +167,61 @@ def train_command(
                           "econ_metrics": record.econ_metrics,
                           "episodes": [e.summary for e in registry.episodes(run_ids=[run_id])],
                           "training_curve": record.training_curve, "artifacts": record.artifacts})
+
+
+@app.command("train")
+def train_command(
+    task: str = TASK_OPTION,
+    backend: str = BACKEND_OPTION,
+    objective_config: Path = OBJECTIVE_CONFIG_OPTION,
+    objective_preset: str = OBJECTIVE_PRESET_OPTION,
+    datapacks: list[Path] = DATAPACKS_OPTION,
+    num_envs: int = NUM_ENVS_OPTION,
+    max_steps: int = MAX_STEPS_OPTION,
+    seed: int = SEED_OPTION,
+    output_dir: Path = OUTPUT_DIR_OPTION,
+    eval_episodes: int = EVAL_EPISODES_OPTION,
+    resume: bool = RESUME_OPTION,
+    algorithm: str = ALGORITHM_OPTION,
+    vec_env: str = VEC_ENV_OPTION,
+    until_deployable: bool = UNTIL_DEPLOYABLE_OPTION,
+    select_every: int = SELECT_EVERY_OPTION,
+    select_episodes: int = SELECT_EPISODES_OPTION,
+    init_policy: str = INIT_POLICY_OPTION,
+    db_url: str = DB_URL_OPTION,
+    json_out: Path = JSON_OPTION,
+) -> None:
+    """Train a motor policy for an economic objective, record it in the registry, print its economics."""
+    eval_episodes = training_eval_episodes(eval_episodes, until_deployable, select_episodes)
+    check_flags(num_envs=num_envs, max_steps=max_steps, seed=seed, eval_episodes=eval_episodes)
+    check_num_envs(backend, num_envs)
+    check_backend_choices(backend, algorithm, vec_env, resume)
+    check_output_dir("--output-dir", output_dir)
+    check_output_file("--json", json_out)
+    set_cpu_threads()
+    objective = resolve_objective(objective_config, objective_preset)
+    configs = load_datapack_configs(datapacks)
+    spec = load_catalog().get(task)
+    check_task_backend(spec, backend)
+    extra: dict[str, Any] = {**selection_options(backend, until_deployable, select_every, select_episodes),
+                             **init_policy_options(backend, init_policy, resume),
+                             **({"resume": True} if resume else {}), **({"algorithm": algorithm} if algorithm else {})}
+    if resume and nothing_to_resume(backend, output_dir):
+        return
+    motor = make_backend(backend, **({"vec_env": vec_env} if vec_env else {}))
+    if init_policy is not None:
+        motor.check_init_policy(init_policy, task)
+    announce_device(motor)
+    announce_num_envs(motor, task, num_envs)
+    url = check_db_url(db_url)
+    run_dir = motor.run_dir(output_dir, task, seed)
+    size = motor.defaults.filled(num_envs, max_steps)
+    request = TrainRequest(task=spec, backend_name=backend, objective=objective, datapacks=tuple(configs),
+                           num_envs=size.num_envs, max_steps=size.max_steps, seed=seed,
+                           train_eval_episodes=eval_episodes, output_dir=run_dir, backend_options=extra)
+    registry, run_id, _ = train_with_bars(
+        request, motor, url, lambda: f"{interrupted_note(backend, task, run_dir, size.max_steps)} (registry {url})")
+    show_trained(registry, run_id, task, backend, json_out)
 
 
 @app.command("evaluate")

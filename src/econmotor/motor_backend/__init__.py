@@ -1,6 +1,7 @@
 """Motor backends: train, evaluate and deploy motor policies (spec: motor_backends.md)."""
 
 from econmotor.motor_backend.base import (
+    EvalProvenance,
     MotorBackend,
     MotorEvalResult,
     MotorTrainingResult,
@@ -21,6 +22,7 @@ __all__ = [
     "DatapackBundle",
     "DatapackConfig",
     "DatapackProvider",
+    "EvalProvenance",
     "MotorBackend",
     "MotorEvalResult",
     "MotorTrainingResult",

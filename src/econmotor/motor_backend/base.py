@@ -94,9 +94,55 @@ class MotorTrainingResult:
     artifacts: dict[str, str] = field(default_factory=dict)
 
 
+#: the key under which an evaluation's :class:`EvalProvenance` also travels in its ``config`` (and in
+#: ``evaluation.json`` and the registry's run config): a result rebuilt from its config keeps it.
+PROVENANCE_KEY = "provenance"
+
+
+@dataclass(frozen=True)
+class EvalProvenance:
+    """How an evaluation's figures were made: what a report and ``compare`` say beside the economics.
+
+    Every backend fills it in ``evaluate_policy``; what a backend does not measure stays None.
+
+    Attributes:
+        evaluator: the evaluator's short name ("sim2sim", "eval_agent", "mujoco", "mjx", "analytic").
+        figures_from: where the figures come from, in words (simulator, model, policy format).
+        imported: the policy was trained elsewhere (nothing was trained here).
+        commanded_speed_m_per_s: the course's commanded speed, m/s (None: no commanded course).
+        achieved_speed_m_per_s: the speed achieved while walking, m/s, weighted by walking time over the
+            episodes (None: no course).
+        mean_power_w: mean electrical power over the episodes, W (None: not metered).
+        mean_mech_power_w: the mechanical power behind it, W (None: not metered).
+    """
+
+    evaluator: str = "unknown"
+    figures_from: str = "not stated by the backend"
+    imported: bool = False
+    commanded_speed_m_per_s: float | None = None
+    achieved_speed_m_per_s: float | None = None
+    mean_power_w: float | None = None
+    mean_mech_power_w: float | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The fields as a JSON-ready dict (what the registry and ``evaluation.json`` record)."""
+        return dict(self.__dict__)
+
+    @classmethod
+    def from_dict(cls, values: Mapping[str, Any]) -> EvalProvenance:
+        """The provenance :meth:`to_dict` recorded (unknown keys ignored)."""
+        return cls(**{k: v for k, v in values.items() if k in cls.__dataclass_fields__})
+
+
 @dataclass(frozen=True)
 class MotorEvalResult:
-    """What ``evaluate_policy`` returns (fields as in :class:`MotorTrainingResult`)."""
+    """What ``evaluate_policy`` returns (fields as in :class:`MotorTrainingResult`), plus ``provenance``
+    (:class:`EvalProvenance`: which evaluator made the figures, speeds, power).
+
+    ``config`` always carries the provenance too, under :data:`PROVENANCE_KEY`; a result built without
+    ``provenance`` from a config that records one (e.g. a sequential evaluation rebuilding its result from
+    the episodes it kept) takes it from there.
+    """
 
     policy_id: str
     task_id: str
@@ -105,6 +151,33 @@ class MotorEvalResult:
     econ_metrics: dict[str, float]
     episodes: list[dict[str, Any]] = field(default_factory=list)
     config: dict[str, Any] = field(default_factory=dict)
+    provenance: EvalProvenance = field(default_factory=EvalProvenance)
+
+    def __post_init__(self) -> None:
+        recorded = self.config.get(PROVENANCE_KEY)
+        if self.provenance == EvalProvenance() and recorded:
+            object.__setattr__(self, "provenance", EvalProvenance.from_dict(recorded))
+        object.__setattr__(self, "config", {**self.config, PROVENANCE_KEY: self.provenance.to_dict()})
+
+
+def walking_speed_m_per_s(raw_episodes: Sequence[Mapping[str, Any]]) -> float | None:
+    """The speed achieved while walking over episodes that walk a course (each with
+    ``achieved_speed_m_per_s`` and ``walking_s``): ``sum(v_i * t_i) / sum(t_i)`` m/s, 0 when no episode
+    walked; None when the episodes carry no speed (no course)."""
+    if not raw_episodes or any("achieved_speed_m_per_s" not in e or "walking_s" not in e for e in raw_episodes):
+        return None
+    walking_s = sum(float(e["walking_s"]) for e in raw_episodes)
+    return sum(float(e["achieved_speed_m_per_s"]) * float(e["walking_s"]) for e in raw_episodes) / walking_s \
+        if walking_s > 0 else 0.0
+
+
+def mean_power_w(raw_metrics: Mapping[str, Any]) -> float | None:
+    """Mean electrical power of aggregated episodes, ``energy_wh / (episode_length_s / 3600)`` W (None:
+    no energy metered; 0 for no time)."""
+    if raw_metrics.get("energy_wh") is None:
+        return None
+    hours = float(raw_metrics.get("episode_length_s") or 0.0) / 3600.0
+    return float(raw_metrics["energy_wh"]) / hours if hours > 0 else 0.0
 
 
 @runtime_checkable
@@ -222,18 +295,22 @@ def summarize_episodes(
 
 def evaluation_result(backend: str, policy_id: str, task_id: str, raw_episodes: Sequence[Mapping[str, Any]],
                       economics: TaskEconomics, config: Mapping[str, Any],
-                      output_dir: str | Path | None = None) -> MotorEvalResult:
+                      output_dir: str | Path | None = None,
+                      provenance: EvalProvenance | None = None) -> MotorEvalResult:
     """The :class:`MotorEvalResult` of evaluation episodes (see :func:`summarize_episodes`); with
-    ``output_dir``, also written there as ``evaluation.json`` (metrics, episodes, config)."""
+    ``output_dir``, also written there as ``evaluation.json`` (metrics, episodes, config with the
+    provenance). ``provenance``: None keeps the one ``config`` records, if any."""
     raw, econ, episodes = summarize_episodes(raw_episodes, economics)
+    result = MotorEvalResult(policy_id=str(policy_id), task_id=task_id, backend=backend, raw_metrics=raw,
+                             econ_metrics=econ, episodes=episodes, config=dict(config),
+                             provenance=provenance or EvalProvenance())
     if output_dir is not None:
         out = Path(output_dir)
         out.mkdir(parents=True, exist_ok=True)
         (out / "evaluation.json").write_text(json.dumps(
-            {"raw_metrics": raw, "econ_metrics": econ, "episodes": episodes, "config": dict(config)},
+            {"raw_metrics": raw, "econ_metrics": econ, "episodes": episodes, "config": result.config},
             indent=2, default=str), encoding="utf-8")
-    return MotorEvalResult(policy_id=str(policy_id), task_id=task_id, backend=backend, raw_metrics=raw,
-                           econ_metrics=econ, episodes=episodes, config=dict(config))
+    return result
 
 
 # --- the contract every backend extends ------------------------------------------------------
@@ -275,6 +352,9 @@ class BackendCapabilities:
             ``holosoma:g1_29dof/ppo``; ``--init-policy``) and fine-tunes it for the objective.
         shadow_env: :meth:`MotorBackendBase.shadow_env` builds one Gymnasium env of a task whose
             ``info["step_summary"]`` carries each step's economics (shadow mode, ``rl/``).
+        course_speed: the evaluation walks a course at a commanded speed, and the constructor's
+            ``course_speed_m_per_s`` (m/s; default: the task catalog's ``course_speed_m_per_s``) sets it
+            (``compare --command-speed``).
     """
 
     resume: bool = False
@@ -285,6 +365,7 @@ class BackendCapabilities:
     evaluation_driven: bool = False
     init_policies: bool = False
     shadow_env: bool = False
+    course_speed: bool = False
 
 
 class ShadowEnv(NamedTuple):

@@ -19,6 +19,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from econmotor.motor_backend.base import PROVENANCE_KEY
 from econmotor.report.plots import render_plots
 
 #: (field, label) of the pricing table, in reading order; every saving says what it counts.
@@ -237,14 +238,20 @@ def started_from_text(start: Mapping[str, Any] | None) -> str | None:
 
 
 def imported_policy_text(eval_run: Mapping[str, Any] | None) -> str:
-    """How a sim-to-sim evaluation's figures were made (imported or not; speed achieved vs commanded), or ""."""
-    config = ((eval_run or {}).get("config") or {}).get("backend_config") or {}
-    if config.get("evaluator") != "sim2sim":
+    """How an evaluation's figures were made, from its recorded provenance (``MotorEvalResult.provenance``):
+    imported or not, the evaluator, and on a commanded course the speed achieved against the speed commanded;
+    "" for an evaluation of a policy trained here that walks no course."""
+    run = eval_run or {}
+    provenance = (run.get("config") or {}).get(PROVENANCE_KEY) or {}
+    commanded = provenance.get("commanded_speed_m_per_s")
+    if commanded is None and not provenance.get("imported"):
         return ""
-    origin = f"imported policy {config['policy']} (trained elsewhere; nothing trained here)" if config.get("imported") \
-        else f"policy {config['policy']} trained here"
-    return (f"{origin}; figures from {config['figures_from']}; speed achieved {fmt(config['achieved_speed_m_per_s'])} "
-            f"m/s against {fmt(config['commanded_speed_m_per_s'])} m/s commanded, while walking")
+    policy = run.get("policy_path")
+    origin = f"imported policy {policy} (trained elsewhere; nothing trained here)" if provenance.get("imported") \
+        else f"policy {policy} trained here"
+    speed = "" if commanded is None else (f"; speed achieved {fmt(provenance.get('achieved_speed_m_per_s'))} m/s "
+                                          f"against {fmt(commanded)} m/s commanded, while walking")
+    return f"{origin}; figures from {provenance.get('figures_from')}{speed}"
 
 
 def _sections(doc: Mapping[str, Any]) -> dict[str, Any]:

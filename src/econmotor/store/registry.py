@@ -55,6 +55,7 @@ from sqlalchemy.exc import SQLAlchemyError
 from sqlalchemy.orm import Session
 
 from econmotor.errors import ConfigError, RegistryError, UnknownNameError
+from econmotor.motor_backend.base import PROVENANCE_KEY
 from econmotor.motor_backend.datapacks import DatapackConfig, parse_datapack
 from econmotor.store.engine import (
     DB_URL_ENV,
@@ -309,7 +310,9 @@ class Registry:
         Args:
             run_id: from :meth:`start_run`.
             result: a ``MotorTrainingResult`` / ``MotorEvalResult`` (policy path, metrics,
-                episodes, training curve, config, artifacts are taken from it), or ``None``.
+                episodes, training curve, config, artifacts are taken from it; the run's config
+                records the result's under ``backend_config`` and an evaluation's provenance under
+                ``provenance``: :func:`result_config`), or ``None``.
             status: the final status.
             episodes: per-episode summaries (default: ``result.episodes``).
             **fields: run columns to set directly (``raw_metrics``, ``error``, ...).
@@ -325,8 +328,8 @@ class Registry:
         values.update(fields)
         with self._write() as s:
             run = self._get_run(s, run_id)
-            if result is not None and result.config:
-                run.config = {**run.config, "backend_config": dict(result.config)}
+            if result is not None:
+                run.config = {**run.config, **result_config(result)}
             for key, value in values.items():
                 setattr(run, key, value)
             run.status, run.finished_at = status, utc_now()
@@ -517,6 +520,17 @@ def interrupt_own_runs(reason: str, busy_timeout_s: float = 2.0) -> list[int]:
         finally:
             registry.close()
     return marked
+
+
+def result_config(result: Any) -> dict[str, Any]:
+    """What a run's config records of a backend result: its ``config`` as ``backend_config`` (the backend's
+    own keys) and, for an evaluation, its provenance under ``PROVENANCE_KEY`` (``MotorEvalResult.provenance``,
+    the contract's declared fields: evaluator, where the figures come from, speeds, power), where report and
+    compare read it."""
+    provenance = getattr(result, "provenance", None)
+    own = {k: v for k, v in (result.config or {}).items() if provenance is None or k != PROVENANCE_KEY}
+    return {**({"backend_config": own} if own else {}),
+            **({PROVENANCE_KEY: provenance.to_dict()} if provenance is not None else {})}
 
 
 def _new_task_values(task_id: str) -> dict[str, Any]:

@@ -2,7 +2,7 @@
 evaluation run follows): five by default, and after --until-deployable as many as a held-out
 evaluation, so the price can carry the verdict the training stopped on."""
 
-from econmotor.cli.train import TRAINING_EVAL_EPISODES, training_eval_episodes
+from econmotor.cli.options import TRAINING_EVAL_EPISODES, training_eval_episodes
 from econmotor.motor_backend.selection import DEFAULT_SELECT_EPISODES
 
 

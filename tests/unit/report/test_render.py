@@ -164,3 +164,20 @@ def test_a_run_started_from_a_walker_says_so_in_the_document_and_the_report():
                                           "elu), fine-tuned for this objective after 10 critic-only iterations")
     md = render_markdown(build_document(ctx), {})
     assert "| started from | holosoma:g1_29dof/ppo (sha256 ab12cd34ef56; actor 512 -&gt; 256" in md
+
+
+def test_the_evaluated_line_reads_the_recorded_provenance_not_a_backends_keys():
+    from econmotor.motor_backend.base import EvalProvenance
+    from econmotor.report.render import imported_policy_text
+
+    walked = EvalProvenance(evaluator="sim2sim", figures_from="MuJoCo sim-to-sim (the card)", imported=True,
+                            commanded_speed_m_per_s=0.8, achieved_speed_m_per_s=0.66)
+    eval_run = {"policy_path": "holosoma:g1_29dof/ppo",
+                "config": {"provenance": walked.to_dict(), "backend_config": {"figures_from": "not read"}}}
+    text = imported_policy_text(eval_run)
+    assert text.startswith("imported policy holosoma:g1_29dof/ppo (trained elsewhere; nothing trained here); "
+                           "figures from MuJoCo sim-to-sim (the card); speed achieved 0.66")
+    assert text.endswith("m/s commanded, while walking") and "not read" not in text
+    hopper = EvalProvenance(evaluator="mujoco", figures_from="Gymnasium MuJoCo Hopper-v5")
+    assert imported_policy_text({"policy_path": "runs/x", "config": {"provenance": hopper.to_dict()}}) == ""
+    assert imported_policy_text(None) == "" and imported_policy_text({"config": {}}) == ""

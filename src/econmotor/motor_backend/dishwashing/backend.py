@@ -44,6 +44,7 @@ from econmotor.motor_backend.base import (
     RUN_CONFIG_FILE,
     TRAINING_EVAL_SEED_OFFSET,
     BackendCapabilities,
+    EvalProvenance,
     MotorBackendBase,
     MotorEvalResult,
     MotorTrainingResult,
@@ -52,6 +53,7 @@ from econmotor.motor_backend.base import (
     ShadowEnv,
     StepAlias,
     StopFn,
+    mean_power_w,
     no_progress,
     read_run_config,
     summarize_episodes,
@@ -383,8 +385,11 @@ class DishwashingBackend(MotorBackendBase):
                                              num_episodes, seed, progress, stop)
         config = {"backend": BACKEND_NAME, "task_id": task_id, "objective": objective.to_dict(),
                   "num_episodes": num_episodes, "seed": seed, "overlay_normalization": norm}
+        provenance = EvalProvenance(evaluator="analytic", figures_from="the analytic dishwashing workcell "
+                                    "(econmotor's Gymnasium model of the cell; the saved SAC policy, deterministic)",
+                                    mean_power_w=mean_power_w(raw))
         return MotorEvalResult(policy_id=policy_id, task_id=task_id, backend=BACKEND_NAME, raw_metrics=raw,
-                               econ_metrics=econ, episodes=episodes, config=config)
+                               econ_metrics=econ, episodes=episodes, config=config, provenance=provenance)
 
     def deploy_policy_handle(self, policy_id: str) -> SACPolicyHandle:
         """Load the run directory's ``policy.zip`` (or a ``policy.zip`` path); a missing or unreadable

@@ -50,6 +50,7 @@ from econmotor.motor_backend.base import (
     RUN_CONFIG_FILE,
     TRAINING_EVAL_SEED_OFFSET,
     BackendCapabilities,
+    EvalProvenance,
     MotorBackendBase,
     MotorEvalResult,
     MotorTrainingResult,
@@ -57,10 +58,13 @@ from econmotor.motor_backend.base import (
     RunSize,
     StepAlias,
     StopFn,
+    aggregate_raw,
     evaluation_result,
+    mean_power_w,
     no_progress,
     read_run_config,
     summarize_episodes,
+    walking_speed_m_per_s,
     write_run_config,
 )
 from econmotor.motor_backend.couriers.onnx_policy import ECONMOTOR_PREFIX, econmotor_metadata, json_or_text
@@ -199,15 +203,15 @@ class HolosomaBackend(MotorBackendBase):
             $ECONMOTOR_HOLOSOMA_CPU_MAX_ENV_STEPS).
         eval_episode_length_s: evaluation episode length (default: sim-to-sim, the catalog's
             ``sim2sim_episode_s``; eval_agent, the preset's).
-        command_speed_m_per_s: the sim-to-sim course's commanded speed (default: the catalog's
-            ``course_speed_m_per_s``).
+        course_speed_m_per_s: the sim-to-sim course's commanded speed (default: the catalog's
+            ``course_speed_m_per_s``; the contract's keyword of ``capabilities.course_speed``).
         job_timeout_s: kill a job running longer than this.
         eval_workers: processes a sim-to-sim evaluation runs its episodes in (None: the CPUs this
             process may use, at most 2); episode i is seeded ``seed + i`` whichever runs it.
     """
 
     name = "holosoma"
-    capabilities = BackendCapabilities(algorithms=("ppo", "fast_sac"), imported_policies=True)
+    capabilities = BackendCapabilities(algorithms=("ppo", "fast_sac"), imported_policies=True, course_speed=True)
     # Holosoma's own G1/T1 presets train 4096 envs on a GPU; the plan adapts a request to the machine
     defaults = RunSize(num_envs=0, max_steps=50_000)
     smoke_run = RunSize(num_envs=1, max_steps=240, task_id="humanoid_locomotion_g1")
@@ -227,7 +231,7 @@ class HolosomaBackend(MotorBackendBase):
         venv: str | Path | None = None,
         cpu_max_env_steps: int = DEFAULT_CPU_MAX_ENV_STEPS,
         eval_episode_length_s: float | None = None,
-        command_speed_m_per_s: float | None = None,
+        course_speed_m_per_s: float | None = None,
         job_timeout_s: float | None = None,
         eval_workers: int | None = None,
     ) -> None:
@@ -239,7 +243,7 @@ class HolosomaBackend(MotorBackendBase):
         self.venv = venv
         self.cpu_max_env_steps = int(cpu_max_env_steps)
         self.eval_episode_length_s = eval_episode_length_s
-        self.command_speed_m_per_s = command_speed_m_per_s
+        self.course_speed_m_per_s = course_speed_m_per_s
         self.job_timeout_s = job_timeout_s
         if eval_workers is not None and eval_workers < 1:
             raise ConfigError("<holosoma backend>", "eval_workers", f"must be >= 1, got {eval_workers}")
@@ -417,7 +421,7 @@ class HolosomaBackend(MotorBackendBase):
                               "the sim-to-sim evaluation needs it (with its unit and source)", SIM2SIM_KEYS)
         bundle = DatapackProvider().resolve(task_id, [p.id for p in packs], packs)
         overrides = map_datapacks(bundle, packs, uses_motion_clip=False)
-        speed = float(self.command_speed_m_per_s or settings["course_speed_m_per_s"])
+        speed = float(self.course_speed_m_per_s or settings["course_speed_m_per_s"])
         episode_s = float(self.eval_episode_length_s or settings["sim2sim_episode_s"])
         leg_m = float(settings["unit_length_m"])
         course = {"leg_m": leg_m, "dwell_s": float(settings["dwell_s"]), "speed_m_per_s": speed,
@@ -442,23 +446,22 @@ class HolosomaBackend(MotorBackendBase):
         stream, wall_s = run_episode_jobs(self.python, jobs, run_dir, progress, int(num_episodes),
                                           self.evaluation_batch(task_id), stop, self.job_timeout_s)
         episodes = stream.prefix()
-        walking_s = sum(float(e["walking_s"]) for e in episodes)
-        achieved = sum(float(e["achieved_speed_m_per_s"]) * float(e["walking_s"]) for e in episodes) / walking_s \
-            if walking_s > 0 else 0.0
-        hours = sum(float(e["episode_length_s"]) for e in episodes) / 3600.0
-        power_w = sum(float(e["energy_wh"]) for e in episodes) / hours if hours > 0 else 0.0
+        power_w = mean_power_w(aggregate_raw(episodes)) or 0.0
+        provenance = EvalProvenance(
+            evaluator="sim2sim", imported=imported,
+            figures_from="MuJoCo sim-to-sim (plain MuJoCo, the policy's ONNX, holosoma_inference's observations; "
+                         f"{model_text(stream.setup['contract'])})",
+            commanded_speed_m_per_s=speed, achieved_speed_m_per_s=walking_speed_m_per_s(episodes) or 0.0,
+            mean_power_w=power_w, mean_mech_power_w=mechanical_from_electrical_w(
+                power_w, meter["drivetrain_efficiency"], meter["idle_power_w"]))
         config = {
-            "seed": int(seed), "evaluator": "sim2sim", "policy": policy_id, "imported": imported,
-            "mean_power_w": power_w, "mean_mech_power_w": mechanical_from_electrical_w(
-                power_w, meter["drivetrain_efficiency"], meter["idle_power_w"]),
-            "figures_from": "MuJoCo sim-to-sim (plain MuJoCo, the policy's ONNX, holosoma_inference's observations; "
-                            f"{model_text(stream.setup['contract'])})",
-            "commanded_speed_m_per_s": speed, "achieved_speed_m_per_s": achieved, "episode_length_s": episode_s,
-            "course": course, "meter": meter, "datapacks": list(bundle.datapack_ids),
+            "seed": int(seed), "policy": policy_id, "episode_length_s": episode_s, "course": course, "meter": meter,
+            "datapacks": list(bundle.datapack_ids),
             "stress": stream.setup.get("stress"), "contract": stream.setup.get("contract"), "wall_s": wall_s,
             "workers": workers, "messages": [*notes, *stream.messages],
             "eval_log": str(run_dir / "sim2sim_0.log")}
-        return evaluation_result(self.name, policy_id, task_id, episodes, spec.economics, config, output_dir=run_dir)
+        return evaluation_result(self.name, policy_id, task_id, episodes, spec.economics, config, output_dir=run_dir,
+                                 provenance=provenance)
 
     def evaluation_batch(self, task_id: str) -> int:
         """Ten episodes per worker process between looks."""
@@ -480,11 +483,13 @@ class HolosomaBackend(MotorBackendBase):
         if not raw_episodes:
             raise BackendError(f"Holosoma's recording {outcome.result['recording']} holds no steps")
         raw, econ, episodes = summarize_episodes(raw_episodes, spec.economics)
-        config = {"seed": seed, "evaluator": "eval_agent", "objective": objective.to_dict(),
+        config = {"seed": seed, "objective": objective.to_dict(),
                   "recording": outcome.result["recording"], "exported_onnx": outcome.result.get("onnx"),
                   "episode_length_s": episode_s, "num_steps": steps, "messages": list(outcome.messages),
                   "eval_log": outcome.log_path}
-        return MotorEvalResult(policy_id, task_id, self.name, raw, econ, episodes, config)
+        provenance = EvalProvenance(evaluator="eval_agent", figures_from=f"Holosoma's eval_agent on {simulator} "
+                                    "(the training checkpoint; econ metrics from its recording)")
+        return MotorEvalResult(policy_id, task_id, self.name, raw, econ, episodes, config, provenance)
 
     def _eval_simulator(self, trained_on: str, run_dir: Path, progress: ProgressFn) -> str:
         """The training simulator when this machine has it (or the one asked for), else the auto choice."""

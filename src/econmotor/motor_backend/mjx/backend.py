@@ -39,6 +39,7 @@ from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import (
     TRAINING_EVAL_SEED_OFFSET,
     BackendCapabilities,
+    EvalProvenance,
     HeldOutCadence,
     MotorBackendBase,
     MotorEvalResult,
@@ -46,9 +47,12 @@ from econmotor.motor_backend.base import (
     ProgressFn,
     RunSize,
     StopFn,
+    aggregate_raw,
     evaluation_result,
+    mean_power_w,
     no_progress,
     summarize_episodes,
+    walking_speed_m_per_s,
 )
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.motor_backend.holosoma.backend import VENV_ENV
@@ -339,8 +343,13 @@ class MjxBackend(MotorBackendBase):
                                  progress, stop=stop)
         eval_config = {**described, "policy_id": str(policy_id), "num_episodes": num_episodes, "seed": seed,
                        "algorithm": "ppo", "deterministic": True, "device": device_description()}
+        provenance = EvalProvenance(
+            evaluator="mjx", figures_from=f"MJX batched rollouts of {task_id} on {device_description()} (the run's "
+            "PPO policy, deterministic, metered as in training)",
+            commanded_speed_m_per_s=env.settings.course.get("speed_m_per_s"),
+            achieved_speed_m_per_s=walking_speed_m_per_s(rows), mean_power_w=mean_power_w(aggregate_raw(rows)))
         return evaluation_result(self.name, policy_id, task_id, rows, self.catalog.get(task_id).economics,
-                                 eval_config, output_dir)
+                                 eval_config, output_dir, provenance)
 
     def deploy_policy_handle(self, policy_id: str) -> MjxOnnxPolicyHandle:
         """An onnxruntime handle on the run's ``policy.onnx`` (exported now if missing)."""

@@ -25,6 +25,7 @@ from econmotor.motor_backend.base import (
     RUN_CONFIG_FILE,
     TRAINING_EVAL_SEED_OFFSET,
     BackendCapabilities,
+    EvalProvenance,
     MotorBackendBase,
     MotorEvalResult,
     MotorTrainingResult,
@@ -32,7 +33,9 @@ from econmotor.motor_backend.base import (
     RunSize,
     ShadowEnv,
     StopFn,
+    aggregate_raw,
     evaluation_result,
+    mean_power_w,
     no_progress,
     read_run_config,
     summarize_episodes,
@@ -205,8 +208,12 @@ class MujocoBackend(MotorBackendBase):
         env.close()
         eval_config = {**described, "policy_id": str(policy_id), "num_episodes": num_episodes, "seed": seed,
                        "algorithm": config["algorithm"], "deterministic": True}
+        provenance = EvalProvenance(
+            evaluator="mujoco", figures_from=f"Gymnasium MuJoCo {recipe.settings.env_id} (the run's "
+            f"{config['algorithm']} policy, deterministic, metered as in training)",
+            mean_power_w=mean_power_w(aggregate_raw(raw_eps)))
         return evaluation_result(self.name, policy_id, task_id, raw_eps, self.catalog.get(task_id).economics,
-                                 eval_config, output_dir)
+                                 eval_config, output_dir, provenance)
 
     def deploy_policy_handle(self, policy_id: str) -> OnnxPolicyHandle:
         """An onnxruntime handle on the run's ``policy.onnx`` (exported now if missing)."""
