@@ -77,9 +77,19 @@ from econmotor.cli._interrupts import InterruptGuard, set_deadline_note
 guard = InterruptGuard(grace_s=1.0)
 set_deadline_note(lambda: "Resume with: econmotor train --resume")
 print("ready", flush=True)
-while True:  # a command that never stops by itself
+
+
+def busy():
+    while True:  # a command that never stops by itself
+        try:
+            time.sleep(0.05)
+        except KeyboardInterrupt:
+            pass
+
+
+while True:  # an interrupt redelivered between the inner try blocks (a loaded machine) is swallowed here
     try:
-        time.sleep(0.05)
+        busy()
     except KeyboardInterrupt:
         pass
 """
