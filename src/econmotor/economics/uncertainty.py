@@ -134,7 +134,7 @@ def error_rate_sequence(errors: float, attempted: float, confidence: float = CON
     level = _mixture_log_ratio_level(k, n, SEQUENCE_ZERO_WEIGHT, 1.0 / (SEQUENCE_MEAN_SHARE * rate) - 1.0, alpha)
     if k <= 0:
         upper = -math.expm1(-level / n)  # (1-p)^n = exp(-level)
-    elif k >= n:
+    elif k >= n or outside(level)(1.0 - 1e-15) <= 0:  # (almost) every unit an error: no rate below 1 excluded
         upper = 1.0
     else:
         upper = brentq(outside(level), mle, 1.0 - 1e-15, xtol=1e-12)

@@ -125,3 +125,13 @@ def test_a_certain_failure_is_told_apart_from_an_undecided_look():
 def test_a_plan_that_cannot_run_is_a_config_error(kwargs, key):
     with pytest.raises(ConfigError, match=key):
         SequentialPlan(**kwargs)
+
+
+def test_the_sequence_bounds_every_count_a_look_can_meet():
+    # fractional legs: almost every attempted unit an error leaves no rate below 1 excluded
+    assert error_rate_sequence(1, 1.01, 0.95, 0.05)[1] == 1.0
+    assert error_rate_sequence(0.5, 0.5001, 0.95, 0.05)[1] == 1.0
+    for k in (0.0, 0.3, 1.0, 2.0, 7.5):
+        for n in (k + 0.001, k + 0.4, k + 3.0, k + 50.0, k + 5000.0):
+            low, high = error_rate_sequence(k, n, 0.95, 0.05)
+            assert 0.0 <= low <= k / n <= high <= 1.0
