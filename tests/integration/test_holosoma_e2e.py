@@ -131,7 +131,7 @@ def test_holosoma_error_text_is_surfaced(trained, holosoma_venv: Path, tmp_path:
     # The fixture's own train job, but 2 envs on classic MuJoCo: Holosoma itself refuses.
     _, _, result, _ = trained
     job = parse_job((Path(result.policy_id) / "train_job.json").read_text(encoding="utf-8"))
-    job = replace(job, num_envs=2, iterations=1, run_dir=str(tmp_path))
+    job = replace(job, plan=replace(job.plan, num_envs=2, iterations=1), run_dir=str(tmp_path))
     with pytest.raises(BackendError) as info:
         run_job(holosoma_venv / "bin" / "python", job, tmp_path, lambda *a: None)
     text = str(info.value)

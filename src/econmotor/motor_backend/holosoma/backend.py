@@ -270,11 +270,9 @@ class HolosomaBackend(MotorBackendBase):
             progress(f"holosoma: {text}", 1.0, 1.0)
         overlay_params = {k: settings[k] for k in ("progress_mode", "unit_duration_s", "novelty_rate")}
         overlay_params["meter"] = meter_settings(task_id, settings, spec.source)  # the evaluator's constants too
-        job = TrainJob(
-            run_dir=str(run_dir), run_name=f"{task_id}-seed{seed}", experiment=plan.experiment, algo=algo,
-            simulator=plan.simulator, device=plan.device, num_envs=plan.num_envs, iterations=plan.iterations,
-            seed=int(seed), cpu_sized=plan.cpu_sized, motion_task=bool(settings["uses_motion_clip"]),
-            overlay=Overlay(weights=weights, params=overlay_params), overrides=overrides.to_dict())
+        job = TrainJob(run_dir=str(run_dir), run_name=f"{task_id}-seed{seed}", plan=plan, seed=int(seed),
+                       motion_task=bool(settings["uses_motion_clip"]),
+                       overlay=Overlay(weights=weights, params=overlay_params), overrides=overrides.to_dict())
         outcome = run_job(self.python, job, run_dir, progress, self.job_timeout_s)
         messages += list(outcome.messages)
         result = outcome.result

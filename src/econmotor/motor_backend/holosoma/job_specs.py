@@ -4,8 +4,8 @@ The backend builds one of :class:`ProbeJob`, :class:`TrainJob`, :class:`Evaluate
 :class:`Sim2SimJob`; :func:`.jobs.run_job` writes it as JSON (:meth:`HolosomaJob.to_json`:
 ``{"action": ..., <its fields>}``) and the runner reads it back with :func:`parse_job`. A file that is
 not a job of a known action, lacks a field, has one it does not know, or holds a value of the wrong
-type is a ConfigError naming the file and the field. Stdlib only, so it imports in both interpreters
-(the main one and .venv-holosoma's numpy 1.x).
+type is a ConfigError naming the file and the field. It imports in both interpreters (the main one and
+.venv-holosoma's numpy 1.x): neither Holosoma nor torch.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from dataclasses import MISSING, asdict, dataclass, field, fields
 from typing import Any, ClassVar
 
 from econmotor.errors import ConfigError
+from econmotor.motor_backend.holosoma.plan import RunPlan
 
 
 @dataclass(frozen=True)
@@ -56,8 +57,8 @@ class TrainJob(HolosomaJob):
 
     Attributes:
         run_dir / run_name: where Holosoma writes (``<run_dir>/holosoma``) and its experiment's name.
-        experiment / algo / simulator / device: the preset, ``ppo`` or ``fast_sac``, and where it runs.
-        num_envs / iterations / seed: the plan's (:mod:`.plan`); ``cpu_sized``: the algorithm sized for a CPU.
+        plan: the request adapted to the machine (:class:`.plan.RunPlan`: preset, algorithm, simulator,
+            device, envs, iterations, CPU sizing); seed: Holosoma's seed.
         motion_task: the task tracks a motion clip (whole-body tracking).
         overlay: :class:`Overlay`; overrides: ``HolosomaOverrides.to_dict()`` (randomization, curriculum,
             terrain, motion_file, evaluation).
@@ -66,14 +67,8 @@ class TrainJob(HolosomaJob):
     action: ClassVar[str] = "train"
     run_dir: str
     run_name: str
-    experiment: str
-    algo: str
-    simulator: str
-    device: str
-    num_envs: int
-    iterations: int
+    plan: RunPlan
     seed: int
-    cpu_sized: bool
     motion_task: bool
     overlay: Overlay
     overrides: dict[str, Any]
@@ -133,7 +128,7 @@ class Sim2SimJob(HolosomaJob):
 #: action -> job class
 JOB_TYPES: dict[str, type[HolosomaJob]] = {cls.action: cls for cls in (ProbeJob, TrainJob, EvaluateJob, Sim2SimJob)}
 
-_PLAIN = {"int": int, "float": (int, float), "str": str, "bool": bool, "list": list, "dict": dict}
+_PLAIN = {"int": int, "float": (int, float), "str": str, "bool": bool, "list": list, "tuple": list, "dict": dict}
 
 
 def _build(cls: type, values: Any, source: str, where: str) -> Any:
@@ -160,6 +155,8 @@ def _build(cls: type, values: Any, source: str, where: str) -> Any:
             plain = _PLAIN.get(name_of_type)
             if plain is not None and (not isinstance(value, plain) or (plain is not bool and isinstance(value, bool))):
                 raise ConfigError(source, key, f"must be a JSON {name_of_type}, not {value!r}")
+            if name_of_type == "tuple":
+                value = tuple(value)
         kwargs[name] = value
     return cls(**kwargs)
 

@@ -68,12 +68,12 @@ def _merge_term(terms: dict[str, Any], name: str, params: dict[str, Any], where:
 
 def _algo_config(cfg: Any, job: TrainJob) -> Any:
     algo = cfg.algo.config
-    iterations = job.iterations
-    if job.algo == "ppo":
+    iterations = job.plan.iterations
+    if job.plan.algo == "ppo":
         return dataclasses.replace(algo, num_learning_iterations=iterations, save_interval=max(iterations, 1))
     changes: dict[str, Any] = {"num_learning_iterations": iterations, "save_interval": 0,
                                "logging_interval": max(1, iterations // 20)}
-    if job.cpu_sized:
+    if job.plan.cpu_sized:
         changes.update(batch_size=256, compile=False, amp=False)
     return dataclasses.replace(algo, **changes)
 
@@ -111,8 +111,8 @@ def build_train_config(job: TrainJob) -> Any:
     from holosoma.config_values.experiment import EXPERIMENT_REGISTRY
     from holosoma.config_values.terrain import TERRAIN_REGISTRY
 
-    cfg = EXPERIMENT_REGISTRY[job.experiment]
-    sim = _simulator(job.simulator, cfg)
+    cfg = EXPERIMENT_REGISTRY[job.plan.experiment]
+    sim = _simulator(job.plan.simulator, cfg)
     over = job.overrides
     randomization = cfg.randomization
     if over["randomization"]:
@@ -125,13 +125,13 @@ def build_train_config(job: TrainJob) -> Any:
                           "dynamic_friction_range": params["friction_range"]}
             setup = _merge_term(setup, term, params, f"datapack domain_randomization -> randomization '{term}'")
         randomization = dataclasses.replace(randomization, setup_terms=setup)
-    if job.simulator in ("mujoco", "mjwarp") and job.motion_task:
+    if job.plan.simulator in ("mujoco", "mjwarp") and job.motion_task:
         randomization = dataclasses.replace(randomization, ignore_unsupported=True)
         emit("message", text="randomization.ignore_unsupported=True: some whole-body-tracking randomizers "
                              "have no MuJoCo implementation and are skipped")
     curriculum = cfg.curriculum
     if over["curriculum"] and "penalty_curriculum" not in curriculum.setup_terms:
-        emit("message", text=f"datapack curriculum ignored: preset {job.experiment} has no PenaltyCurriculum "
+        emit("message", text=f"datapack curriculum ignored: preset {job.plan.experiment} has no PenaltyCurriculum "
                              f"(its curriculum terms: {', '.join(sorted(curriculum.setup_terms))})")
     elif over["curriculum"]:
         setup = _merge_term(dict(curriculum.setup_terms), "penalty_curriculum", over["curriculum"],
@@ -150,7 +150,7 @@ def build_train_config(job: TrainJob) -> Any:
     return dataclasses.replace(
         cfg,
         simulator=sim,
-        training=dataclasses.replace(cfg.training, num_envs=job.num_envs, seed=job.seed,
+        training=dataclasses.replace(cfg.training, num_envs=job.plan.num_envs, seed=job.seed,
                                      project=PROJECT, name=job.run_name, headless=True, export_onnx=True),
         logger=DisabledLoggerConfig(base_dir=str(Path(job.run_dir) / "holosoma")),
         algo=dataclasses.replace(cfg.algo, config=_algo_config(cfg, job)),
@@ -193,10 +193,10 @@ def train(job: TrainJob) -> dict[str, Any]:
     from holosoma.train_agent import train as holosoma_train
 
     cfg = build_train_config(job)
-    emit("message", text=f"Holosoma {job.experiment} on {job.simulator} ({job.device}): "
-                         f"{job.num_envs} env(s), {job.iterations} {job.algo} iteration(s), "
+    emit("message", text=f"Holosoma {job.plan.experiment} on {job.plan.simulator} ({job.plan.device}): "
+                         f"{job.plan.num_envs} env(s), {job.plan.iterations} {job.plan.algo} iteration(s), "
                          f"econ terms {sorted(job.overlay.weights)}")
-    _report_iterations(job.iterations)
+    _report_iterations(job.plan.iterations)
     holosoma_train(cfg)
     runs = sorted((Path(job.run_dir) / "holosoma" / PROJECT).glob("*"))
     if not runs:

@@ -17,9 +17,11 @@ from econmotor.motor_backend.holosoma.job_specs import (
     TrainJob,
     parse_job,
 )
+from econmotor.motor_backend.holosoma.plan import RunPlan
 
-TRAIN = TrainJob(run_dir="/runs/r", run_name="t-seed0", experiment="g1_29dof", algo="ppo", simulator="mujoco",
-                 device="cpu", num_envs=1, iterations=2, seed=0, cpu_sized=True, motion_task=False,
+PLAN = RunPlan(experiment="g1_29dof", algo="ppo", simulator="mujoco", device="cpu", num_envs=1, iterations=2,
+               env_steps=48, cpu_sized=True, messages=("classic MuJoCo runs one env",), requested={"num_envs": 4})
+TRAIN = TrainJob(run_dir="/runs/r", run_name="t-seed0", plan=PLAN, seed=0, motion_task=False,
                  overlay=Overlay(weights={"mpl": 0.5}, params={"progress_mode": "velocity", "meter": {"a": 1.0}}),
                  overrides={"randomization": {}, "curriculum": {}, "terrain": None, "motion_file": None,
                             "evaluation": {}})
@@ -41,7 +43,7 @@ def test_a_job_round_trips_through_its_json(job) -> None:
 
 def test_the_json_layout_is_the_runners_and_each_worker_has_its_log() -> None:
     values = json.loads(TRAIN.to_json())
-    assert values["overlay"]["params"]["meter"] == {"a": 1.0} and values["num_envs"] == 1
+    assert values["overlay"]["params"]["meter"] == {"a": 1.0} and values["plan"]["num_envs"] == 1
     assert replace(SIM2SIM, worker=2).log_name == "sim2sim_2" and TRAIN.log_name == "train"
 
 
@@ -49,8 +51,9 @@ def test_the_json_layout_is_the_runners_and_each_worker_has_its_log() -> None:
     (lambda v: v.update(action="dance"), "action", "unknown job action 'dance'"),
     (lambda v: v.pop("seed"), "seed", "missing"),
     (lambda v: v.update(colour="red"), "colour", "not a field of a TrainJob"),
-    (lambda v: v.update(num_envs="4"), "num_envs", "must be a JSON int"),
-    (lambda v: v.update(cpu_sized=1), "cpu_sized", "must be a JSON bool"),
+    (lambda v: v["plan"].update(num_envs="4"), "plan.num_envs", "must be a JSON int"),
+    (lambda v: v["plan"].update(cpu_sized=1), "plan.cpu_sized", "must be a JSON bool"),
+    (lambda v: v.update(motion_task=1), "motion_task", "must be a JSON bool"),
     (lambda v: v["overlay"].pop("weights"), "overlay.weights", "missing"),
 ])
 def test_a_bad_job_names_the_file_and_the_field(change, key, words) -> None:
