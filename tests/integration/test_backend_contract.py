@@ -4,7 +4,10 @@ Parametrised over ``known_backends()``: a backend added to the registry is cover
 editing this file. Each one trains its declared ``smoke_run`` into ``output_dir`` (which must be
 the run directory, holding ``run_config.json`` that names the backend), is evaluated by the
 ``policy_id`` it returned (the same seed gives the same episodes; another seed, or another policy
-on the same seed, other episodes), deploys a handle answering ``act`` and ``step``, and declares its
+on the same seed, other episodes), records the evaluation after training as the base class does
+(``<run>/eval/evaluation.json``, seeded from ``seed + TRAINING_EVAL_SEED_OFFSET``), deploys a handle
+answering ``act`` and ``step``, names each task's robot apart from itself (one robot, one id on every
+backend), and declares its
 capabilities, defaults and limits, which the CLI reads instead of knowing backends by name, and says
 how an evaluation's figures were made (``MotorEvalResult.provenance``). A
 backend that declares ``evaluation_driven`` selects its policy by held-out evaluations: the policy
@@ -23,8 +26,11 @@ import pytest
 
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import (
+    EVALUATION_FILE,
     PROVENANCE_KEY,
     RUN_CONFIG_FILE,
+    TRAINING_EVAL_DIR,
+    TRAINING_EVAL_SEED_OFFSET,
     BackendCapabilities,
     EvalProvenance,
     MotorBackendBase,
@@ -65,6 +71,9 @@ def test_every_backend_declares_the_contract(name: str) -> None:
         assert variable.startswith("ECONMOTOR_") and keyword in parameters
     if cls.capabilities.resume:
         assert cls.checkpoint_glob, "a backend that resumes declares its checkpoint files"
+    # the evaluation after training is the base's, for every backend (one rule, one record)
+    assert cls.evaluate_after_training is MotorBackendBase.evaluate_after_training
+    assert cls.training_result is MotorBackendBase.training_result
 
 
 @pytest.mark.slow
@@ -87,6 +96,13 @@ def test_train_into_output_dir_evaluate_by_policy_id_and_deploy(name: str, tmp_p
     config["backend"] = name
     (run_dir / RUN_CONFIG_FILE).write_text(json.dumps(config))
     assert cls.is_complete_run(run_dir) and not (tmp_path / "runs").exists()  # nothing nested elsewhere
+    # the evaluation after training: recorded the same way by every backend, seeded from seed + the offset
+    recorded = json.loads((run_dir / TRAINING_EVAL_DIR / EVALUATION_FILE).read_text())
+    assert trained.raw_metrics["num_episodes"] == 1 and recorded["raw_metrics"] == pytest.approx(trained.raw_metrics)
+    assert trained.config["evaluation"] == recorded["config"] and recorded["config"][PROVENANCE_KEY]["evaluator"]
+    assert trained.artifacts["evaluation"] == str(run_dir / TRAINING_EVAL_DIR / EVALUATION_FILE)
+    after = backend.evaluate_policy(trained.policy_id, task_id, objective, 1, 3 + TRAINING_EVAL_SEED_OFFSET)
+    assert outcome(after) == outcome(trained)
 
     evaluated = backend.evaluate_policy(trained.policy_id, task_id, objective, 1, 11)
     assert evaluated.raw_metrics["num_episodes"] == 1 and len(evaluated.episodes) == 1
@@ -100,6 +116,8 @@ def test_train_into_output_dir_evaluate_by_policy_id_and_deploy(name: str, tmp_p
     other = backend.train_policy(task_id, objective, [], size.num_envs, size.max_steps, 4,
                                  output_dir=tmp_path / "other", eval_episodes=0)
     other_policy = backend.evaluate_policy(other.policy_id, task_id, objective, 1, 11)
+    assert "evaluation" not in other.config and not other.episodes  # eval_episodes=0: no evaluation, no record
+    assert not (tmp_path / "other" / TRAINING_EVAL_DIR).exists()
     assert outcome(again) == outcome(evaluated)
     assert outcome(other_seed) != outcome(evaluated)
     assert outcome(other_policy) != outcome(evaluated)
@@ -117,6 +135,22 @@ def test_run_size_defaults_fill_what_a_request_leaves_out(name: str) -> None:
     assert defaults.filled(None, None) == defaults
     assert defaults.filled(3, None).num_envs == 3 and defaults.filled(None, 77).max_steps == 77
     assert defaults.filled(0, 5).num_envs == 0  # 0: the task's catalog default, kept
+
+
+def test_every_backend_names_its_tasks_robot_apart_from_itself() -> None:
+    """The registry's robot id is the robot's name, declared by each backend from its task entry: one robot
+    has one id on every backend that runs it (no backend name, env id or policy in it)."""
+    catalog = load_catalog()
+    ids = {(name, task_id): backend_class(name).robot_id(catalog.get(task_id))
+           for name in BACKENDS for task_id in catalog.ids(name)}
+    for (name, task_id), robot in ids.items():
+        assert robot and ":" not in robot and robot != name, (name, task_id, robot)
+        assert {r for (_, t), r in ids.items() if t == task_id} == {robot}, task_id  # the same on every backend
+    assert ids["mujoco", "hopper_courier"] == ids["mjx", "hopper_courier"] == "hopper"
+    assert ids["mujoco", "humanoid_courier"] == ids["mjx", "humanoid_courier"] == "humanoid"
+    assert ids["holosoma", "humanoid_locomotion_g1"] == ids["mjx", "humanoid_locomotion_g1"] == "g1_29dof"
+    assert ids["holosoma", "humanoid_wbt_g1"] == "g1_29dof" and ids["holosoma", "humanoid_locomotion_t1"] == "t1_29dof"
+    assert ids["dishwashing", "dishwashing"] == ids["dishwashing", "dishwashing_realistic"]
 
 
 class DuckBackend:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 import subprocess
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -19,8 +20,10 @@ import pytest
 from econmotor.errors import BackendError
 from econmotor.motor_backend.datapacks import load_datapack_configs
 from econmotor.motor_backend.factory import make_motor_backend
-from econmotor.motor_backend.holosoma.backend import HolosomaPolicyHandle, find_holosoma_python
+from econmotor.motor_backend.holosoma.backend import find_holosoma_python
+from econmotor.motor_backend.holosoma.job_specs import parse_job
 from econmotor.motor_backend.holosoma.jobs import run_job
+from econmotor.motor_backend.onnx_policy import OnnxPolicyHandle
 from econmotor.objectives import compile_economic_overlay, load_objective_spec
 
 pytestmark = [pytest.mark.slow, pytest.mark.holosoma]
@@ -114,12 +117,12 @@ def test_training_terms_and_the_evaluator_read_one_meter(trained) -> None:
 def test_onnx_handle_carries_both_metadata(trained) -> None:
     backend, _, result, _ = trained
     handle = backend.deploy_policy_handle(result.policy_id)
-    assert isinstance(handle, HolosomaPolicyHandle)
+    assert isinstance(handle, OnnxPolicyHandle)
     assert len(handle.dof_names) == 29 and len(handle.kp) == 29 and len(handle.kd) == 29
     assert handle.action_scale is not None
-    assert handle.econmotor_metadata["task_id"] == "humanoid_locomotion_g1"
-    assert handle.econmotor_metadata["objective"]["error_weight"] == 0.5
-    assert handle.econmotor_metadata["task_economics"]["wage_human_usd_per_hour"] == 18.0
+    assert handle.metadata["task_id"] == "humanoid_locomotion_g1"
+    assert handle.metadata["objective"]["error_weight"] == 0.5
+    assert handle.metadata["task_economics"]["wage_human_usd_per_hour"] == 18.0
     obs = np.zeros((3, handle.obs_dim), dtype=np.float32)
     assert handle.act(obs).shape == (3, handle.action_dim)
 
@@ -127,8 +130,8 @@ def test_onnx_handle_carries_both_metadata(trained) -> None:
 def test_holosoma_error_text_is_surfaced(trained, holosoma_venv: Path, tmp_path: Path) -> None:
     # The fixture's own train job, but 2 envs on classic MuJoCo: Holosoma itself refuses.
     _, _, result, _ = trained
-    job = json.loads((Path(result.policy_id) / "train_job.json").read_text(encoding="utf-8"))
-    job.update(num_envs=2, iterations=1, run_dir=str(tmp_path))
+    job = parse_job((Path(result.policy_id) / "train_job.json").read_text(encoding="utf-8"))
+    job = replace(job, plan=replace(job.plan, num_envs=2, iterations=1), run_dir=str(tmp_path))
     with pytest.raises(BackendError) as info:
         run_job(holosoma_venv / "bin" / "python", job, tmp_path, lambda *a: None)
     text = str(info.value)

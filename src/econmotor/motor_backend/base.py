@@ -202,6 +202,8 @@ class StepAlias:
 
 #: the file every trained run directory (mujoco, mjx) starts with: its task, settings and hyperparameters
 RUN_CONFIG_FILE = "run_config.json"
+#: an evaluation's record in its output directory: metrics, episodes, config with the provenance
+EVALUATION_FILE = "evaluation.json"
 
 
 def read_run_config(run_dir: str | Path, backend: str | None = None, task_id: str | None = None) -> dict[str, Any]:
@@ -307,7 +309,7 @@ def evaluation_result(backend: str, policy_id: str, task_id: str, raw_episodes: 
     if output_dir is not None:
         out = Path(output_dir)
         out.mkdir(parents=True, exist_ok=True)
-        (out / "evaluation.json").write_text(json.dumps(
+        (out / EVALUATION_FILE).write_text(json.dumps(
             {"raw_metrics": raw, "econ_metrics": econ, "episodes": episodes, "config": result.config},
             indent=2, default=str), encoding="utf-8")
     return result
@@ -317,6 +319,9 @@ def evaluation_result(backend: str, policy_id: str, task_id: str, raw_episodes: 
 
 #: the evaluation right after training seeds its episodes from ``seed + TRAINING_EVAL_SEED_OFFSET``.
 TRAINING_EVAL_SEED_OFFSET = 10_000
+#: the evaluation right after training is recorded in ``<run_dir>/TRAINING_EVAL_DIR/evaluation.json``
+#: (:data:`EVALUATION_FILE`).
+TRAINING_EVAL_DIR = "eval"
 #: a report's evaluation run seeds its episodes from ``seed + REPORT_EVAL_SEED_OFFSET`` (fresh episodes).
 REPORT_EVAL_SEED_OFFSET = 1_000
 #: held-out evaluations of evaluation-driven training (``selection.py``) seed episode i with
@@ -459,6 +464,14 @@ class MotorBackendBase:
         raise ConfigError("--env", spec.task_id, f"the '{cls.name}' backend builds no single Gymnasium env")
 
     @classmethod
+    def robot_id(cls, spec: TaskSpec) -> str:
+        """The robot task ``spec`` runs on, named apart from any backend: the registry's robot id, the same
+        for one robot on every backend that runs it (``hopper``, ``g1_29dof``, ...). A subclass answers it
+        from the task's entry (its robot card or model); the base, for tasks that name no robot, answers
+        the task id."""
+        return spec.task_id
+
+    @classmethod
     def check_num_envs(cls, num_envs: int | None, flag: str = "--num-envs") -> None:
         """``num_envs`` must be within :attr:`max_num_envs`; a ConfigError names the flag and the limit."""
         if num_envs is not None and num_envs > cls.max_num_envs:
@@ -522,13 +535,41 @@ class MotorBackendBase:
         raise ConfigError("--init-policy", policy, f"the '{self.name}' backend cannot start from a policy trained "
                           "elsewhere")
 
+    # --- the evaluation after training: one rule for every backend ---------------------------------
+    def evaluate_after_training(self, run_dir: str | Path, task_id: str, objective: EconomicObjectiveSpec,
+                                eval_episodes: int, seed: int, *, datapack_configs: Sequence[Any] | None = None,
+                                progress: ProgressFn = no_progress, **options: Any) -> MotorEvalResult | None:
+        """The evaluation right after training, the same for every backend: :meth:`evaluate_policy` on the run
+        directory just written (``eval_episodes`` episodes seeded from ``seed + TRAINING_EVAL_SEED_OFFSET``),
+        recorded in ``<run_dir>/eval/evaluation.json`` (:data:`TRAINING_EVAL_DIR`); None when ``eval_episodes``
+        is 0. ``options``: ``evaluate_policy``'s own keywords (e.g. ``datapack_ids``)."""
+        if eval_episodes <= 0:
+            return None
+        return self.evaluate_policy(str(run_dir), task_id, objective, eval_episodes, seed + TRAINING_EVAL_SEED_OFFSET,
+                                    datapack_configs=datapack_configs, output_dir=Path(run_dir) / TRAINING_EVAL_DIR,
+                                    progress=progress, **options)
+
+    def training_result(self, run_dir: str | Path, task_id: str, evaluation: MotorEvalResult | None,
+                        training_curve: list[dict[str, float]], config: Mapping[str, Any],
+                        artifacts: Mapping[str, str]) -> MotorTrainingResult:
+        """What ``train_policy`` returns: the run directory as ``policy_id`` and the metrics and episodes of
+        :meth:`evaluate_after_training` (empty without one), whose config the run's ``config`` keeps under
+        ``evaluation`` and whose ``evaluation.json`` its ``artifacts`` name."""
+        config, artifacts = dict(config), dict(artifacts)
+        if evaluation is None:
+            return MotorTrainingResult(str(run_dir), task_id, self.name, {}, {}, [], training_curve, config, artifacts)
+        config["evaluation"] = evaluation.config
+        artifacts["evaluation"] = str(Path(run_dir) / TRAINING_EVAL_DIR / EVALUATION_FILE)
+        return MotorTrainingResult(str(run_dir), task_id, self.name, evaluation.raw_metrics, evaluation.econ_metrics,
+                                   evaluation.episodes, training_curve, config, artifacts)
+
     # --- the three operations (spec: motor_backends.md); a subclass implements each ---------------
     def train_policy(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str],
                      num_envs: int, max_steps: int, seed: int, *, datapack_configs: Sequence[Any] | None = None,
                      output_dir: str | Path | None = None, eval_episodes: int = 5,
                      progress: ProgressFn = no_progress, **options: Any) -> MotorTrainingResult:
-        """Train into ``output_dir`` (the run directory; :meth:`run_dir`), evaluate ``eval_episodes``
-        episodes seeded from ``seed + TRAINING_EVAL_SEED_OFFSET``; ``options``: the backend's own."""
+        """Train into ``output_dir`` (the run directory; :meth:`run_dir`), then :meth:`evaluate_after_training`
+        and return :meth:`training_result`; ``options``: the backend's own."""
         raise NotImplementedError
 
     def evaluate_policy(self, policy_id: str, task_id: str, objective: EconomicObjectiveSpec, num_episodes: int,

@@ -115,14 +115,13 @@ class _TrainRun:
     """Records the training run when training really starts (the backend's first progress
     report, or its return): input errors the backend finds first leave no trace."""
 
-    def __init__(self, request: TrainRequest, open_registry: Callable[[], Registry]) -> None:
+    def __init__(self, request: TrainRequest, backend: Any, open_registry: Callable[[], Registry]) -> None:
         self.request, self._open = request, open_registry
         self.run_dir = request.output_dir or new_run_dir(request.runs_dir, request.task.task_id, request.seed)
         self.registry: Registry | None = None
         self.run_id: int | None = None
-        entry = dict(request.task.backends.get(request.backend_name) or {})
-        self.entry = entry
-        self.robot_id = f"{request.backend_name}:{entry.get('env_id') or entry.get('robot') or request.task.task_id}"
+        self.entry = dict(request.task.backends.get(request.backend_name) or {})
+        self.robot_id = backend.robot_id(request.task)  # the robot's name, the same on every backend
 
     def common(self) -> dict[str, Any]:
         r = self.request
@@ -161,7 +160,7 @@ def train_and_record(request: TrainRequest, backend: Any, open_registry: Callabl
     training run ``completed`` and raises a :class:`BackendError` that says how to report from it.
     """
     task_id = request.task.task_id
-    run = _TrainRun(request, open_registry)
+    run = _TrainRun(request, backend, open_registry)
 
     def tracked(label: str, done: float, total: float) -> None:
         run.start()
@@ -306,8 +305,8 @@ def evaluate_and_record(request: TrainRequest, backend: Any, policy_id: str, ope
     if request.datapacks:
         registry.record_datapacks(request.datapacks)
     entry = dict(request.task.backends.get(name) or {})
-    robot_id = f"{name}:{policy_id}"
-    registry.record_robot(robot_id, name, f"imported policy {policy_id} on {request.task.description}", entry)
+    robot_id = backend.robot_id(request.task)  # the task's robot, whichever policy drives it
+    registry.record_robot(robot_id, name, request.task.description, entry)
     run_dir = request.output_dir or new_run_dir(request.runs_dir, task_id, request.seed)
     eval_seed = request.seed + REPORT_EVAL_SEED_OFFSET
     config = {**request.eval_config(), "imported_policy": policy_id, "run_dir": str(run_dir),

@@ -116,7 +116,8 @@ class TaskRow(Base):
 
 
 class RobotRow(Base):
-    """A robot (or simulated body) a backend trains, e.g. ``mujoco:Hopper-v5``."""
+    """A robot (or simulated body) the backends train, e.g. ``hopper`` (one id on every backend; older
+    registries hold ``mujoco:Hopper-v5``-style ids, read as any other string)."""
 
     __tablename__ = "robots"
 

@@ -229,7 +229,9 @@ class Registry:
 
     def record_robot(self, robot_id: str, backend: str, description: str = "",
                      details: Mapping[str, Any] | None = None) -> None:
-        """Insert or update a robot (e.g. ``"mujoco:Hopper-v5"``)."""
+        """Insert or update a robot: ``robot_id`` names it apart from any backend (``"hopper"``, ``"g1_29dof"``:
+        ``MotorBackendBase.robot_id``; registries written before name it ``"<backend>:<env or robot>"``),
+        ``backend`` the backend that recorded it last."""
         with self._write() as s:
             self._upsert(s, RobotRow, {"robot_id": robot_id, "backend": backend, "description": description,
                                        "details": dict(details or {})}, update=True)

@@ -153,6 +153,14 @@ HUMANOID = CourierRobot(
 ROBOTS: dict[str, CourierRobot] = {r.env_id: r for r in (HOPPER, WALKER2D, ANT, HUMANOID)}
 
 
+def robot_name(env_id: str) -> str:
+    """The robot behind a Gymnasium MuJoCo env id, named apart from any backend: its record's ``name``
+    (``Hopper-v5`` -> ``hopper``), else the id without its version, lower case (``HalfCheetah-v5`` ->
+    ``halfcheetah``)."""
+    robot = ROBOTS.get(env_id)
+    return robot.name if robot is not None else env_id.split("-v")[0].lower()
+
+
 @dataclass(frozen=True)
 class RobotSpec:
     """A robot under one catalog entry's ``env_kwargs``: its record, parameters, model file and time limit."""

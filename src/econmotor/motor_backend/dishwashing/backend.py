@@ -42,7 +42,6 @@ from econmotor.envs.dishwashing_randomization import EconRandomization, parse_ec
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import (
     RUN_CONFIG_FILE,
-    TRAINING_EVAL_SEED_OFFSET,
     BackendCapabilities,
     EvalProvenance,
     MotorBackendBase,
@@ -53,10 +52,11 @@ from econmotor.motor_backend.base import (
     ShadowEnv,
     StepAlias,
     StopFn,
+    aggregate_raw,
+    evaluation_result,
     mean_power_w,
     no_progress,
     read_run_config,
-    summarize_episodes,
     write_run_config,
 )
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
@@ -64,6 +64,8 @@ from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.tasks.catalog import TaskCatalog, TaskSpec
 
 BACKEND_NAME = "dishwashing"
+#: the registry's robot id of the analytic workcell every dishwashing task runs
+ROBOT_ID = "dishwashing_workcell"
 OVERLAY_NORMALIZATIONS = ("human_baseline", "none")
 _TASK_ENTRY_KEYS = ("econ_preset", "econ_overrides", "overlay_normalization")
 
@@ -181,6 +183,11 @@ class DishwashingBackend(MotorBackendBase):
     def check_datapack(cls, pack: DatapackConfig, source: str) -> None:
         """The EconParams randomization and curriculum a dishwashing run would apply."""
         parse_econ_randomization(pack.domain_randomization, pack.curriculum, source)
+
+    @classmethod
+    def robot_id(cls, spec: TaskSpec) -> str:
+        """Every dishwashing task runs the one analytic workcell (a cobot arm and gripper at a dish station)."""
+        return ROBOT_ID
 
     @classmethod
     def check_task_entry(cls, spec: TaskSpec) -> None:
@@ -326,20 +333,18 @@ class DishwashingBackend(MotorBackendBase):
         }
         write_run_config(run_dir, config, self.name)
         _write_json(run_dir / "training_curve.json", curve.curve)
-        raw, econ, episodes = self._evaluate(model, spec, params, norm, objective, randomization,
-                                             eval_episodes, seed + TRAINING_EVAL_SEED_OFFSET, progress)
-        return MotorTrainingResult(
-            policy_id=str(run_dir), task_id=task_id, backend=BACKEND_NAME, raw_metrics=raw,
-            econ_metrics=econ, episodes=episodes, training_curve=curve.curve, config=config,
-            artifacts={"policy": str(policy_path), "run_config": str(run_dir / RUN_CONFIG_FILE),
-                       "training_curve": str(run_dir / "training_curve.json")},
-        )
+        evaluation = self.evaluate_after_training(run_dir, task_id, objective, eval_episodes, seed,
+                                                  datapack_configs=datapack_configs, progress=progress,
+                                                  datapack_ids=datapack_ids)
+        return self.training_result(run_dir, task_id, evaluation, curve.curve, config,
+                                    {"policy": str(policy_path), "run_config": str(run_dir / RUN_CONFIG_FILE),
+                                     "training_curve": str(run_dir / "training_curve.json")})
 
     # ----------------------------------------------------------- evaluation
     def _evaluate(self, model: Any, spec: TaskSpec, params: EconParams, norm: str,
                   objective: EconomicObjectiveSpec, randomization: EconRandomization, num_episodes: int,
-                  seed: int, progress: ProgressFn, stop: StopFn | None = None):
-        # evaluate at the curriculum's final difficulty: the task as it will be met
+                  seed: int, progress: ProgressFn, stop: StopFn | None = None) -> list[dict[str, Any]]:
+        """Raw episodes at the curriculum's final difficulty: the task as it will be met."""
         rand = replace(randomization, initial_difficulty=randomization.max_difficulty)
         env = self._env_factory(spec, params, norm, objective, rand)()
         handle = SACPolicyHandle(model, "")
@@ -355,7 +360,7 @@ class DishwashingBackend(MotorBackendBase):
                 done = term or trunc
             raw_episodes.append(info["episode_summary"])
             progress("evaluate", i + 1, num_episodes)
-        return summarize_episodes(raw_episodes, spec.economics)
+        return raw_episodes
 
     def evaluate_policy(
         self,
@@ -369,27 +374,30 @@ class DishwashingBackend(MotorBackendBase):
         output_dir: str | Path | None = None,
         progress: ProgressFn = no_progress,
         stop: StopFn | None = None,
+        datapack_ids: Sequence[str] = (),
     ) -> MotorEvalResult:
         """Run ``num_episodes`` deterministic episodes (seeds ``seed + i``) of a saved policy; ``stop`` as
         the contract's.
 
         ``return`` in each episode is the reward the policy is trained on (normalised as the
-        backend says, without ``reward_scale``); ``output_dir`` is unused (evaluation writes nothing).
+        backend says, without ``reward_scale``); with ``output_dir``, the evaluation is also written
+        there (``evaluation.json``, as every backend writes it). ``datapack_ids``: registered datapacks
+        applied beside ``datapack_configs``.
         """
         if num_episodes < 1:
             raise ConfigError("<evaluate>", "num_episodes", "must be >= 1")
         spec, params, norm = self._task(task_id)
-        randomization = self._randomization(task_id, (), datapack_configs)
+        randomization = self._randomization(task_id, datapack_ids, datapack_configs)
         model = self.deploy_policy_handle(policy_id).model
-        raw, econ, episodes = self._evaluate(model, spec, params, norm, objective, randomization,
-                                             num_episodes, seed, progress, stop)
+        raw_episodes = self._evaluate(model, spec, params, norm, objective, randomization, num_episodes, seed,
+                                      progress, stop)
         config = {"backend": BACKEND_NAME, "task_id": task_id, "objective": objective.to_dict(),
                   "num_episodes": num_episodes, "seed": seed, "overlay_normalization": norm}
         provenance = EvalProvenance(evaluator="analytic", figures_from="the analytic dishwashing workcell "
                                     "(econmotor's Gymnasium model of the cell; the saved SAC policy, deterministic)",
-                                    mean_power_w=mean_power_w(raw))
-        return MotorEvalResult(policy_id=policy_id, task_id=task_id, backend=BACKEND_NAME, raw_metrics=raw,
-                               econ_metrics=econ, episodes=episodes, config=config, provenance=provenance)
+                                    mean_power_w=mean_power_w(aggregate_raw(raw_episodes)))
+        return evaluation_result(BACKEND_NAME, policy_id, task_id, raw_episodes, spec.economics, config, output_dir,
+                                 provenance)
 
     def deploy_policy_handle(self, policy_id: str) -> SACPolicyHandle:
         """Load the run directory's ``policy.zip`` (or a ``policy.zip`` path); a missing or unreadable

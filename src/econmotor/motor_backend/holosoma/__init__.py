@@ -2,11 +2,13 @@
 
 Two interpreters meet here. The main environment (numpy 2) imports
 :mod:`.plan`, :mod:`.datapack_mapping`, :mod:`.econ_formulas`, :mod:`.recording_metrics`
-and :mod:`.jobs` (the subprocess client); none of them imports Holosoma or torch.
+and :mod:`.jobs` (the subprocess client), which hands the runner a :mod:`.job_specs` dataclass as JSON;
+none of them imports Holosoma or torch.
 The isolated ``.venv-holosoma`` (numpy 1.x, Holosoma, torch) runs :mod:`.runner`
 (``python -m econmotor.motor_backend.holosoma.runner JOB.json``) and :mod:`.recording`
 (an eval callback), and imports the reward terms in
 :mod:`.reward_terms`. Everything shared between the
-two sides is plain JSON or array-agnostic arithmetic (:mod:`.econ_formulas`), so it
-runs unchanged on numpy 1.x, numpy 2 and torch.
+two sides is a typed job (:mod:`.job_specs`, parsed once by the runner), plain JSON or
+array-agnostic arithmetic (:mod:`.econ_formulas`), so it runs unchanged on numpy 1.x, numpy 2
+and torch.
 """

@@ -22,8 +22,8 @@ overrides it): ``humanoid_locomotion_g1`` -> ``g1_29dof`` / ``g1_29dof_fast_sac`
   run trained here and for an imported policy alike; whole-body tracking, Holosoma's ``eval_agent``
   with its recording callback (extended), raw metrics per episode from the recording
   (:mod:`.holosoma.recording_metrics`).
-- **deploy_policy_handle**: an onnxruntime session over Holosoma's exported ONNX,
-  carrying Holosoma's metadata (``dof_names``, ``kp``, ``kd``, ``action_scale``, ...) and
+- **deploy_policy_handle**: the onnxruntime handle (:mod:`econmotor.motor_backend.onnx_policy`) over
+  Holosoma's exported ONNX, carrying Holosoma's metadata (``dof_names``, ``kp``, ``kd``, ``action_scale``, ...) and
   ours (``econmotor_*``: task, objective, overlay weights, task economics).
 
 ``output_dir`` is the run directory (default: a new one under ``runs_dir``); a trained run holds
@@ -39,16 +39,14 @@ import math
 import os
 import shutil
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, ClassVar
-
-import numpy as np
 
 from econmotor.economics.courier_formulas import mechanical_from_electrical_w
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import (
     RUN_CONFIG_FILE,
-    TRAINING_EVAL_SEED_OFFSET,
     BackendCapabilities,
     EvalProvenance,
     MotorBackendBase,
@@ -56,21 +54,19 @@ from econmotor.motor_backend.base import (
     MotorTrainingResult,
     ProgressFn,
     RunSize,
-    StepAlias,
     StopFn,
     aggregate_raw,
     evaluation_result,
     mean_power_w,
     no_progress,
     read_run_config,
-    summarize_episodes,
     walking_speed_m_per_s,
     write_run_config,
 )
-from econmotor.motor_backend.couriers.onnx_policy import ECONMOTOR_PREFIX, econmotor_metadata, json_or_text
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.motor_backend.holosoma.datapack_mapping import map_datapacks
 from econmotor.motor_backend.holosoma.econ_formulas import OVERLAY_TERM_KEYS
+from econmotor.motor_backend.holosoma.job_specs import EvaluateJob, Overlay, ProbeJob, Sim2SimJob, TrainJob
 from econmotor.motor_backend.holosoma.jobs import run_episode_jobs, run_job
 from econmotor.motor_backend.holosoma.plan import (
     DEFAULT_CPU_MAX_ENV_STEPS,
@@ -89,10 +85,11 @@ from econmotor.motor_backend.holosoma.policy_import import (
     shipped_policy_path,
 )
 from econmotor.motor_backend.holosoma.recording_metrics import episodes_from_recording
+from econmotor.motor_backend.onnx_policy import ECONMOTOR_PREFIX, OnnxPolicyHandle
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
 from econmotor.tasks.catalog import TaskCatalog
 
-__all__ = ["HOLOSOMA_TASK_PRESETS", "HolosomaBackend", "HolosomaPolicyHandle", "find_holosoma_python"]
+__all__ = ["HOLOSOMA_TASK_PRESETS", "HolosomaBackend", "find_holosoma_python"]
 
 VENV_ENV = "ECONMOTOR_HOLOSOMA_VENV"
 SIMULATOR_ENV = "ECONMOTOR_HOLOSOMA_SIMULATOR"
@@ -115,60 +112,6 @@ def find_holosoma_python(venv: str | Path | None = None) -> Path:
         f"or `pip install -r requirements-holosoma.txt` into a venv and set {VENV_ENV} to it "
         f"(looked in: {', '.join(str(c) for c in candidates)})"
     )
-
-
-class HolosomaPolicyHandle(StepAlias):
-    """A Holosoma policy in onnxruntime: ``act(actor_obs) -> actions`` (``step`` is the same) plus both
-    sets of metadata.
-
-    Attributes:
-        dof_names, kp, kd, action_scale: Holosoma's export metadata (joint order, PD gains,
-            action scaling: joint target = default_pos + action_scale * action).
-        holosoma_metadata: every Holosoma metadata entry (JSON-decoded).
-        econmotor_metadata: ours: task id, objective, overlay weights, task economics.
-        obs_dim, action_dim: input and output widths.
-    """
-
-    def __init__(self, onnx_path: str | Path) -> None:
-        import onnxruntime as ort
-
-        self.onnx_path = str(onnx_path)
-        options = ort.SessionOptions()
-        options.intra_op_num_threads = 1
-        options.inter_op_num_threads = 1
-        self.session = ort.InferenceSession(self.onnx_path, options, providers=["CPUExecutionProvider"])
-        raw = self.session.get_modelmeta().custom_metadata_map
-        self.holosoma_metadata = {k: json_or_text(v) for k, v in raw.items() if not k.startswith(ECONMOTOR_PREFIX)}
-        self.econmotor_metadata = econmotor_metadata(raw)
-        self.dof_names: list[str] = list(self.holosoma_metadata.get("dof_names", []))
-        self.kp = self.holosoma_metadata.get("kp")
-        self.kd = self.holosoma_metadata.get("kd")
-        self.action_scale = self.holosoma_metadata.get("action_scale")
-        self._input = self.session.get_inputs()[0]
-        self.takes_time_step = any(i.name == "time_step" for i in self.session.get_inputs())
-        self.obs_dim = int(self._input.shape[-1])
-        self.action_dim = int(self.session.get_outputs()[0].shape[-1])
-
-    def act(self, obs: np.ndarray, time_step: int = 0) -> np.ndarray:
-        """Actions for one observation ``[obs_dim]`` or a batch ``[n, obs_dim]`` (float32).
-
-        Whole-body-tracking exports also take the motion clip's ``time_step`` (frame index).
-        """
-        x = np.asarray(obs, dtype=np.float32)
-        if x.shape == (1, self.obs_dim) and not self.takes_time_step:  # one row, as an evaluator steps it
-            return self.session.run(None, {self._input.name: x})[0]
-        single = x.ndim == 1
-        batch = x[None, :] if single else x
-        if batch.shape[-1] != self.obs_dim:
-            raise BackendError(f"observation width {batch.shape[-1]} does not match the policy's {self.obs_dim}")
-        outputs = []
-        for row in batch:
-            feed = {self._input.name: row[None, :]}
-            if self.takes_time_step:
-                feed["time_step"] = np.array([[time_step]], dtype=np.float32)
-            outputs.append(self.session.run(None, feed)[0])
-        out = np.concatenate(outputs)
-        return out[0] if single else out
 
 
 def attach_econmotor_metadata(onnx_path: str | Path, metadata: dict[str, Any]) -> None:
@@ -258,6 +201,11 @@ class HolosomaBackend(MotorBackendBase):
         map_datapacks(bundle, [pack], uses_motion_clip=bool(pack.motion_clips))
 
     @classmethod
+    def robot_id(cls, spec: Any) -> str:
+        """The robot card the task's entry names (``g1_29dof``), for a policy trained here or imported alike."""
+        return str(task_settings(spec.task_id, spec.backend_entry("holosoma"), spec.source)["robot"])
+
+    @classmethod
     def check_task_entry(cls, spec: Any) -> None:
         """The ``backends.holosoma`` entry's keys, experiment, progress mode and efficiency."""
         task_settings(spec.task_id, spec.backend_entry("holosoma"), spec.source)
@@ -270,7 +218,7 @@ class HolosomaBackend(MotorBackendBase):
     def machine(self, run_dir: Path) -> Capabilities:
         """What the Holosoma interpreter can use (probed once per backend)."""
         if self._caps is None:
-            outcome = run_job(self.python, {"action": "probe"}, run_dir, no_progress, self.job_timeout_s)
+            outcome = run_job(self.python, ProbeJob(), run_dir, no_progress, self.job_timeout_s)
             self._caps = Capabilities.from_dict(outcome.result)
         return self._caps
 
@@ -322,13 +270,9 @@ class HolosomaBackend(MotorBackendBase):
             progress(f"holosoma: {text}", 1.0, 1.0)
         overlay_params = {k: settings[k] for k in ("progress_mode", "unit_duration_s", "novelty_rate")}
         overlay_params["meter"] = meter_settings(task_id, settings, spec.source)  # the evaluator's constants too
-        job = {
-            "action": "train", "run_dir": str(run_dir), "run_name": f"{task_id}-seed{seed}",
-            "experiment": plan.experiment, "algo": algo, "simulator": plan.simulator, "device": plan.device,
-            "num_envs": plan.num_envs, "iterations": plan.iterations, "seed": int(seed), "cpu_sized": plan.cpu_sized,
-            "motion_task": bool(settings["uses_motion_clip"]),
-            "overlay": {"weights": weights, "params": overlay_params}, "overrides": overrides.to_dict(),
-        }
+        job = TrainJob(run_dir=str(run_dir), run_name=f"{task_id}-seed{seed}", plan=plan, seed=int(seed),
+                       motion_task=bool(settings["uses_motion_clip"]),
+                       overlay=Overlay(weights=weights, params=overlay_params), overrides=overrides.to_dict())
         outcome = run_job(self.python, job, run_dir, progress, self.job_timeout_s)
         messages += list(outcome.messages)
         result = outcome.result
@@ -348,9 +292,6 @@ class HolosomaBackend(MotorBackendBase):
         curve = [{"timesteps": float(c["timesteps"]), "mean_return": float(c["mean_return"])}
                  for c in outcome.curve if c.get("mean_return") is not None]
         econ_log = {k: v for c in outcome.curve for k, v in c.get("econ", {}).items()}
-        raw: dict[str, float] = {}
-        econ: dict[str, float] = {}
-        episodes: list[dict[str, Any]] = []
         config: dict[str, Any] = {
             "seed": seed, "objective": objective.to_dict(), "datapacks": list(bundle.datapack_ids),
             "overrides": overrides.to_dict(), "plan": {**plan.__dict__, "messages": list(plan.messages)},
@@ -360,15 +301,11 @@ class HolosomaBackend(MotorBackendBase):
             "iteration_times_s": [{"collection_s": c.get("collection_s"), "learn_s": c.get("learn_s")}
                                   for c in outcome.curve],
         }
-        if eval_episodes > 0:
-            ev = self.evaluate_policy(str(run_dir), task_id, objective, eval_episodes,
-                                      seed + TRAINING_EVAL_SEED_OFFSET, datapack_configs=datapack_configs,
-                                      output_dir=run_dir / "eval", progress=progress)
-            raw, econ, episodes = ev.raw_metrics, ev.econ_metrics, ev.episodes
-            config["evaluation"] = ev.config
+        evaluation = self.evaluate_after_training(run_dir, task_id, objective, eval_episodes, seed,
+                                                  datapack_configs=datapack_configs, progress=progress)
         artifacts = {"policy": str(run_dir), "checkpoint": result["checkpoint"], "onnx": str(policy_onnx),
                      "tensorboard": result["experiment_dir"], "train_log": outcome.log_path}
-        return MotorTrainingResult(str(run_dir), task_id, self.name, raw, econ, episodes, curve, config, artifacts)
+        return self.training_result(run_dir, task_id, evaluation, curve, config, artifacts)
 
     def evaluate_policy(
         self,
@@ -427,11 +364,11 @@ class HolosomaBackend(MotorBackendBase):
         course = {"leg_m": leg_m, "dwell_s": float(settings["dwell_s"]), "speed_m_per_s": speed,
                   "legs": int(settings["sim2sim_legs"])}
         meter = meter_settings(task_id, settings, spec.source)  # the training terms' constants too
-        job = {"action": "sim2sim", "run_dir": str(run_dir), "policy": policy, "num_episodes": int(num_episodes),
-               "episode_s": episode_s, "seed": int(seed), "course": course, "meter": meter,
-               "overrides": overrides.to_dict(), "task_id": task_id,
-               "start_joint_noise_rad": float(settings["sim2sim_start_joint_noise_rad"]),
-               "task_experiments": sorted(set(settings["experiment"].values()))}
+        job = Sim2SimJob(run_dir=str(run_dir), policy=policy, num_episodes=int(num_episodes), episode_s=episode_s,
+                         seed=int(seed), course=course, meter=meter, overrides=overrides.to_dict(), task_id=task_id,
+                         start_joint_noise_rad=float(settings["sim2sim_start_joint_noise_rad"]),
+                         task_experiments=sorted(set(settings["experiment"].values())),
+                         sequential=stop is not None)  # the message says "up to" the cap
         notes = list(overrides.messages)
         if not overrides.randomization and not overrides.evaluation:
             notes.append("nominal conditions (no datapack randomization): episodes differ by seed only in their "
@@ -440,8 +377,7 @@ class HolosomaBackend(MotorBackendBase):
         for text in notes:
             progress(f"holosoma: {text}", 1.0, 1.0)
         workers = max(1, min(self.eval_workers, int(num_episodes)))
-        job["sequential"] = stop is not None  # the message says "up to" the cap
-        jobs = [{**job, "worker": w, "announce": w == 0, "episode_indices": list(range(w, int(num_episodes), workers))}
+        jobs = [replace(job, worker=w, announce=w == 0, episode_indices=list(range(w, int(num_episodes), workers)))
                 for w in range(workers)]
         stream, wall_s = run_episode_jobs(self.python, jobs, run_dir, progress, int(num_episodes),
                                           self.evaluation_batch(task_id), stop, self.job_timeout_s)
@@ -476,20 +412,20 @@ class HolosomaBackend(MotorBackendBase):
         episode_s = float(self.eval_episode_length_s or record["episode_length_s"])
         steps = num_episodes * math.ceil(episode_s / float(record["control_dt_s"]))
         simulator = self._eval_simulator(record.get("simulator", "mujoco"), run_dir, progress)
-        job = {"action": "evaluate", "run_dir": str(run_dir), "checkpoint": record["checkpoint"],
-               "num_steps": steps, "episode_length_s": episode_s, "seed": int(seed), "simulator": simulator}
+        job = EvaluateJob(run_dir=str(run_dir), checkpoint=record["checkpoint"], num_steps=steps,
+                          episode_length_s=episode_s, seed=int(seed), simulator=simulator)
         outcome = run_job(self.python, job, run_dir, progress, self.job_timeout_s)
         raw_episodes = episodes_from_recording(outcome.result["recording"], settings, meter, num_episodes)
         if not raw_episodes:
             raise BackendError(f"Holosoma's recording {outcome.result['recording']} holds no steps")
-        raw, econ, episodes = summarize_episodes(raw_episodes, spec.economics)
         config = {"seed": seed, "objective": objective.to_dict(),
                   "recording": outcome.result["recording"], "exported_onnx": outcome.result.get("onnx"),
                   "episode_length_s": episode_s, "num_steps": steps, "messages": list(outcome.messages),
                   "eval_log": outcome.log_path}
         provenance = EvalProvenance(evaluator="eval_agent", figures_from=f"Holosoma's eval_agent on {simulator} "
                                     "(the training checkpoint; econ metrics from its recording)")
-        return MotorEvalResult(policy_id, task_id, self.name, raw, econ, episodes, config, provenance)
+        return evaluation_result(self.name, policy_id, task_id, raw_episodes, spec.economics, config,
+                                 output_dir=run_dir, provenance=provenance)
 
     def _eval_simulator(self, trained_on: str, run_dir: Path, progress: ProgressFn) -> str:
         """The training simulator when this machine has it (or the one asked for), else the auto choice."""
@@ -503,7 +439,7 @@ class HolosomaBackend(MotorBackendBase):
                      "which this machine cannot run", 1.0, 1.0)
             return fallback
 
-    def deploy_policy_handle(self, policy_id: str) -> HolosomaPolicyHandle:
+    def deploy_policy_handle(self, policy_id: str) -> OnnxPolicyHandle:
         """An onnxruntime handle for a trained run directory, an ONNX file or a shipped policy name."""
         if str(policy_id).startswith(NAME_PREFIX):
             onnx_path = shipped_policy_path(str(policy_id), self.python)
@@ -512,7 +448,7 @@ class HolosomaBackend(MotorBackendBase):
             onnx_path = path if path.suffix == ".onnx" else Path(self._run_config(policy_id)["onnx"])
         if not onnx_path.is_file():
             raise BackendError(f"no ONNX policy at {onnx_path}")
-        return HolosomaPolicyHandle(onnx_path)
+        return OnnxPolicyHandle(onnx_path)
 
     def check_policy(self, policy_id: str) -> None:
         """An imported policy must be a shipped name this .venv-holosoma has or an existing ONNX file; a run

@@ -1,6 +1,6 @@
 """Running a job in .venv-holosoma from the main interpreter (the subprocess client).
 
-:func:`run_job` writes the job spec as JSON, starts ``<venv>/bin/python -m
+:func:`run_job` writes the job (a :mod:`.job_specs` dataclass) as JSON, starts ``<venv>/bin/python -m
 econmotor.motor_backend.holosoma.runner job.json``, forwards ``progress`` events to the
 caller's :data:`~econmotor.motor_backend.base.ProgressFn` while the job runs, collects
 ``message`` and ``curve`` events, keeps Holosoma's log in ``<run_dir>/<action>.log``,
@@ -10,7 +10,6 @@ Holosoma's own error text (its traceback or last error lines) and the log path.
 
 from __future__ import annotations
 
-import json
 import os
 import re
 import subprocess
@@ -21,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from econmotor.errors import BackendError, ConfigError
+from econmotor.motor_backend.holosoma.job_specs import HolosomaJob, Sim2SimJob
 from econmotor.motor_backend.holosoma.protocol import parse_line
 
 _ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
@@ -67,20 +67,20 @@ def job_environment() -> dict[str, str]:
 
 def run_job(
     python: str | Path,
-    job: dict[str, Any],
+    job: HolosomaJob,
     run_dir: str | Path,
     progress: Callable[[str, float, float], None],
     timeout_s: float | None = None,
 ) -> JobOutcome:
-    """Run one job (see the module docstring); ``job["action"]`` names the log file."""
+    """Run one job (see the module docstring); its ``log_name`` names the job and log files."""
     import time
 
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
-    action = job["action"]
-    job_path = run_dir / f"{action}_job.json"
-    job_path.write_text(json.dumps(job, indent=2), encoding="utf-8")
-    log_path = run_dir / f"{action}.log"
+    action = job.action
+    job_path = run_dir / f"{job.log_name}_job.json"
+    job_path.write_text(job.to_json(), encoding="utf-8")
+    log_path = run_dir / f"{job.log_name}.log"
     cmd = [str(python), "-u", "-m", "econmotor.motor_backend.holosoma.runner", str(job_path)]
     tail: deque[str] = deque(maxlen=400)
     messages: list[str] = []
@@ -144,11 +144,11 @@ class EpisodeStream:
         return out
 
 
-def run_episode_jobs(python: str | Path, jobs: list[dict[str, Any]], run_dir: str | Path,
+def run_episode_jobs(python: str | Path, jobs: list[Sim2SimJob], run_dir: str | Path,
                      progress: Callable[[str, float, float], None], total: int, batch: int,
                      stop: Callable[[list[dict[str, Any]]], bool] | None = None,
                      timeout_s: float | None = None) -> tuple[EpisodeStream, float]:
-    """Run episode jobs in parallel (one process each; ``job["worker"]`` names its log), gathering the
+    """Run episode jobs in parallel (one process each; ``job.worker`` names its log), gathering the
     ``episode`` events they stream. Every ``batch`` episodes finished in order, ``stop(episodes)`` may
     end the evaluation: the workers are then killed. Returns the stream and the wall seconds."""
     import queue
@@ -176,10 +176,9 @@ def run_episode_jobs(python: str | Path, jobs: list[dict[str, Any]], run_dir: st
     errors: dict[int, dict[str, Any]] = {}
     try:
         for k, job in enumerate(jobs):
-            name = f"{job['action']}_{job['worker']}"
-            job_path = run_dir / f"{name}_job.json"
-            job_path.write_text(json.dumps(job, indent=2), encoding="utf-8")
-            log = open(run_dir / f"{name}.log", "w", encoding="utf-8")
+            job_path = run_dir / f"{job.log_name}_job.json"
+            job_path.write_text(job.to_json(), encoding="utf-8")
+            log = open(run_dir / f"{job.log_name}.log", "w", encoding="utf-8")
             logs.append(log)
             tails.append(deque(maxlen=400))
             cmd = [str(python), "-u", "-m", "econmotor.motor_backend.holosoma.runner", str(job_path)]

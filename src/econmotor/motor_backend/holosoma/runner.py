@@ -1,15 +1,17 @@
 """The job runner: ``python -m econmotor.motor_backend.holosoma.runner JOB.json`` in .venv-holosoma.
 
-A job is a JSON object (written by :mod:`.jobs` in the main interpreter):
+A job is one of :mod:`.job_specs`' dataclasses, written as JSON by :mod:`.jobs` in the main
+interpreter and parsed here once (:func:`.job_specs.parse_job`; a bad job is a ConfigError the caller
+raises again):
 
-- ``{"action": "probe"}``: report CUDA and which simulators import.
-- ``{"action": "train", ...}``: build the Holosoma experiment config from a preset
+- :class:`.job_specs.ProbeJob`: report CUDA and which simulators import.
+- :class:`.job_specs.TrainJob`: build the Holosoma experiment config from a preset
   (simulator, envs, iterations, CPU-sized algorithm settings, the econ overlay reward
   terms, datapack randomization/curriculum/terrain/motion overrides) and run Holosoma's
   own ``train_agent.train``; report each iteration and the checkpoint / ONNX paths.
-- ``{"action": "evaluate", ...}``: run Holosoma's ``eval_agent`` on a checkpoint with
+- :class:`.job_specs.EvaluateJob`: run Holosoma's ``eval_agent`` on a checkpoint with
   the (extended) recording callback; report the recording and exported ONNX paths.
-- ``{"action": "sim2sim", ...}``: evaluate an ONNX locomotion policy (imported or trained
+- :class:`.job_specs.Sim2SimJob`: evaluate an ONNX locomotion policy (imported or trained
   here) on the delivery course in plain MuJoCo (:mod:`.sim2sim`); report each episode's raw
   metrics, the resolved contract and the stress applied.
 
@@ -21,7 +23,6 @@ from __future__ import annotations
 
 import dataclasses
 import importlib.util
-import json
 import os
 import sys
 import time
@@ -30,6 +31,14 @@ from pathlib import Path
 from typing import Any
 
 from econmotor.errors import ConfigError
+from econmotor.motor_backend.holosoma.job_specs import (
+    EvaluateJob,
+    HolosomaJob,
+    Overlay,
+    Sim2SimJob,
+    TrainJob,
+    parse_job,
+)
 from econmotor.motor_backend.holosoma.protocol import emit
 
 OVERLAY_TERM = "econmotor.motor_backend.holosoma.reward_terms:EconOverlayTerm"
@@ -57,24 +66,24 @@ def _merge_term(terms: dict[str, Any], name: str, params: dict[str, Any], where:
     return {**terms, name: dataclasses.replace(term, params={**dict(term.params), **params})}
 
 
-def _algo_config(cfg: Any, job: dict[str, Any]) -> Any:
+def _algo_config(cfg: Any, job: TrainJob) -> Any:
     algo = cfg.algo.config
-    iterations = int(job["iterations"])
-    if job["algo"] == "ppo":
+    iterations = job.plan.iterations
+    if job.plan.algo == "ppo":
         return dataclasses.replace(algo, num_learning_iterations=iterations, save_interval=max(iterations, 1))
     changes: dict[str, Any] = {"num_learning_iterations": iterations, "save_interval": 0,
                                "logging_interval": max(1, iterations // 20)}
-    if job["cpu_sized"]:
+    if job.plan.cpu_sized:
         changes.update(batch_size=256, compile=False, amp=False)
     return dataclasses.replace(algo, **changes)
 
 
-def _reward_config(cfg: Any, overlay: dict[str, Any]) -> Any:
+def _reward_config(cfg: Any, overlay: Overlay) -> Any:
     from holosoma.config_types.reward import RewardTermCfg
 
     terms = dict(cfg.reward.terms)
-    for key, weight in overlay["weights"].items():
-        terms[f"econ_{key}"] = RewardTermCfg(func=OVERLAY_TERM, params={"key": key, **overlay["params"]},
+    for key, weight in overlay.weights.items():
+        terms[f"econ_{key}"] = RewardTermCfg(func=OVERLAY_TERM, params={"key": key, **overlay.params},
                                              weight=float(weight), tags=["econ_overlay"])
     return dataclasses.replace(cfg.reward, terms=terms)
 
@@ -96,15 +105,15 @@ def _simulator(name: str, cfg: Any) -> Any:
         sim.config, sim=dataclasses.replace(sim.config.sim, max_episode_length_s=episode_s)))
 
 
-def build_train_config(job: dict[str, Any]) -> Any:
+def build_train_config(job: TrainJob) -> Any:
     """The Holosoma ExperimentConfig of a train job (preset + every override)."""
     from holosoma.config_types.logger import DisabledLoggerConfig
     from holosoma.config_values.experiment import EXPERIMENT_REGISTRY
     from holosoma.config_values.terrain import TERRAIN_REGISTRY
 
-    cfg = EXPERIMENT_REGISTRY[job["experiment"]]
-    sim = _simulator(job["simulator"], cfg)
-    over = job["overrides"]
+    cfg = EXPERIMENT_REGISTRY[job.plan.experiment]
+    sim = _simulator(job.plan.simulator, cfg)
+    over = job.overrides
     randomization = cfg.randomization
     if over["randomization"]:
         setup = dict(randomization.setup_terms)
@@ -116,13 +125,13 @@ def build_train_config(job: dict[str, Any]) -> Any:
                           "dynamic_friction_range": params["friction_range"]}
             setup = _merge_term(setup, term, params, f"datapack domain_randomization -> randomization '{term}'")
         randomization = dataclasses.replace(randomization, setup_terms=setup)
-    if job["simulator"] in ("mujoco", "mjwarp") and job["motion_task"]:
+    if job.plan.simulator in ("mujoco", "mjwarp") and job.motion_task:
         randomization = dataclasses.replace(randomization, ignore_unsupported=True)
         emit("message", text="randomization.ignore_unsupported=True: some whole-body-tracking randomizers "
                              "have no MuJoCo implementation and are skipped")
     curriculum = cfg.curriculum
     if over["curriculum"] and "penalty_curriculum" not in curriculum.setup_terms:
-        emit("message", text=f"datapack curriculum ignored: preset {job['experiment']} has no PenaltyCurriculum "
+        emit("message", text=f"datapack curriculum ignored: preset {job.plan.experiment} has no PenaltyCurriculum "
                              f"(its curriculum terms: {', '.join(sorted(curriculum.setup_terms))})")
     elif over["curriculum"]:
         setup = _merge_term(dict(curriculum.setup_terms), "penalty_curriculum", over["curriculum"],
@@ -141,11 +150,11 @@ def build_train_config(job: dict[str, Any]) -> Any:
     return dataclasses.replace(
         cfg,
         simulator=sim,
-        training=dataclasses.replace(cfg.training, num_envs=int(job["num_envs"]), seed=int(job["seed"]),
-                                     project=PROJECT, name=job["run_name"], headless=True, export_onnx=True),
-        logger=DisabledLoggerConfig(base_dir=str(Path(job["run_dir"]) / "holosoma")),
+        training=dataclasses.replace(cfg.training, num_envs=job.plan.num_envs, seed=job.seed,
+                                     project=PROJECT, name=job.run_name, headless=True, export_onnx=True),
+        logger=DisabledLoggerConfig(base_dir=str(Path(job.run_dir) / "holosoma")),
         algo=dataclasses.replace(cfg.algo, config=_algo_config(cfg, job)),
-        reward=_reward_config(cfg, job["overlay"]),
+        reward=_reward_config(cfg, job.overlay),
         randomization=randomization,
         curriculum=curriculum,
         command=command,
@@ -180,18 +189,18 @@ def _latest(paths: list[Path]) -> Path | None:
     return max(paths, key=number) if paths else None
 
 
-def train(job: dict[str, Any]) -> dict[str, Any]:
+def train(job: TrainJob) -> dict[str, Any]:
     from holosoma.train_agent import train as holosoma_train
 
     cfg = build_train_config(job)
-    emit("message", text=f"Holosoma {job['experiment']} on {job['simulator']} ({job['device']}): "
-                         f"{job['num_envs']} env(s), {job['iterations']} {job['algo']} iteration(s), "
-                         f"econ terms {sorted(job['overlay']['weights'])}")
-    _report_iterations(int(job["iterations"]))
+    emit("message", text=f"Holosoma {job.plan.experiment} on {job.plan.simulator} ({job.plan.device}): "
+                         f"{job.plan.num_envs} env(s), {job.plan.iterations} {job.plan.algo} iteration(s), "
+                         f"econ terms {sorted(job.overlay.weights)}")
+    _report_iterations(job.plan.iterations)
     holosoma_train(cfg)
-    runs = sorted((Path(job["run_dir"]) / "holosoma" / PROJECT).glob("*"))
+    runs = sorted((Path(job.run_dir) / "holosoma" / PROJECT).glob("*"))
     if not runs:
-        raise RuntimeError(f"Holosoma wrote no experiment directory under {Path(job['run_dir']) / 'holosoma'}")
+        raise RuntimeError(f"Holosoma wrote no experiment directory under {Path(job.run_dir) / 'holosoma'}")
     exp_dir = runs[-1]
     checkpoint = _latest(list(exp_dir.glob("model_*.pt")))
     onnx = checkpoint.with_suffix(".onnx") if checkpoint is not None else None
@@ -204,7 +213,7 @@ def train(job: dict[str, Any]) -> dict[str, Any]:
             "control_dt_s": cfg.simulator.config.sim.control_decimation_steps / cfg.simulator.config.sim.fps}
 
 
-def evaluate(job: dict[str, Any]) -> dict[str, Any]:
+def evaluate(job: EvaluateJob) -> dict[str, Any]:
     from holosoma.config_types.eval_callback import (
         EvalCallbacksConfig,
         RecordingCallbackConfig,
@@ -220,68 +229,67 @@ def evaluate(job: dict[str, Any]) -> dict[str, Any]:
     )
 
     init_eval_logging()
-    checkpoint = CheckpointConfig(checkpoint=job["checkpoint"])
+    checkpoint = CheckpointConfig(checkpoint=job.checkpoint)
     saved, wandb_path = load_saved_experiment_config(checkpoint)
     overrides = EvalOverridesConfig(headless=True, num_envs=1, disable_logger=True,
-                                    max_episode_length_s=float(job["episode_length_s"]))
+                                    max_episode_length_s=float(job.episode_length_s))
     saved_for_eval = dataclasses.replace(saved, eval_overrides=overrides)
-    if job.get("simulator") and job["simulator"] != _simulator_name(saved):
-        saved_for_eval = dataclasses.replace(saved_for_eval, simulator=_simulator(job["simulator"], saved))
+    if job.simulator and job.simulator != _simulator_name(saved):
+        saved_for_eval = dataclasses.replace(saved_for_eval, simulator=_simulator(job.simulator, saved))
     cfg = saved_for_eval.get_eval_config()
     cfg = dataclasses.replace(
         cfg,
-        training=dataclasses.replace(cfg.training, max_eval_steps=int(job["num_steps"]), seed=int(job["seed"]),
+        training=dataclasses.replace(cfg.training, max_eval_steps=job.num_steps, seed=job.seed,
                                      export_onnx=True, project=PROJECT, name="eval"),
-        logger=DisabledLoggerConfig(base_dir=str(Path(job["run_dir"]) / "holosoma_eval")),
+        logger=DisabledLoggerConfig(base_dir=str(Path(job.run_dir) / "holosoma_eval")),
     )
-    recording_path = str(Path(job["run_dir"]) / "eval_recording.npz")
+    recording_path = str(Path(job.run_dir) / "eval_recording.npz")
     callbacks = EvalCallbacksConfig(recording=RecordingCallbackConfig(
         _target_=RECORDING_TARGET, config=RecordingConfig(enabled=True, output_path=recording_path)))
-    os.environ["ECONMOTOR_EVAL_STEPS"] = str(int(job["num_steps"]))
-    emit("message", text=f"Holosoma eval_agent: {job['num_steps']} steps on {_simulator_name(cfg)}, "
-                         f"episodes of {job['episode_length_s']} s, recording to {recording_path}")
+    os.environ["ECONMOTOR_EVAL_STEPS"] = str(job.num_steps)
+    emit("message", text=f"Holosoma eval_agent: {job.num_steps} steps on {_simulator_name(cfg)}, "
+                         f"episodes of {job.episode_length_s} s, recording to {recording_path}")
     run_eval_with_tyro(cfg, checkpoint, saved, wandb_path, eval_cbs_cfg=callbacks)
-    ckpt = Path(job["checkpoint"])
+    ckpt = Path(job.checkpoint)
     onnx = ckpt.parent / "exported" / ckpt.with_suffix(".onnx").name
     if not Path(recording_path).is_file():
         raise RuntimeError(f"Holosoma's evaluation wrote no recording at {recording_path}")
     return {"recording": recording_path, "onnx": str(onnx) if onnx.is_file() else None}
 
 
-def sim2sim(job: dict[str, Any]) -> dict[str, Any]:
+def sim2sim(job: Sim2SimJob) -> dict[str, Any]:
     from holosoma.config_values.experiment import EXPERIMENT_REGISTRY
 
     from econmotor.motor_backend.holosoma import sim2sim as s
     from econmotor.motor_backend.holosoma.policy_import import resolve_contract
 
-    contract = resolve_contract(job["policy"])
-    if contract.experiment not in job["task_experiments"]:
-        raise ValueError(f"{job['policy']} drives Holosoma's '{contract.experiment}' robot but task "
-                         f"'{job['task_id']}' is priced for {job['task_experiments']} (its catalog's experiments)")
+    contract = resolve_contract(job.policy)
+    if contract.experiment not in job.task_experiments:
+        raise ValueError(f"{job.policy} drives Holosoma's '{contract.experiment}' robot but task "
+                         f"'{job.task_id}' is priced for {job.task_experiments} (its catalog's experiments)")
     preset_terms = {name: dict(term.params) for name, term in
                     EXPERIMENT_REGISTRY[contract.experiment].randomization.setup_terms.items()}
-    stress = s.Stress.from_overrides(job["overrides"]["randomization"], job["overrides"].get("evaluation", {}),
-                                     preset_terms, float(job.get("start_joint_noise_rad", 0.0)))
+    stress = s.Stress.from_overrides(job.overrides["randomization"], job.overrides.get("evaluation", {}),
+                                     preset_terms, job.start_joint_noise_rad)
     if stress.ignored:
         emit("message", text="not applied in the sim-to-sim evaluation: " + "; ".join(stress.ignored))
-    course = s.CourseSettings(**job["course"])
-    meter = s.MeterSettings(**job["meter"])
-    indices = [int(i) for i in job.get("episode_indices") or range(int(job["num_episodes"]))]
-    total = int(job["num_episodes"])
-    count = f"up to {total}" if job.get("sequential") else str(total)
-    if job.get("announce", True):
+    course = s.CourseSettings(**job.course)
+    meter = s.MeterSettings(**job.meter)
+    indices = job.episode_indices or list(range(job.num_episodes))
+    total = job.num_episodes
+    count = f"up to {total}" if job.sequential else str(total)
+    if job.announce:
         emit("message", text=f"sim-to-sim: {contract.policy} ({contract.inference_preset} observations, "
                              f"{contract.control_rate_hz:g} Hz policy, {1 / contract.physics_dt_s:g} Hz PD) in "
                              f"MuJoCo, {count} episode(s) of {course.legs or 'unlimited'} {course.leg_m:g} m leg(s) "
-                             f"with a {course.dwell_s:g} s dwell each (at most {job['episode_s']:g} s) at "
+                             f"with a {course.dwell_s:g} s dwell each (at most {job.episode_s:g} s) at "
                              f"{course.speed_m_per_s:g} m/s commanded")
     emit("setup", contract=contract.to_dict(), stress=dataclasses.asdict(stress))
     # episode i is seeded seed + i whichever worker runs it: one process or several give the same episodes
     robot, policy = s.build_robot(contract), s.onnx_policy(contract)
     episodes, start = [], time.perf_counter()
     for done, i in enumerate(indices, 1):
-        episode = s.run_episode(robot, contract, policy, course, meter, stress, float(job["episode_s"]),
-                                int(job["seed"]) + i)
+        episode = s.run_episode(robot, contract, policy, course, meter, stress, float(job.episode_s), job.seed + i)
         episodes.append(episode)
         emit("episode", index=i, episode=episode)
         emit("progress", label="sim-to-sim episodes", done=done, total=len(indices))
@@ -293,15 +301,15 @@ def main(argv: list[str]) -> int:
     if len(argv) != 1:
         sys.stderr.write("usage: python -m econmotor.motor_backend.holosoma.runner JOB.json\n")
         return 2
-    job = json.loads(Path(argv[0]).read_text(encoding="utf-8"))
     os.environ.setdefault("WANDB_MODE", "disabled")
     actions = {"probe": lambda _job: probe(), "train": train, "evaluate": evaluate, "sim2sim": sim2sim}
     try:
-        if job["action"] != "sim2sim":  # the sim-to-sim evaluator needs no torch (a 2 s import)
+        job: HolosomaJob = parse_job(Path(argv[0]).read_text(encoding="utf-8"), argv[0])
+        if job.action != "sim2sim":  # the sim-to-sim evaluator needs no torch (a 2 s import)
             import torch
 
             torch.set_num_threads(int(os.environ.get("OMP_NUM_THREADS", "1")))
-        result = actions[job["action"]](job)
+        result = actions[job.action](job)
     except ConfigError as exc:  # bad input (e.g. an imported policy's metadata): the caller raises it again
         emit("error", text=f"{type(exc).__name__}: {exc}", config_error=[exc.source, exc.key, exc.detail, exc.allowed])
         return 1

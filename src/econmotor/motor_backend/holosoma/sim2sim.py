@@ -381,9 +381,9 @@ def run_episode(robot: Robot, contract: PolicyContract, policy: Callable[[np.nda
 
 def onnx_policy(contract: PolicyContract) -> Callable[[np.ndarray], np.ndarray]:
     """The ONNX policy as ``f(obs [1, obs_dim] float32) -> action [1, n]``: the deployed handle's ``act``."""
-    from econmotor.motor_backend.holosoma.backend import HolosomaPolicyHandle
+    from econmotor.motor_backend.onnx_policy import OnnxPolicyHandle
 
-    return HolosomaPolicyHandle(contract.onnx_path).act
+    return OnnxPolicyHandle(contract.onnx_path).act
 
 
 def evaluate(contract: PolicyContract, course: CourseSettings, meter: MeterSettings, stress: Stress,

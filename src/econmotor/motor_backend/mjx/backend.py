@@ -37,7 +37,6 @@ import jax
 
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import (
-    TRAINING_EVAL_SEED_OFFSET,
     BackendCapabilities,
     EvalProvenance,
     HeldOutCadence,
@@ -51,15 +50,15 @@ from econmotor.motor_backend.base import (
     evaluation_result,
     mean_power_w,
     no_progress,
-    summarize_episodes,
     walking_speed_m_per_s,
 )
+from econmotor.motor_backend.couriers.robots import robot_name
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.motor_backend.holosoma.backend import VENV_ENV
 from econmotor.motor_backend.holosoma.policy_import import holosoma_export_metadata
 from econmotor.motor_backend.mjx import ppo
 from econmotor.motor_backend.mjx.compile import CompiledAhead
-from econmotor.motor_backend.mjx.export import MjxOnnxPolicyHandle, export_onnx
+from econmotor.motor_backend.mjx.export import export_onnx
 from econmotor.motor_backend.mjx.onnx_import import policy_file, read_actor, warm_start
 from econmotor.motor_backend.mjx.settings import MjxTaskSettings, parse_mjx_settings
 from econmotor.motor_backend.mjx.training import (
@@ -69,6 +68,7 @@ from econmotor.motor_backend.mjx.training import (
     load_learner,
     read_run_config,
 )
+from econmotor.motor_backend.onnx_policy import OnnxPolicyHandle
 from econmotor.motor_backend.selection import selection_for
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.robots import card as robot_card
@@ -180,6 +180,13 @@ class MjxBackend(MotorBackendBase):
                 check_humanoid_datapack(pack, source)
             except ConfigError:
                 raise courier_error from None
+
+    @classmethod
+    def robot_id(cls, spec: Any) -> str:
+        """The robot card the entry names (``g1_29dof``), else the couriers' robot of its env (``hopper``): the
+        ids the holosoma and mujoco backends give the same robots."""
+        settings = parse_mjx_settings(spec)
+        return settings.robot or robot_name(settings.env_id)
 
     @classmethod
     def check_task_entry(cls, spec: Any) -> None:
@@ -320,14 +327,11 @@ class MjxBackend(MotorBackendBase):
         artifacts = {"policy": str(run.run_dir / "policy.npz"), "tensorboard": str(run.run_dir / "tb"),
                      "run_config": str(run.run_dir / RUN_CONFIG_FILE),
                      "onnx": str(self._export(run.run_dir, learner, run.cfg, config))}
-        raw, econ, episodes = {}, {}, []
-        if eval_episodes > 0:
-            rows = evaluate_episodes(self._evaluator(env, run.cfg), self.eval_batch, env, learner, eval_episodes,
-                                     seed + TRAINING_EVAL_SEED_OFFSET, progress)
-            raw, econ, episodes = summarize_episodes(rows, self.catalog.get(task_id).economics)
-        return MotorTrainingResult(policy_id=str(run.run_dir), task_id=task_id, backend=self.name,
-                                   raw_metrics=raw, econ_metrics=econ, episodes=episodes,
-                                   training_curve=curve, config=config, artifacts=artifacts)
+        # the same env and compiled evaluator (memoised), the learner train saved as policy.npz
+        evaluation = self.evaluate_after_training(run.run_dir, task_id, objective, eval_episodes, seed,
+                                                  datapack_configs=datapack_configs, progress=progress,
+                                                  datapack_ids=datapack_ids)
+        return self.training_result(run.run_dir, task_id, evaluation, curve, config, artifacts)
 
     def evaluate_policy(self, policy_id: str, task_id: str, objective: EconomicObjectiveSpec, num_episodes: int,
                         seed: int, *, datapack_configs: Sequence[DatapackConfig] | None = None,
@@ -351,14 +355,14 @@ class MjxBackend(MotorBackendBase):
         return evaluation_result(self.name, policy_id, task_id, rows, self.catalog.get(task_id).economics,
                                  eval_config, output_dir, provenance)
 
-    def deploy_policy_handle(self, policy_id: str) -> MjxOnnxPolicyHandle:
+    def deploy_policy_handle(self, policy_id: str) -> OnnxPolicyHandle:
         """An onnxruntime handle on the run's ``policy.onnx`` (exported now if missing)."""
         path = Path(policy_id) / ONNX_FILE
         config = read_run_config(policy_id)  # an mjx run directory, checked before anything is loaded
         if not path.is_file():
             cfg = ppo.PPOConfig.from_mapping(config["hyperparameters"], str(Path(policy_id) / RUN_CONFIG_FILE))
             self._export(Path(policy_id), load_learner(policy_id, config, cfg), cfg, config)
-        return MjxOnnxPolicyHandle(path)
+        return OnnxPolicyHandle(path)
 
     # --- extras ------------------------------------------------------------------------------
     @staticmethod

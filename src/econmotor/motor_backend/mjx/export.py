@@ -20,7 +20,7 @@ The batch axis is dynamic. Two formats:
   attaches them): holosoma_inference's loader, which ``json.loads`` every entry, and the sim-to-sim
   evaluator's importer both read the file.
 
-The handle is the couriers' onnxruntime handle with ``step`` as an alias of ``act``.
+Either is served by every backend's onnxruntime handle (:class:`econmotor.motor_backend.onnx_policy.OnnxPolicyHandle`).
 """
 
 from __future__ import annotations
@@ -33,8 +33,8 @@ from typing import Any
 
 import numpy as np
 
-from econmotor.motor_backend.couriers.onnx_policy import ECONMOTOR_PREFIX, METADATA_KEY, OnnxPolicyHandle
 from econmotor.motor_backend.mjx.networks import ACTIVATIONS, NORM_EPS
+from econmotor.motor_backend.onnx_policy import ECONMOTOR_PREFIX, METADATA_KEY
 
 #: Holosoma's exporter writes opset 13 (``torch.onnx.export(..., opset_version=13)``); every op here has it
 OPSET = 13
@@ -120,9 +120,3 @@ def export_onnx(params: Mapping[str, Any], stats: tuple[np.ndarray, np.ndarray] 
     os.replace(tmp, path)
     return path
 
-
-class MjxOnnxPolicyHandle(OnnxPolicyHandle):
-    """onnxruntime handle on an exported mjx policy: ``act(obs)`` (one or a batch) and ``step`` (alias)."""
-
-    def step(self, obs: np.ndarray) -> np.ndarray:
-        return self.act(obs)

@@ -115,7 +115,7 @@ def policy_file(policy: str, holosoma_venv: str | Path | None = None) -> Path:
 
 
 def _decode(value: str) -> Any:
-    from econmotor.motor_backend.couriers.onnx_policy import json_or_text
+    from econmotor.motor_backend.onnx_policy import json_or_text
 
     return json_or_text(value)
 

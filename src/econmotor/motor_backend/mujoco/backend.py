@@ -23,7 +23,6 @@ import torch
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import (
     RUN_CONFIG_FILE,
-    TRAINING_EVAL_SEED_OFFSET,
     BackendCapabilities,
     EvalProvenance,
     MotorBackendBase,
@@ -38,13 +37,13 @@ from econmotor.motor_backend.base import (
     mean_power_w,
     no_progress,
     read_run_config,
-    summarize_episodes,
 )
 from econmotor.motor_backend.couriers.overlay import human_baseline_references
+from econmotor.motor_backend.couriers.robots import robot_name
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.motor_backend.mujoco.clips import check_clip_file, load_bundle_clips, record_clip
 from econmotor.motor_backend.mujoco.env_factory import EnvRecipe, make_env
-from econmotor.motor_backend.mujoco.evaluation import load_policy, rollout_episodes, torch_act_fn
+from econmotor.motor_backend.mujoco.evaluation import load_policy, rollout_episodes
 from econmotor.motor_backend.mujoco.export import OnnxPolicyHandle, export_onnx
 from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper
 from econmotor.motor_backend.mujoco.randomization import parse_randomization
@@ -177,16 +176,10 @@ class MujocoBackend(MotorBackendBase):
         normalizer = obs_normalizer(run.run_dir)
         artifacts["onnx"] = str(export_onnx(model, normalizer, run.run_dir / ONNX_FILE,
                                             self._onnx_metadata(run.config)))
-        raw, econ, episodes = {}, {}, []
-        if eval_episodes > 0:
-            eval_seed = seed + TRAINING_EVAL_SEED_OFFSET
-            env = make_env(self._eval_recipe(recipe), seed=eval_seed)
-            raw_eps = rollout_episodes(env, torch_act_fn(model, normalizer), eval_episodes, eval_seed, progress)
-            env.close()
-            raw, econ, episodes = summarize_episodes(raw_eps, self.catalog.get(task_id).economics)
-        return MotorTrainingResult(policy_id=str(run.run_dir), task_id=task_id, backend=self.name,
-                                   raw_metrics=raw, econ_metrics=econ, episodes=episodes,
-                                   training_curve=curve, config=run.config, artifacts=artifacts)
+        evaluation = self.evaluate_after_training(run.run_dir, task_id, objective, eval_episodes, seed,
+                                                  datapack_configs=datapack_configs, progress=progress,
+                                                  datapack_ids=datapack_ids)
+        return self.training_result(run.run_dir, task_id, evaluation, curve, run.config, artifacts)
 
     def evaluate_policy(self, policy_id: str, task_id: str, objective: EconomicObjectiveSpec, num_episodes: int,
                         seed: int, *, datapack_configs: Sequence[DatapackConfig] | None = None,
@@ -244,6 +237,11 @@ class MujocoBackend(MotorBackendBase):
         env = MujocoStepSummaryWrapper(env, spec.economics)
         limit = env.spec.max_episode_steps if env.spec is not None and env.spec.max_episode_steps else 1000
         return ShadowEnv(env, float(env.unwrapped.dt), int(limit))
+
+    @classmethod
+    def robot_id(cls, spec: TaskSpec) -> str:
+        """The couriers' robot of the task's env (``Hopper-v5`` -> ``hopper``)."""
+        return robot_name(parse_mujoco_settings(spec).env_id)
 
     @classmethod
     def check_datapack(cls, pack: DatapackConfig, source: str) -> None:

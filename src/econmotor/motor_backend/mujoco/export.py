@@ -10,7 +10,7 @@ i.e. exactly SB3's ``predict(obs, deterministic=True)`` without torch.distributi
 dynamo exporter trips on their argument validation). The batch axis is dynamic. Metadata
 (``econmotor`` key of the ONNX ``metadata_props``, JSON): task id, compiled overlay,
 datapack ids, economic assumptions, observation / action layout. The onnxruntime handle that
-serves it is the couriers' (``couriers/onnx_policy.py``), shared with the mjx backend.
+serves it is every backend's (``motor_backend/onnx_policy.py``).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ import torch
 from torch import nn
 
 from econmotor.errors import BackendError
-from econmotor.motor_backend.couriers.onnx_policy import METADATA_KEY, OnnxPolicyHandle
+from econmotor.motor_backend.onnx_policy import METADATA_KEY, OnnxPolicyHandle
 
 __all__ = ["METADATA_KEY", "DeterministicActor", "OnnxPolicyHandle", "export_onnx"]
 

@@ -13,7 +13,8 @@ from econmotor.errors import BackendError
 from econmotor.motor_backend.mjx import checkpoint as ckpt
 from econmotor.motor_backend.mjx import networks as nets
 from econmotor.motor_backend.mjx import ppo
-from econmotor.motor_backend.mjx.export import MjxOnnxPolicyHandle, export_onnx
+from econmotor.motor_backend.mjx.export import export_onnx
+from econmotor.motor_backend.onnx_policy import OnnxPolicyHandle
 
 OBS, ACT = 11, 3
 LOW, HIGH = np.full(ACT, -0.4, np.float32), np.full(ACT, 0.7, np.float32)
@@ -35,7 +36,7 @@ def test_onnx_handle_equals_the_jax_deterministic_policy(tmp_path: Path, normali
     meta = {"task_id": "hopper_courier", "economics": {"wage_human_usd_per_hour": 18.0}}
     stats = (np.asarray(learner.stats.mean), np.asarray(learner.stats.var)) if normalize else None
     path = export_onnx(jax.device_get(learner.params), stats, cfg.clip_obs, LOW, HIGH, tmp_path / "policy.onnx", meta)
-    handle = MjxOnnxPolicyHandle(path)
+    handle = OnnxPolicyHandle(path)
     obs = np.random.default_rng(0).normal(3.0, 4.0, size=(257, OBS)).astype(np.float32)
     expected = np.asarray(ppo.deterministic_action(learner.params, learner.stats, jnp.asarray(obs), cfg,
                                                    jnp.asarray(LOW), jnp.asarray(HIGH)))

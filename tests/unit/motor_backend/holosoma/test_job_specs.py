@@ -1,0 +1,69 @@
+"""Holosoma jobs are dataclasses serialised once (JSON for the runner) and parsed once; a bad job is a
+ConfigError naming the file and the field."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import pytest
+
+from econmotor.errors import ConfigError
+from econmotor.motor_backend.holosoma.job_specs import (
+    EvaluateJob,
+    Overlay,
+    ProbeJob,
+    Sim2SimJob,
+    TrainJob,
+    parse_job,
+)
+from econmotor.motor_backend.holosoma.plan import RunPlan
+
+PLAN = RunPlan(experiment="g1_29dof", algo="ppo", simulator="mujoco", device="cpu", num_envs=1, iterations=2,
+               env_steps=48, cpu_sized=True, messages=("classic MuJoCo runs one env",), requested={"num_envs": 4})
+TRAIN = TrainJob(run_dir="/runs/r", run_name="t-seed0", plan=PLAN, seed=0, motion_task=False,
+                 overlay=Overlay(weights={"mpl": 0.5}, params={"progress_mode": "velocity", "meter": {"a": 1.0}}),
+                 overrides={"randomization": {}, "curriculum": {}, "terrain": None, "motion_file": None,
+                            "evaluation": {}})
+SIM2SIM = Sim2SimJob(run_dir="/runs/e", policy="holosoma:g1_29dof/ppo", num_episodes=4, episode_s=10.0, seed=3,
+                     course={"leg_m": 5.0, "dwell_s": 2.0, "speed_m_per_s": 0.5, "legs": 2},
+                     meter={"idle_power_w": 1.0}, overrides={"randomization": {}}, task_id="humanoid_locomotion_g1",
+                     start_joint_noise_rad=0.05,
+                     task_experiments=["g1_29dof"])
+
+
+@pytest.mark.parametrize("job", [ProbeJob(), TRAIN, SIM2SIM, replace(SIM2SIM, worker=1, episode_indices=[1, 3]),
+                                 EvaluateJob(run_dir="/r", checkpoint="/r/model_1.pt", num_steps=100,
+                                             episode_length_s=4.0, seed=1, simulator="mujoco")])
+def test_a_job_round_trips_through_its_json(job) -> None:
+    text = job.to_json()
+    assert json.loads(text)["action"] == job.action
+    assert parse_job(text, "job.json") == job
+
+
+def test_the_json_layout_is_the_runners_and_each_worker_has_its_log() -> None:
+    values = json.loads(TRAIN.to_json())
+    assert values["overlay"]["params"]["meter"] == {"a": 1.0} and values["plan"]["num_envs"] == 1
+    assert replace(SIM2SIM, worker=2).log_name == "sim2sim_2" and TRAIN.log_name == "train"
+
+
+@pytest.mark.parametrize(("change", "key", "words"), [
+    (lambda v: v.update(action="dance"), "action", "unknown job action 'dance'"),
+    (lambda v: v.pop("seed"), "seed", "missing"),
+    (lambda v: v.update(colour="red"), "colour", "not a field of a TrainJob"),
+    (lambda v: v["plan"].update(num_envs="4"), "plan.num_envs", "must be a JSON int"),
+    (lambda v: v["plan"].update(cpu_sized=1), "plan.cpu_sized", "must be a JSON bool"),
+    (lambda v: v.update(motion_task=1), "motion_task", "must be a JSON bool"),
+    (lambda v: v["overlay"].pop("weights"), "overlay.weights", "missing"),
+])
+def test_a_bad_job_names_the_file_and_the_field(change, key, words) -> None:
+    values = json.loads(TRAIN.to_json())
+    change(values)
+    with pytest.raises(ConfigError, match=words) as info:
+        parse_job(json.dumps(values), "train_job.json")
+    assert info.value.source == "train_job.json" and info.value.key == key
+
+
+def test_a_file_that_is_not_json_is_a_config_error() -> None:
+    with pytest.raises(ConfigError, match="job.json.*not a JSON job"):
+        parse_job("{not json", "job.json")
