@@ -4,8 +4,8 @@ Trains a ``hopper_courier`` policy (Gymnasium Hopper-v5, PPO on 4 in-process env
 safety-first objective :data:`DEMO_OBJECTIVE` until a held-out evaluation passes the task's
 acceptance rule (``--until-deployable``, at most :data:`DEMO_MAX_STEPS` steps), evaluates the kept
 policy on fresh episodes until the verdict is decided (a sequential evaluation: the hopper covers ~1
-leg of 10 m per episode, and the 5% fall-rate limit needs ~100-140 fall-free legs at the plan's look
-confidence), the evidence behind the verdict and the price's interval,
+leg of 10 m per episode, and the fall rate's confidence sequence bounds it inside the 5% limit after
+64 fall-free legs), the evidence behind the verdict and the price's interval,
 decides whether it is deployable, prices a delivery leg against a human courier and writes
 the JSON, Markdown and HTML reports; the HTML path is printed last.
 """
