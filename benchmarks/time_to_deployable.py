@@ -10,8 +10,8 @@ For each seed, one after the other in this process (so both arms see the same ma
 
 Each arm's policy is then evaluated like the demo's report (a sequential evaluation of fresh episodes,
 seeds ``seed + 1000 ...``, apart from the held-out ones, until the verdict is decided; or exactly
-``--eval-episodes N``) and judged by the report's judgement (``economics.uncertainty.judge``, at the
-sequential plan's look confidence). Printed per seed and arm: env steps trained, training wall
+``--eval-episodes N``) and judged by the report's judgement (``economics.uncertainty.judge``, as the
+sequential plan's looks judge). Printed per seed and arm: env steps trained, training wall
 seconds (``train_policy``: env creation, training, held-out evaluations, ONNX export), the report
 verdict with falls / legs and legs/h; then the median training seconds of each arm and their ratio.
 The load average is printed at the start and the end: absolute seconds on a shared machine are
@@ -68,15 +68,15 @@ def run_arm(arm: str, seed: int, args: argparse.Namespace, out: str) -> dict:
     if args.eval_episodes:
         evaluation = backend.evaluate_policy(result.policy_id, DEMO_TASK, objective, args.eval_episodes,
                                              seed + REPORT_EVAL_OFFSET)
-        confidence, how = 0.95, f"fixed {args.eval_episodes}"
+        confidence, sequential, how = 0.95, False, f"fixed {args.eval_episodes}"
     else:
         plan = SequentialPlan(batch=backend.evaluation_batch(DEMO_TASK))
         evaluation = evaluate_sequentially(backend, result.policy_id, task, objective, plan, seed + REPORT_EVAL_OFFSET)
         seq = evaluation.config["sequential"]
-        confidence, how = seq["confidence"], f"sequential: {seq['outcome']} at {seq['episodes']}"
+        confidence, sequential, how = seq["confidence"], True, f"sequential: {seq['outcome']} at {seq['episodes']}"
     eval_s = time.perf_counter() - t_eval
     raw = [{k: v for k, v in ep.items()} for ep in evaluation.episodes]
-    _, verdict, j_mean = Selection(task, objective, SelectionConfig()).judge(raw, confidence)
+    _, verdict, j_mean = Selection(task, objective, SelectionConfig()).judge(raw, confidence, sequential)
     falls = sum(float(e["errors"]) for e in raw)
     legs = sum(float(e["units_completed"]) for e in raw)
     hours = sum(float(e["episode_length_s"]) for e in raw) / 3600.0
