@@ -7,8 +7,16 @@ import math
 import pytest
 
 from econmotor.config.acceptance import Acceptance
-from econmotor.economics.pricing import price_evaluation
-from econmotor.economics.uncertainty import assess, clopper_pearson, decide
+from econmotor.config.task_economics import TaskEconomics
+from econmotor.economics.pricing import PricingPolicy, price_evaluation, price_task
+from econmotor.economics.uncertainty import (
+    SEQUENTIAL_METHOD,
+    SequentialPlan,
+    assess,
+    clopper_pearson,
+    decide,
+    judge,
+)
 from econmotor.motor_backend.base import summarize_episodes
 from econmotor.tasks import get_task
 
@@ -88,3 +96,83 @@ def test_the_default_acceptance_rule_says_where_each_limit_comes_from():
                             "min_units_per_hour": "default: any positive throughput"}
     assert rule.to_dict() == {"max_error_rate": 0.03, "min_units_per_hour": 0.0, "error_name": "error",
                               "sources": rule.sources}
+
+
+ECON = TaskEconomics(value_per_unit_usd=0.30)  # dishwashing defaults: 35,000 USD over 20,000 h, 2.9 USD/h running
+NOTHING = price_task(ECON, 0.0, 0.0, 0.0)  # a point below every bound, so the intervals show the bootstrap's ends
+
+
+def test_episodes_are_pooled_from_hours_or_seconds_and_attempts_default_to_units_plus_errors():
+    # half an hour given in hours, half an hour in seconds: 30 + 20 units, 0 + 2 errors (attempted 50 + 2),
+    # 50 + 50 Wh. A resample picks the first twice (60 units/h), the second twice (40/h) or both (50/h);
+    # every pool uses 0.1 kWh per hour
+    eps = [{"units_completed": 30.0, "hours": 0.5, "energy_wh": 50.0},
+           {"units_completed": 20.0, "errors": 2.0, "episode_length_s": 1800.0, "energy_wh": 50.0}]
+    unc = assess(ECON, eps, NOTHING)
+    ev = unc.evidence
+    assert (ev.episodes, ev.units_completed, ev.units_attempted, ev.errors) == (2, 50.0, 52.0, 2.0)
+    assert ev.episodes_with_errors == 1 and ev.robot_hours == pytest.approx(1.0)
+    assert unc.intervals["mpl_units_per_hour"].high == pytest.approx(60.0)  # a resample of the first twice
+    assert unc.intervals["energy_kwh_per_hour"].high == pytest.approx(0.1)
+    lo, hi = clopper_pearson(2, 52)
+    assert (unc.intervals["error_rate"].low, unc.intervals["error_rate"].high) == (lo, hi)
+    assert unc.intervals["error_rate"].method == "Clopper-Pearson exact binomial"
+    assert unc.intervals["mpl_units_per_hour"].method == "bootstrap over 2 episodes, 2000 resamples, seed 20240601"
+    doc = unc.to_dict()
+    assert doc["confidence"] == 0.95 and doc["interval_coverage"] == pytest.approx(0.90)
+    assert (doc["resamples"], doc["seed"]) == (2000, 20240601)
+    assert doc["evidence"]["errors"] == 2.0 and doc["conservative"] == unc.conservative.to_dict()
+    assert doc["intervals"]["error_rate"]["high"] == hi
+    # the conservative price: the worst ends of throughput, error rate and energy (0.1 kWh/h, not the point's 0)
+    assert unc.conservative.energy_kwh_per_hour == pytest.approx(0.1) and unc.conservative.error_rate == hi
+
+
+def test_a_zero_length_episode_uses_no_energy_per_hour():
+    unc = assess(ECON, [{"units_completed": 0.0, "episode_length_s": 0.0, "energy_wh": 0.0}], NOTHING)
+    assert unc.intervals["energy_kwh_per_hour"].high == 0.0 and unc.intervals["mpl_units_per_hour"].high == 0.0
+
+
+def test_resamples_that_complete_nothing_make_the_unit_cost_bound_infinite_and_the_conservative_mpl_zero():
+    # two episodes, one with no unit: a quarter of the resamples pick it twice and complete nothing
+    eps = [{"units_completed": 0.0, "episode_length_s": 1800.0}, {"units_completed": 30.0, "episode_length_s": 1800.0}]
+    point = price_task(ECON, 30.0, 0.0, 0.0)
+    unc = assess(ECON, eps, point)
+    assert unc.intervals["robot_unit_cost_usd"].high == math.inf  # not nan: the quantile keeps inf
+    assert unc.intervals["mpl_units_per_hour"].low == 0.0
+    assert unc.conservative.mpl_units_per_hour == 0.0 and unc.conservative.price_usd_per_unit == math.inf
+
+
+def test_no_episode_gives_no_bootstrap_interval_and_prices_the_worst_case():
+    unc = assess(ECON, [], NOTHING)
+    for name, iv in unc.intervals.items():
+        if name != "error_rate":
+            assert iv.point == getattr(NOTHING, name) and math.isnan(iv.low) and math.isnan(iv.high)
+            assert iv.method == "bootstrap over 0 episodes, 2000 resamples, seed 20240601"
+    assert (unc.intervals["error_rate"].low, unc.intervals["error_rate"].high) == (0.0, 1.0)
+    assert unc.conservative.mpl_units_per_hour == 0.0 and unc.conservative.error_rate == 1.0
+
+
+def test_the_policy_prices_every_resample_and_the_conservative_price():
+    # seller's share 0: every price is the robot's unit cost, in every resample and at the worst ends
+    eps = [{"units_completed": 30.0 + i, "episode_length_s": 1800.0, "energy_wh": 10.0} for i in range(5)]
+    point = price_task(ECON, 64.0, 0.0, 0.02, PricingPolicy(0.0))
+    unc = assess(ECON, eps, point, PricingPolicy(0.0))
+    price, cost = unc.intervals["price_usd_per_unit"], unc.intervals["robot_unit_cost_usd"]
+    assert (price.low, price.high) == (cost.low, cost.high)
+    assert unc.conservative.price_usd_per_unit == unc.conservative.robot_unit_cost_usd
+
+
+def test_judge_words_the_verdict_in_the_tasks_unit():
+    task = get_task("hopper_courier")
+    eps = [{"units_completed": 2.0, "episode_length_s": 8.0, "energy_wh": 0.05}] * 3
+    point = price_task(task.economics, 900.0, 0.0, 0.0225)
+    unc, verdict = judge(task.economics, task.acceptance, "leg", eps, point)
+    assert unc.confidence == 0.95 and unc.evidence.episodes == 3
+    assert verdict.checks[0]["text"] == "6 units (leg) completed in 3 episodes"
+
+
+def test_a_plan_records_its_schedule_and_method():
+    plan = SequentialPlan(batch=16, max_episodes=64, max_wall_s=60.0, confidence=0.9)
+    assert plan.to_dict() == {"batch": 16, "max_episodes": 64, "max_wall_s": 60.0, "confidence": 0.9,
+                              "looks": [16, 32, 64], "look_confidence": pytest.approx(1 - 0.1 / 3),
+                              "method": SEQUENTIAL_METHOD}
