@@ -10,12 +10,21 @@ from econmotor.config.acceptance import Acceptance
 from econmotor.config.task_economics import TaskEconomics
 from econmotor.economics.pricing import PricingPolicy, price_evaluation, price_task
 from econmotor.economics.uncertainty import (
+    CONTINUE,
+    FAIL,
+    PASS,
     SEQUENTIAL_METHOD,
+    Evidence,
+    Interval,
     SequentialPlan,
+    Uncertainty,
     assess,
     clopper_pearson,
+    counted,
     decide,
     judge,
+    look_outcome,
+    percent,
 )
 from econmotor.motor_backend.base import summarize_episodes
 from econmotor.tasks import get_task
@@ -176,3 +185,64 @@ def test_a_plan_records_its_schedule_and_method():
     assert plan.to_dict() == {"batch": 16, "max_episodes": 64, "max_wall_s": 60.0, "confidence": 0.9,
                               "looks": [16, 32, 64], "look_confidence": pytest.approx(1 - 0.1 / 3),
                               "method": SEQUENTIAL_METHOD}
+
+
+def _judged(errors: float, attempted: float, mpl: tuple[float, float, float], confidence: float = 0.95,
+            episodes: int = 4, episodes_with_errors: int = 0) -> Uncertainty:
+    """An assessment with the error rate's exact bounds and a given throughput interval (point, low, high)."""
+    low, high = clopper_pearson(errors, attempted, confidence)
+    intervals = {"error_rate": Interval(errors / attempted, low, high, "Clopper-Pearson exact binomial"),
+                 "mpl_units_per_hour": Interval(*mpl, "given")}
+    evidence = Evidence(episodes, attempted, attempted - errors, errors, episodes_with_errors, 1.0)
+    return Uncertainty(confidence, evidence, intervals, NOTHING, 0, 0)
+
+
+HOPPER = Acceptance(max_error_rate=0.05, min_units_per_hour=100.0, error_name="fall")
+
+
+def test_a_slow_clean_robot_fails_on_throughput_alone_and_says_both_checks():
+    # no fall in 120 legs: upper bound 1 - 0.05**(1/120) = 0.0247 <= 0.05; throughput 60 (40..80) < 100
+    unc = _judged(0, 120, (60.0, 40.0, 80.0))
+    verdict = decide(HOPPER, unc, 0.002, "leg")
+    assert not verdict.deployable
+    assert verdict.reasons == ("95% lower bound on throughput 40 units/h vs at least 100 required",)
+    err_check, mpl_check = verdict.checks[1], verdict.checks[2]
+    assert (err_check["passed"], err_check["bound"], err_check["limit"]) == (True, unc.intervals["error_rate"].high,
+                                                                             0.05)
+    assert err_check["text"] == ("falls in none of 4 episodes (0 in 120 attempted); 95% upper bound on the fall "
+                                 "rate 0.0247 vs 0.05 accepted (0.002 for a human)")
+    assert (mpl_check["passed"], mpl_check["measured"], mpl_check["bound"]) == (False, 60.0, 40.0)
+    # the whole interval is below 100: certainly fails, in words
+    assert look_outcome(HOPPER, unc, verdict) == (FAIL, "throughput is below 100 units/h (95% upper bound 80)")
+    # throughput exactly at the limit passes (>=)
+    assert decide(HOPPER, _judged(0, 120, (150.0, 100.0, 200.0)), 0.002, "leg").deployable
+
+
+def test_a_fall_rate_certainly_above_the_limit_is_told_with_its_lower_bound():
+    unc = _judged(30, 100, (500.0, 400.0, 600.0), confidence=0.99, episodes_with_errors=3)
+    verdict = decide(HOPPER, unc, 0.002, "leg")
+    low = unc.intervals["error_rate"].low
+    assert look_outcome(HOPPER, unc, verdict) == (FAIL, f"the fall rate is above 0.05 (99% lower bound {low:.3g})")
+    assert "falls in 3 of 4 episodes (30 in 100 attempted)" in verdict.reasons[0]
+    # a clean robot judged deployable passes; one not yet decided goes on with its reasons
+    ok = _judged(0, 120, (500.0, 400.0, 600.0))
+    assert look_outcome(HOPPER, ok, decide(HOPPER, ok, 0.002, "leg")) == (PASS, "every bound inside its limit")
+    open_ = _judged(1, 30, (500.0, 400.0, 600.0))
+    verdict = decide(HOPPER, open_, 0.002, "leg")
+    assert look_outcome(HOPPER, open_, verdict) == (CONTINUE, "; ".join(verdict.reasons))
+    # no throughput limit, or an unbounded interval: never a certain throughput failure
+    free = Acceptance(max_error_rate=0.05, min_units_per_hour=0.0, error_name="fall")
+    idle = _judged(1, 30, (0.0, 0.0, 0.0))
+    assert look_outcome(free, idle, decide(free, idle, 0.002, "leg"))[0] == CONTINUE
+    unbounded = _judged(1, 30, (50.0, 0.0, math.inf))
+    assert look_outcome(HOPPER, unbounded, decide(HOPPER, unbounded, 0.002, "leg"))[0] == CONTINUE
+
+
+def test_figures_in_words():
+    assert (percent(0.95), percent(0.991667), percent(0.9)) == ("95%", "99.2%", "90%")
+    assert (counted(1, "run"), counted(2, "run"), counted(0, "policy"), counted(1, "policy")) == (
+        "1 run", "2 runs", "0 policies", "1 policy")
+    verdict = decide(HOPPER, _judged(0, 1500.4, (1234.5, 1000.0, 1500.0)), 0.002, "leg")
+    assert verdict.checks[0]["text"] == "1,500 units (leg) completed in 4 episodes"
+    assert verdict.checks[2]["text"] == "95% lower bound on throughput 1,000 units/h vs at least 100 required"
+    assert verdict.to_dict()["label"] == "deployable" and verdict.to_dict()["reasons"] == []
