@@ -245,4 +245,5 @@ def test_figures_in_words():
     verdict = decide(HOPPER, _judged(0, 1500.4, (1234.5, 1000.0, 1500.0)), 0.002, "leg")
     assert verdict.checks[0]["text"] == "1,500 units (leg) completed in 4 episodes"
     assert verdict.checks[2]["text"] == "95% lower bound on throughput 1,000 units/h vs at least 100 required"
-    assert verdict.to_dict()["label"] == "deployable" and verdict.to_dict()["reasons"] == []
+    assert verdict.to_dict() == {"deployable": True, "label": "deployable", "reasons": [],
+                                 "checks": list(verdict.checks), "acceptance": HOPPER.to_dict()}
