@@ -125,3 +125,8 @@ def test_a_bad_raw_metric_is_refused_naming_its_source_key_and_what_is_allowed(r
     with pytest.raises(ConfigError) as info:
         METER.summarize(raw, source="eval.json")
     assert str(info.value) == text
+
+
+def test_time_from_steps_is_steps_times_dt_and_one_unit_has_its_own_energy():
+    m = METER.summarize({"units_completed": 1, "steps": 1800, "dt_s": 0.5, "energy_wh": 30})
+    assert m["hours"] == 0.25 and m["energy_wh_per_unit"] == 30.0

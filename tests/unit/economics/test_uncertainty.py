@@ -247,3 +247,12 @@ def test_figures_in_words():
     assert verdict.checks[2]["text"] == "95% lower bound on throughput 1,000 units/h vs at least 100 required"
     assert verdict.to_dict() == {"deployable": True, "label": "deployable", "reasons": [],
                                  "checks": list(verdict.checks), "acceptance": HOPPER.to_dict()}
+
+
+def test_given_attempts_and_a_quarter_hour_are_pooled_as_given():
+    # 10 units and 1 error in 15 attempts (4 abandoned) in 0.25 h with 50 Wh: 40 units/h, 0.2 kWh/h
+    eps = [{"units_completed": 10.0, "errors": 1.0, "units_attempted": 15.0, "hours": 0.25, "energy_wh": 50.0}]
+    unc = assess(ECON, eps, NOTHING)
+    assert unc.evidence.units_attempted == 15.0
+    assert unc.intervals["energy_kwh_per_hour"].high == pytest.approx(0.2)
+    assert unc.intervals["mpl_units_per_hour"].high == pytest.approx(40.0)
