@@ -236,18 +236,21 @@ def assess(economics: TaskEconomics, episodes: Sequence[Mapping[str, Any]], poin
     else:
         err_lo, err_hi = error_rate_sequence(total[3], total[2], CONFIDENCE, sequence_rate)
         intervals["error_rate"] = Interval(point.error_rate, err_lo, err_hi, ERROR_SEQUENCE_METHOD, CONFIDENCE)
-    samples: dict[str, list[float]] = {name: [] for name in BOOTSTRAP_FIELDS}
+    samples: dict[str, np.ndarray] = {name: np.zeros(0) for name in BOOTSTRAP_FIELDS}
     if len(episodes):
         rng = np.random.default_rng(seed)
         picks = rng.integers(0, len(episodes), size=(resamples, len(episodes)))
-        for pick in picks:
-            mpl, err, kwh = _pooled(cols[pick].sum(axis=0))
-            price = price_task(economics, mpl, err, kwh, policy)
-            for name in BOOTSTRAP_FIELDS:
-                samples[name].append(getattr(price, name))
+        # each resample's summed columns, 256 resamples at a time (a few MB however many episodes)
+        pools = np.concatenate([cols[chunk].sum(axis=1) for chunk in np.split(picks, range(256, resamples, 256))])
+        # each distinct pool is priced once: episodes that repeat (whole units, one energy figure)
+        # give a few distinct pools among the resamples, and the prices are the same
+        distinct, which = np.unique(pools, axis=0, return_inverse=True)
+        prices = [price_task(economics, *_pooled(pool), policy) for pool in distinct]
+        for name in BOOTSTRAP_FIELDS:
+            samples[name] = np.asarray([getattr(p, name) for p in prices], dtype=np.float64)[which.reshape(-1)]
     method = f"bootstrap over {len(episodes)} episodes, {resamples} resamples, seed {seed}"
     for name in BOOTSTRAP_FIELDS:
-        values = np.asarray(samples[name], dtype=np.float64)
+        values = samples[name]
         value = getattr(point, name)
         if values.size == 0:
             intervals[name] = Interval(value, math.nan, math.nan, method)

@@ -12,6 +12,7 @@ from econmotor.economics.pricing import (
     PricingPolicy,
     distribution,
     price_evaluation,
+    price_from_metrics,
     price_task,
     pricing_inputs,
     quantile,
@@ -142,3 +143,103 @@ def test_pricing_inputs_list_every_number_with_unit_and_source():
     assert {"wage_human_usd_per_hour", "robot_capex_usd", "spread_share", "robot_mpl_units_per_hour"} <= set(names)
     assert all(r["unit"] and r["source"] for r in rows)
     assert next(r for r in rows if r["name"] == "robot_error_rate")["source"].startswith("measured")
+
+
+# A robot at no capital cost whose hour costs 4 USD (maintenance 1, supervision 3, no energy) next to
+# a human at 20 USD/h doing 10 units/h (2 USD/unit): at 2 units/h its unit cost is exactly the human's.
+EVEN = TaskEconomics(wage_human_usd_per_hour=20.0, mp_human_units_per_hour=10.0, value_per_unit_usd=1.0,
+                     energy_price_usd_per_kwh=0.0, robot_capex_usd=0.0, maintenance_usd_per_hour=1.0,
+                     supervision_usd_per_hour=3.0)
+
+
+def test_a_robot_exactly_as_dear_as_a_human_is_not_competitive_and_without_capex_breaks_even_at_once():
+    # unit cost 4/2 = 2.0 = human's 20/10: spread 0 -> not competitive, price = cost = 2.0 USD/unit,
+    # price/h 4.0 = operating cost 4.0: margin 0, but there is no capex to repay -> 0 h
+    p = price_task(EVEN, 2.0, 0.0, 0.0, PricingPolicy(0.5))
+    assert p.spread_per_unit_usd == 0.0 and p.competitive is False
+    assert p.price_usd_per_unit == 2.0 and p.price_usd_per_robot_hour == 4.0
+    assert p.break_even_hours == 0.0
+    # one unit/h more: unit cost 4/3, spread 2/3 > 0 -> competitive
+    assert price_task(EVEN, 3.0, 0.0, 0.0).competitive is True
+
+
+def test_a_margin_under_one_dollar_an_hour_still_repays_the_capex():
+    # capex 10,000 over 20,000 h = 0.5 USD/h; uncompetitive at 10 units/h (unit cost (0.5 + 2.9)/10 = 0.34
+    # > 0.30), so priced at cost: the margin over operating cost is the 0.5 USD/h of capex -> 20,000 h
+    cheap = TaskEconomics(**{**ECON.__dict__, "robot_capex_usd": 10_000.0, "energy_price_usd_per_kwh": 0.0})
+    p = price_task(cheap, 10.0, 0.0, 0.0)
+    assert not p.competitive and p.price_usd_per_unit == pytest.approx(0.34)
+    assert p.break_even_hours == pytest.approx(20_000.0)
+
+
+def test_a_robot_that_completes_nothing_charges_nothing_it_can_quote_per_hour():
+    # no unit: the price per unit and per hour are infinite, and the customer saves nothing, damage or not
+    p = price_task(ECON, 0.0, 0.5, 0.2)
+    assert p.price_usd_per_robot_hour == math.inf
+    assert p.customer_saving_usd_per_hour == 0.0 and p.customer_saving_after_damage_usd_per_hour == 0.0
+    # a robot so slow that its unit cost overflows to inf still works: it costs the customer without bound
+    slow = price_task(ECON, 1e-310, 0.0, 0.2)
+    assert slow.price_usd_per_unit == math.inf
+    assert slow.customer_saving_usd_per_hour == -math.inf
+
+
+@pytest.mark.parametrize("name, args, bad", [("mpl_units_per_hour", (-1.0, 0.0, 0.1), "-1.0"),
+                                             ("error_rate", (10.0, math.inf, 0.1), "inf"),
+                                             ("energy_kwh_per_hour", (10.0, 0.0, math.nan), "nan")])
+def test_a_bad_robot_metric_names_itself(name, args, bad):
+    with pytest.raises(ConfigError) as info:
+        price_task(ECON, *args)
+    assert info.value.key == name
+    assert str(info.value) == f"<robot metrics>: key '{name}': must be finite and >= 0, got {bad}"
+
+
+@pytest.mark.parametrize("share", [1.5, -0.1, math.nan, True, "0.5", None])
+def test_a_spread_share_outside_0_1_or_not_a_number_is_refused_with_what_is_allowed(share):
+    with pytest.raises(ConfigError) as info:
+        PricingPolicy(share)
+    assert str(info.value) == (f"<pricing>: key 'spread_share': must be a number in [0, 1], got {share!r} "
+                               "(allowed: 0 <= s <= 1)")
+
+
+def test_price_from_metrics_uses_the_policy_and_names_a_missing_key():
+    metrics = {"mpl_units_per_hour": 50.0, "error_rate": 0.04, "energy_kwh_per_hour": 0.1}
+    assert price_from_metrics(ECON, metrics, PricingPolicy(0.0)).price_usd_per_unit == pytest.approx(0.09324)
+    with pytest.raises(ConfigError) as info:
+        price_from_metrics(ECON, {"mpl_units_per_hour": 50.0, "error_rate": 0.04})
+    assert info.value.key == "energy_kwh_per_hour"
+    assert str(info.value) == ("<econ metrics>: key 'energy_kwh_per_hour': missing; expected "
+                               "EconomicMeter.summarize keys")
+
+
+def test_quantile_between_a_finite_and_an_infinite_value_is_the_infinite_one():
+    assert quantile([1.0, math.inf], 0.5) == math.inf
+    assert quantile([-math.inf, 1.0], 0.5) == -math.inf
+    assert quantile([-math.inf, 1.0], 1.0) == 1.0
+    empty = distribution([])
+    assert empty["n"] == 0.0 and all(math.isnan(empty[k]) for k in ("mean", "p10", "p50", "p90"))
+
+
+def test_price_evaluation_applies_the_policy_to_the_pool_and_every_episode():
+    # share 0: every price is the robot's unit cost (worked example: 4.662/50 for the pool)
+    meter = EconomicMeter(ECON)
+    ep = meter.summarize({"units_completed": 25, "episode_length_s": 1800, "energy_wh": 50})
+    pool = meter.summarize({"units_completed": 50, "episode_length_s": 3600, "energy_wh": 100})
+    summary = price_evaluation(ECON, pool, [ep, ep], PricingPolicy(0.0))
+    assert summary.aggregate.price_usd_per_unit == pytest.approx(0.09324)
+    assert [p.price_usd_per_unit for p in summary.episodes] == pytest.approx([0.09324, 0.09324])
+    doc = summary.to_dict()
+    assert doc["aggregate"]["price_usd_per_unit"] == pytest.approx(0.09324)
+    assert doc["distributions"]["price_usd_per_unit"]["n"] == 2.0
+    # no episode: the pool is priced, and there is no distribution to give
+    alone = price_evaluation(ECON, pool, [])
+    assert alone.episodes == () and alone.distributions == {}
+
+
+def test_pricing_inputs_rows_give_the_value_unit_and_source_of_the_policy_and_the_measurements():
+    p = price_task(ECON, 50.0, 0.04, 0.1)
+    rows = {r["name"]: r for r in pricing_inputs(ECON, PricingPolicy(0.4), p, "eval run 3")}
+    assert rows["spread_share"] == {"name": "spread_share", "value": 0.4, "unit": "fraction of spread",
+                                    "source": "pricing policy (--spread-share)"}
+    assert rows["robot_mpl_units_per_hour"] == {"name": "robot_mpl_units_per_hour", "value": 50.0,
+                                                "unit": "units/h", "source": "eval run 3"}
+    assert rows["robot_error_rate"]["value"] == 0.04 and rows["robot_energy_kwh_per_hour"]["value"] == 0.1

@@ -10,6 +10,7 @@ import pytest
 from econmotor.cli.demo import DEMO_OBJECTIVE
 from econmotor.economics.uncertainty import SequentialPlan
 from econmotor.errors import ConfigError
+from econmotor.motor_backend.base import HeldOutCadence
 from econmotor.motor_backend.selection import SELECTION_SEED_OFFSET, Selection, SelectionConfig, selection_for
 from econmotor.motor_backend.sequential import SequentialEvaluation, judge_raw
 from econmotor.objectives import load_objective_spec
@@ -283,3 +284,20 @@ def test_a_status_rounds_to_thousands_of_steps_and_a_record_without_a_kept_one_r
     resumed = selection()
     resumed.restore({"evaluations": [result.to_dict()], "kept": None})
     assert resumed.history == [result] and resumed.best is None
+
+
+def test_the_wall_time_share_is_in_0_1_and_comes_from_the_backends_cadence_unless_steps_are_given():
+    assert SelectionConfig(max_share=1.0).max_share == 1.0  # all of the wall time is allowed
+    for bad in (0.0, 1.5):
+        with pytest.raises(ConfigError) as info:
+            SelectionConfig(max_share=bad)
+        assert str(info.value) == "<selection>: key 'max_share': must be in (0, 1]"
+    cadence = HeldOutCadence(every_steps=5000, max_share=0.2)
+    sel = selection_for(TASK, OBJECTIVE, None, None, False, 3, cadence)
+    assert (sel.config.every_steps, sel.config.max_share, sel.config.seed) == (5000, 0.2, 3)
+    record = sel.record()
+    assert record["max_share"] == 0.2 and record["sequential"] == sel.config.plan.to_dict()
+    default = selection_for(TASK, OBJECTIVE, None, None, False, 0)
+    assert default.config.max_share is None and default.config.every_steps > 0
+    exact = selection_for(TASK, OBJECTIVE, 2000, None, False, 0, cadence)
+    assert (exact.config.every_steps, exact.config.max_share) == (2000, None)

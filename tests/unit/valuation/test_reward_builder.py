@@ -1,8 +1,12 @@
+import math
+
 import pytest
 
 from econmotor.config.econ_params import EconParams
 from econmotor.config.objective_profile import ObjectiveVector
-from econmotor.valuation import build_reward_terms, combine_reward, default_objective_vector
+from econmotor.errors import ConfigError
+from econmotor.valuation import build_reward_terms, combine_reward, default_objective_vector, extract_step_summary
+from econmotor.valuation.reward_builder import IncrementalRewardTerms, reward_terms_from_metrics
 
 GOOD = {"mpl": 60.0, "error_rate": 0.02, "energy_Wh": 15.0, "termination_reason": "max_steps"}
 BAD = {"mpl": 20.0, "error_rate": 0.3, "energy_Wh": 40.0, "termination_reason": "catastrophic_error"}
@@ -135,3 +139,62 @@ def test_extract_step_summary_reads_the_info_of_a_real_step():
     assert build_reward_terms(summary)["r_energy"] == -summary["Wh"]
     with pytest.raises(ValueError, match="step_summary"):
         extract_step_summary({"episode": 1})
+
+
+def test_a_catastrophe_is_read_from_any_of_its_three_signs():
+    calm = {**GOOD, "termination_reason": "max_steps"}
+    assert build_reward_terms(calm)["r_safety"] == 0.0
+    for sign in ({"catastrophic": True}, {"vase_broken": True}, {"termination_reason": "fall"}):
+        assert build_reward_terms({**calm, **sign})["r_safety"] == -1.0
+
+
+def test_an_infinite_energy_productivity_counts_as_none_and_other_infinite_figures_are_refused():
+    # ep is inf when work was done without energy: r_ep is then 0, not inf (nor 1)
+    assert build_reward_terms({**GOOD, "ep_episode": math.inf})["r_ep"] == 0.0
+    with pytest.raises(ConfigError) as info:
+        build_reward_terms({**GOOD, "mpl": math.inf})
+    assert str(info.value) == "<summary>: key 'mpl': must be finite, got inf"
+
+
+def test_the_term_formulas_default_to_wh_and_no_energy_productivity():
+    terms = reward_terms_from_metrics(60.0, 0.02, 15.0, False, 0.5)
+    assert terms == {"r_mpl": 60.0, "r_ep": 0.0, "r_error": -0.02, "r_energy": -15.0, "r_safety": 0.0,
+                     "r_novelty": 0.5}
+
+
+def test_economics_without_an_electricity_price_serve_wh_and_are_refused_for_usd():
+    assert build_reward_terms(GOOD, object())["r_energy"] == -15.0  # not priced: the price is never read
+    with pytest.raises(ConfigError) as info:
+        build_reward_terms(GOOD, object(), energy_term="usd")
+    assert str(info.value) == ("<task economics>: key 'energy_price_usd_per_kwh': the objective prices energy "
+                               "(energy_term: usd) but the task has no electricity price; set one or use "
+                               "energy_term: wh")
+
+
+def test_bad_weights_and_a_missing_step_summary_say_what_is_expected():
+    with pytest.raises(ConfigError) as info:
+        combine_reward([1.0, 2.0, 3.0, 4.0, 5.0, 6.0], build_reward_terms(GOOD))
+    assert str(info.value) == "<objective_vector>: expected 5 weights, got 6"
+    with pytest.raises(ConfigError) as info:
+        extract_step_summary([1])
+    assert str(info.value) == "<info>: expected the step's info mapping, got list"
+    with pytest.raises(ConfigError) as info:
+        extract_step_summary({"step_summary": None})
+    assert str(info.value) == ("<info>: key 'step_summary': no per-step summary in info; wrap MuJoCo envs in "
+                               "econmotor.motor_backend.mujoco.step_summary.MujocoStepSummaryWrapper")
+
+
+def test_incremental_error_terms_follow_the_running_rate_of_the_counts_so_far():
+    # steps: 0 of 0 attempted (rate 0), 1 error in 1 (rate 1), 0 in 1 (1/2), 1 in 2 (2/4 = 1/2)
+    incremental = IncrementalRewardTerms()
+    rates = []
+    for errors, attempts in ((0, 0), (1, 1), (0, 1), (1, 2)):
+        step = incremental.step({"mpl_t": 0.0, "errors": errors, "attempts": attempts, "Wh": 0.0,
+                                 "overlay_terms": {}})
+        rates.append(step["r_error"])
+        assert step["r_safety"] == 0.0 and step["r_novelty"] == 0.0  # no catastrophe, no novelty given
+    assert rates == pytest.approx([0.0, -1.0, 0.5, 0.0])
+    with pytest.raises(ConfigError) as info:
+        incremental.step({"mpl_t": 1.0, "errors": 0})
+    assert str(info.value) == ("<step_summary>: key 'attempts': incremental reward terms need the running MPL "
+                               "and the step's counts (allowed: attempts, errors, mpl_t)")
