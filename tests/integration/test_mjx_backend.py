@@ -58,12 +58,16 @@ def test_report_on_mjx_trains_evaluates_records_and_writes_reports(workdir: Path
     assert doc["runs"]["train"]["status"] == "completed" and doc["runs"]["eval"]["status"] == "completed"
     assert len(doc["episodes"]) == 2 and doc["training_curve"]
     assert {"units_completed", "errors", "energy_wh", "mpl_units_per_hour", "wage_parity"} <= set(doc["episodes"][0])
-    (evaluation,) = (workdir / "runs").rglob("evaluation.json")  # the eval run's full raw episodes
-    episode = json.loads(evaluation.read_text())["episodes"][0]
-    for key in ("units_completed", "units_attempted", "errors", "episode_length_s", "energy_wh", "risk_score",
-                "novelty_score", "return", "length_steps", "termination_reason", "overlay_return",
-                "overlay_mpl_per_hour_raw", "overlay_mpl_per_hour_weighted", "mpl_units_per_hour", "wage_parity"):
-        assert key in episode, key
+    # full raw episodes: the report's eval run, and the training run's own evaluation after training (eval/)
+    evaluations = sorted((workdir / "runs").rglob("evaluation.json"))
+    assert len(evaluations) == 2 and sum(e.parent.name == "eval" for e in evaluations) >= 1
+    for evaluation in evaluations:
+        episode = json.loads(evaluation.read_text())["episodes"][0]
+        for key in ("units_completed", "units_attempted", "errors", "episode_length_s", "energy_wh", "risk_score",
+                    "novelty_score", "return", "length_steps", "termination_reason", "overlay_return",
+                    "overlay_mpl_per_hour_raw", "overlay_mpl_per_hour_weighted", "mpl_units_per_hour",
+                    "wage_parity"):
+            assert key in episode, key
     (run_dir,) = [p for p in (workdir / "runs").rglob("run_config.json") if "eval" not in p.parent.name]
     config = json.loads(run_dir.read_text())
     assert config["backend"] == "mjx" and config["device"].startswith("CPU") and config["num_envs"] == 8
