@@ -14,8 +14,9 @@ training's seeds, from the post-training evaluation's ``seed + 10,000`` and from
 - with ``until_deployable``, asks the trainer to stop at the first acceptable evaluation.
 
 Each held-out evaluation is sequential (:mod:`econmotor.motor_backend.sequential`, the rule the
-report's evaluation follows): its episodes run in the backend's batches and are judged at pre-set
-looks, each at the look confidence of the alpha-spending plan, until the rule is decided: pass, fail
+report's evaluation follows): its episodes run in the backend's batches and are judged after every
+batch (the fall rate by its confidence sequence, the bootstrap bounds at the plan's look confidence),
+until the rule is decided: pass, fail
 (a bound certainly outside its limit, or no way to pass by ``episodes``, the cap), or the cap. So
 early checkpoints that fall in most episodes cost one batch each, and a passing one only the
 episodes its verdict needs.

@@ -8,7 +8,8 @@ evaluation's ``evaluate(n, first_seed, stop)``) calls ``stop(rows)`` with the ep
 far, in seed order, whenever a batch has ended; :meth:`SequentialEvaluation.stop` judges every look
 those rows reach and answers True once the evaluation is decided:
 
-- **pass**: every bound inside its limit at the look's confidence;
+- **pass**: every bound inside its limit (the error rate's confidence sequence, the others at the look's
+  confidence);
 - **fail**: a bound certainly outside its limit (:func:`~econmotor.economics.uncertainty.certainly_fails`),
   or the rule cannot pass by the cap even if every episode still to run matched the best one so far
   (fall-free first, then the most units): early checkpoints that fall in most episodes cost one batch;
