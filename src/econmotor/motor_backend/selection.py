@@ -47,7 +47,7 @@ from typing import Any
 from econmotor.economics.uncertainty import CONFIDENCE, SequentialPlan
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import SELECTION_SEED_OFFSET
-from econmotor.motor_backend.sequential import FAIL, SequentialEvaluation, judge_raw
+from econmotor.motor_backend.sequential import FAIL, Judged, SequentialEvaluation, judge_raw
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.objectives.loader import objective_weights_vector
 from econmotor.valuation.reward_builder import episode_j
@@ -163,7 +163,10 @@ class Selection:
               sequential: bool = False) -> tuple[Any, Any, float]:
         """``(Uncertainty, Verdict, mean J)`` of raw episodes: the report's judgement (every bound at
         ``confidence``; ``sequential``: a sequential look's) and the objective's J."""
-        judged = judge_raw(self.task, raw_episodes, confidence, sequential)
+        return self._scored(judge_raw(self.task, raw_episodes, confidence, sequential))
+
+    def _scored(self, judged: Judged) -> tuple[Any, Any, float]:
+        """``(Uncertainty, Verdict, mean J)`` of a judgement made already."""
         vector = objective_weights_vector(self.objective)
         js = [episode_j(ep, vector, self.task.economics) for ep in judged.summaries]
         return judged.uncertainty, judged.verdict, (sum(js) / len(js) if js else -math.inf)
@@ -173,7 +176,10 @@ class Selection:
         t0 = time.perf_counter()
         run = SequentialEvaluation(self.task, self.config.plan)
         rows = run.finish(evaluate(self.config.episodes, self.config.first_seed, run.stop))
-        uncertainty, verdict, j_mean = self.judge(rows, run.plan.look_confidence, sequential=True)
+        # the deciding look judged exactly these episodes already: its judgement is the evaluation's
+        judged = run.judged if run.judged is not None and len(run.judged.summaries) == len(rows) else None
+        uncertainty, verdict, j_mean = (self._scored(judged) if judged is not None
+                                        else self.judge(rows, run.plan.look_confidence, sequential=True))
         errors, mpl = uncertainty.intervals["error_rate"], uncertainty.intervals["mpl_units_per_hour"]
         result = HeldOutResult(
             env_steps=int(env_steps), wall_s=round(time.perf_counter() - self.started, 3),
