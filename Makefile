@@ -39,8 +39,10 @@ $(HSTAMP): requirements-holosoma.txt pyproject.toml
 
 holosoma: $(HSTAMP)
 
+# one pytest worker per core (pytest-xdist), a test file kept on one worker (its module fixtures built once)
+TEST_WORKERS ?= auto
 test: $(STAMP) $(HSTAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 # every benchmark at its smallest sizes, the MJX / Holosoma-training ones included (tens of minutes on a CPU)
 bench-smoke: $(STAMP) $(HSTAMP)
