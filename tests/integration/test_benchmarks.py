@@ -36,6 +36,7 @@ HOLOSOMA_PYTHON = ".venv-holosoma/bin/python"
 
 #: a line every script prints with its figures, once it has measured them
 FIGURES = {
+    "cli_startup.py": "ratio --help lazy / eager imports:",
     "conditioned_vs_specialists.py": "conditioned / specialist: return ratio",
     "constraints_dishwashing.py": "MPL ratio to unconstrained:",
     "demo_reliability.py": '"fall_rate_upper95":',

@@ -239,7 +239,6 @@ def compare_command(
     spread_share: float = SPREAD_SHARE_OPTION,
 ) -> None:
     """Price several imported policies on the same seeds, course and conditions; rank them and name the winner."""
-    set_cpu_threads()
     check_flags(eval_episodes=eval_episodes, seed=seed, spread_share=spread_share,
                 eval_max_episodes=eval_max_episodes, eval_max_seconds=eval_max_seconds)
     check_policies(policies)
@@ -252,6 +251,7 @@ def compare_command(
     packs = resolve_datapacks(split_datapack_values(datapacks), url)
     out_dir = check_output_dir("--output-dir", output_dir or Path("reports") / task_id / "compare")
     inputs = ReportInputs(task, catalog, url, resolve_objective(None), packs, out_dir, PricingPolicy(spread_share))
+    set_cpu_threads()
     backend = make_backend(motor_backend, tasks_file, catalog=catalog, **speed)
     plan = evaluation_plan(backend, task_id, eval_episodes, eval_max_episodes, eval_max_seconds)
     rows, counts = price_each(inputs, backend, policies, eval_episodes or 0, seed, plan)

@@ -128,11 +128,11 @@ class ReportInputs:
 
 def run_report(a: ReportArgs) -> None:
     """Validate every input, then report from recorded runs, an imported policy, or a training run."""
-    set_cpu_threads()
     inputs = check_report_args(a)
     if not a.trains:
         report_recorded(a, inputs)
         return
+    set_cpu_threads()
     if a.imported_policy is not None:
         check_imports_policies(a.motor_backend, "--motor-backend")
     backend = make_backend(a.motor_backend, a.tasks_file, catalog=inputs.catalog)

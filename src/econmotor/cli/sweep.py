@@ -86,11 +86,11 @@ def sweep_command(
     check_size("--grid", "objectives (sweep cells before seeds and datapacks)", simplex_size(grid), MAX_SWEEP_CELLS)
     check_output_dir("--output-dir", output_dir)
     url = check_db_url(db_url)
-    set_cpu_threads()
     check_task_backend(load_catalog().get(task_id), motor_backend)
     check_num_envs(motor_backend, num_envs)
     objectives = objectives_from_options(preset, vector, grid)
     check_size("--seeds", "sweep cells (objectives x seeds)", len(objectives) * len(seed_list), MAX_SWEEP_CELLS)
+    set_cpu_threads()
     kept = (f"each in {output_dir}/<cell key>/ and in the registry. Resume by running the same command again: "
             "completed cells are skipped.")
     set_deadline_note(lambda: f"Completed cells are kept, {kept}")

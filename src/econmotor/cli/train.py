@@ -198,11 +198,11 @@ def train_command(
     check_backend_choices(backend, algorithm, vec_env, resume)
     check_output_dir("--output-dir", output_dir)
     check_output_file("--json", json_out)
-    set_cpu_threads()
     objective = resolve_objective(objective_config, objective_preset)
     configs = load_datapack_configs(datapacks)
     spec = load_catalog().get(task)
     check_task_backend(spec, backend)
+    set_cpu_threads()
     extra: dict[str, Any] = {**selection_options(backend, until_deployable, select_every, select_episodes),
                              **init_policy_options(backend, init_policy, resume),
                              **({"resume": True} if resume else {}), **({"algorithm": algorithm} if algorithm else {})}
@@ -242,9 +242,9 @@ def evaluate_command(
     check_flags(episodes=episodes, seed=seed)
     check_output_dir("--output-dir", output_dir)
     check_output_file("--json", json_out)
-    set_cpu_threads()
     objective = resolve_objective(objective_config, objective_preset)
     configs = load_datapack_configs(datapacks)
+    set_cpu_threads()
     motor = make_backend(backend)
     announce_device(motor, "evaluating")
     with progress_bars() as progress:

@@ -43,9 +43,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
-from scipy.optimize import brentq
-from scipy.special import betaln
-from scipy.stats import beta
+from scipy.special import betaincinv, betaln  # (scipy.stats and .optimize take a second to import)
 
 from econmotor.config.acceptance import Acceptance
 from econmotor.config.task_economics import TaskEconomics
@@ -80,8 +78,8 @@ def clopper_pearson(errors: float, attempted: float, confidence: float = CONFIDE
     if n <= 0:
         return 0.0, 1.0
     k = min(max(k, 0.0), n)
-    lower = 0.0 if k <= 0 else float(beta.ppf(1.0 - confidence, k, n - k + 1.0))
-    upper = 1.0 if k >= n else float(beta.ppf(confidence, k + 1.0, n - k))
+    lower = 0.0 if k <= 0 else float(betaincinv(k, n - k + 1.0, 1.0 - confidence))  # Beta(k, n-k+1) quantile
+    upper = 1.0 if k >= n else float(betaincinv(k + 1.0, n - k, confidence))
     return lower, upper
 
 
@@ -121,6 +119,8 @@ def error_rate_sequence(errors: float, attempted: float, confidence: float = CON
     0 errors in 100 units at 95%, rate 0.05 (b = 79): ``1 - (0.05 (0.5 + 0.5 * 79/179))**0.01 = 0.0327``.
     Nothing attempted: ``(0, 1)``.
     """
+    from scipy.optimize import brentq  # here, not at the top: every CLI command imports this module
+
     k, n = float(errors), float(attempted)
     if n <= 0:
         return 0.0, 1.0

@@ -15,15 +15,25 @@ from __future__ import annotations
 import io
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 _BLUE, _ORANGE, _GREEN, _GREY = "#1f77b4", "#ff7f0e", "#2ca02c", "#7f7f7f"
 
 
+def _figure(width: float, height: float) -> Figure:
+    """A figure on no display; matplotlib is imported here, not with the module (every CLI command imports
+    the report renderer, and matplotlib takes most of a second to import)."""
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=(width, height))
+
+
 def _png(fig: Figure) -> bytes:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
     FigureCanvasAgg(fig)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
@@ -69,7 +79,7 @@ def episode_distributions(doc: dict[str, Any]) -> bytes | None:
     panels = [("mpl_units_per_hour", f"MPL ({unit} per hour)", _BLUE),
               ("energy_wh", "energy per episode (Wh)", _ORANGE),
               ("errors", "errors per episode", "#d62728")]
-    fig = Figure(figsize=(11, 3.2))
+    fig = _figure(11, 3.2)
     for i, (key, label, color) in enumerate(panels):
         ax = fig.add_subplot(1, 3, i + 1)
         values = _finite([ep.get(key) for ep in episodes])
@@ -87,7 +97,7 @@ def training_curve(doc: dict[str, Any]) -> bytes | None:
     curve = [p for p in doc.get("training_curve") or [] if p.get("mean_return") is not None]
     if not curve:
         return None
-    fig = Figure(figsize=(7, 3.2))
+    fig = _figure(7, 3.2)
     ax = fig.add_subplot(1, 1, 1)
     ax.plot([p["timesteps"] for p in curve], [p["mean_return"] for p in curve], marker="o", markersize=3,
             color=_BLUE)
@@ -117,7 +127,7 @@ def unit_costs(doc: dict[str, Any]) -> bytes | None:
     rec = doc.get("recommendation")
     if rec:
         bars.append(("recommended", rec.get("price_usd_per_unit"), None, "#17becf"))
-    fig = Figure(figsize=(6.5, 3.4))
+    fig = _figure(6.5, 3.4)
     ax = fig.add_subplot(1, 1, 1)
     drawn = [b for b in bars if b[1] is not None]
     for i, (_, value, band, color) in enumerate(drawn):
