@@ -176,10 +176,11 @@ class Selection:
         t0 = time.perf_counter()
         run = SequentialEvaluation(self.task, self.config.plan)
         rows = run.finish(evaluate(self.config.episodes, self.config.first_seed, run.stop))
-        # the deciding look judged exactly these episodes already: its judgement is the evaluation's
-        judged = run.judged if run.judged is not None and len(run.judged.summaries) == len(rows) else None
-        uncertainty, verdict, j_mean = (self._scored(judged) if judged is not None
-                                        else self.judge(rows, run.plan.look_confidence, sequential=True))
+        if run.judged is None:
+            raise ValueError(f"a held-out evaluation returned {len(rows)} episodes, fewer than its first look "
+                             f"({run.plan.looks[0]})")
+        # the deciding look judged exactly these episodes (the first decided_at): its judgement is the evaluation's
+        uncertainty, verdict, j_mean = self._scored(run.judged)
         errors, mpl = uncertainty.intervals["error_rate"], uncertainty.intervals["mpl_units_per_hour"]
         result = HeldOutResult(
             env_steps=int(env_steps), wall_s=round(time.perf_counter() - self.started, 3),

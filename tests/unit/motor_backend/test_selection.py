@@ -301,3 +301,83 @@ def test_the_wall_time_share_is_in_0_1_and_comes_from_the_backends_cadence_unles
     assert default.config.max_share is None and default.config.every_steps > 0
     exact = selection_for(TASK, OBJECTIVE, 2000, None, False, 0, cadence)
     assert (exact.config.every_steps, exact.config.max_share) == (2000, None)
+
+
+def test_judge_bounds_the_fall_rate_at_its_confidence_fixed_n_or_as_a_look_and_j_is_the_episodes_mean():
+    from econmotor.objectives.loader import objective_weights_vector
+    from econmotor.valuation.reward_builder import episode_j
+
+    sel, rows = selection(), SAFE[:64]  # 0 falls in 76.8 legs
+    fixed, at_90, look = sel.judge(rows), sel.judge(rows, 0.90), sel.judge(rows, sequential=True)
+    assert fixed[0].intervals["error_rate"].high == pytest.approx(1.0 - 0.05 ** (1.0 / 76.8))  # exact, 0.0383
+    assert at_90[0].intervals["error_rate"].high == pytest.approx(1.0 - 0.10 ** (1.0 / 76.8))
+    assert look[0].intervals["error_rate"].high == pytest.approx(0.04179, abs=1e-5)  # the confidence sequence
+    mixed = [*SAFE[:60], episode(2.0, False), episode(0.5, True), episode(1.0, False), episode(3.0, False)]
+    summaries = judge_raw(TASK, mixed).summaries
+    js = [episode_j(s, objective_weights_vector(OBJECTIVE), TASK.economics) for s in summaries]
+    assert len(set(js)) > 1 and sel.judge(mixed)[2] == pytest.approx(sum(js) / len(js))
+
+
+class FakeClock:
+    """``time`` as selection.py sees it: ``perf_counter`` reads ``now``, which a scripted evaluation moves."""
+
+    def __init__(self, now: float) -> None:
+        self.now = now
+
+    def perf_counter(self) -> float:
+        return self.now
+
+
+def test_wall_and_evaluation_seconds_come_from_the_clock_and_the_share_rule_is_inclusive(monkeypatch):
+    import econmotor.motor_backend.selection as selection_module
+
+    clock = FakeClock(100.0)
+    monkeypatch.setattr(selection_module, "time", clock)
+    sel = Selection(TASK, OBJECTIVE, SelectionConfig(every_steps=1000, episodes=160, max_share=0.5))
+    sel.started = 100.0  # the run's start (its default is read when the class is defined)
+    clock.now = 110.123456  # training until the first evaluation
+
+    def timed(rows):
+        def evaluate(num_episodes, first_seed, stop):
+            clock.now += 2.0  # the evaluation takes 2 s
+            return evaluation(rows)(num_episodes, first_seed, stop)
+        return evaluate
+
+    result, _ = sel.consider(1000, timed(FALLING))
+    assert (result.wall_s, result.eval_s) == (12.123, 2.0)  # rounded to ms, from the run's start / the evaluation's
+    ended = sel.started + result.wall_s
+    clock.now = ended + 2.0  # as long since the last evaluation as it took: exactly half the time at share 0.5
+    assert sel.due(2000, 1000) and sel.due(2000, 1000, now=ended + 2.0)
+    assert not sel.due(2000, 1000, now=ended + 1.999)
+    sel.consider(2000, timed(FALLING))
+    assert sel.record()["evaluation_cost"]["wall_s"] == 4.0
+
+
+def test_the_last_weights_are_evaluated_at_the_end_unless_just_evaluated_deployable_or_never_due():
+    sel = selection()
+    assert not sel.final_due(500, 0)  # shorter than one interval: nothing evaluated, the last weights kept
+    assert selection(until=True).final_due(500, 0)  # --until-deployable judges them anyway
+    sel.consider(1000, evaluation(FALLING))
+    assert sel.final_due(1500, 1000) and not sel.final_due(1000, 1000)  # not the weights just evaluated
+    until = selection(until=True)
+    until.consider(1000, evaluation(SAFE))
+    assert until.should_stop and not until.final_due(1500, 1000)  # stopped deployable: nothing left to judge
+
+
+def test_why_is_given_for_every_verdict_but_a_pass_and_a_full_evaluation_is_not_cut_short():
+    sel = selection()
+    passed, _ = sel.consider(1000, evaluation(SAFE))
+    failed, _ = sel.consider(2000, evaluation(FALLING))
+    ran_out, _ = sel.consider(3000, lambda n, seed, stop: SAFE[:40])
+    assert passed.outcome == "pass" and passed.why == "" and passed.reasons == ()
+    assert failed.outcome == "fail" and failed.why and failed.reasons
+    assert ran_out.outcome != "fail" and not ran_out.deployable and ran_out.why.startswith("stopped after 40")
+    # 48 fall-free legs at the first look: not enough to pass, but 16 more such episodes would be; at 32, 96 pass
+    full = Selection(TASK, OBJECTIVE, SelectionConfig(every_steps=1000, episodes=32)).consider(
+        1000, evaluation([episode(3.0, False) for _ in range(32)]))[0]
+    assert full.deployable and full.episodes == full.episodes_planned == 32 and not full.cut_short
+
+
+def test_an_evaluation_shorter_than_its_first_look_is_an_error_not_a_verdict():
+    with pytest.raises(ValueError, match="returned 0 episodes, fewer than its first look"):
+        selection().consider(1000, lambda n, seed, stop: SAFE[:10])
