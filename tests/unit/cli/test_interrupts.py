@@ -76,7 +76,6 @@ from econmotor.cli._interrupts import InterruptGuard, set_deadline_note
 
 guard = InterruptGuard(grace_s=1.0)
 set_deadline_note(lambda: "Resume with: econmotor train --resume")
-print("ready", flush=True)
 
 
 def busy():
@@ -87,8 +86,12 @@ def busy():
             pass
 
 
-while True:  # an interrupt redelivered between the inner try blocks (a loaded machine) is swallowed here
+said = False
+while True:  # an interrupt that lands between the inner try blocks (a loaded machine) is swallowed here
     try:
+        if not said:  # "ready" inside the try: the test's SIGTERM can arrive before print returns
+            print("ready", flush=True)
+            said = True
         busy()
     except KeyboardInterrupt:
         pass
