@@ -26,6 +26,7 @@ from econmotor.economics.uncertainty import (
     look_outcome,
     percent,
 )
+from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import summarize_episodes
 from econmotor.tasks import get_task
 
@@ -256,3 +257,75 @@ def test_given_attempts_and_a_quarter_hour_are_pooled_as_given():
     assert unc.evidence.units_attempted == 15.0
     assert unc.intervals["energy_kwh_per_hour"].high == pytest.approx(0.2)
     assert unc.intervals["mpl_units_per_hour"].high == pytest.approx(40.0)
+
+
+def test_every_check_is_recorded_with_its_figures_and_bounds_at_the_limits_pass():
+    # one unit completed (enough to have worked); the fall rate's bound exactly at the limit, given at its own
+    # confidence (a confidence sequence's); the throughput's lower bound exactly at the minimum
+    intervals = {"error_rate": Interval(0.0, 0.0, 0.05, "a sequence", confidence=0.9),
+                 "mpl_units_per_hour": Interval(150.0, 100.0, 200.0, "given")}
+    unc = Uncertainty(0.95, Evidence(4, 1.0, 1.0, 0.0, 0, 1.0), intervals, NOTHING, 0, 0)
+    verdict = decide(HOPPER, unc, 0.002, "leg")
+    assert verdict.deployable and verdict.reasons == ()
+    assert verdict.checks == (
+        {"name": "completes work", "measured": 1.0, "limit": 0.0, "passed": True,
+         "text": "1 units (leg) completed in 4 episodes"},
+        {"name": "error rate", "measured": 0.0, "bound": 0.05, "limit": 0.05, "passed": True,
+         "text": "falls in none of 4 episodes (0 in 1 attempted); 90% upper bound on the fall rate 0.05 vs 0.05 "
+                 "accepted (0.002 for a human)"},
+        {"name": "throughput", "measured": 150.0, "bound": 100.0, "limit": 100.0, "passed": True,
+         "text": "95% lower bound on throughput 100 units/h vs at least 100 required"})
+
+
+def test_a_plan_refuses_what_cannot_run_naming_the_flag_and_what_is_allowed():
+    with pytest.raises(ConfigError) as caught:
+        SequentialPlan(batch=0)
+    assert (caught.value.source, caught.value.key) == ("<sequential evaluation>", "batch")
+    assert "must be >= 1, got 0" in str(caught.value)
+    assert SequentialPlan(batch=1, max_episodes=1).looks == (1,)  # a batch of one episode is a plan
+    with pytest.raises(ConfigError) as caught:
+        SequentialPlan(batch=16, max_episodes=15)
+    assert (caught.value.source, caught.value.key, caught.value.allowed) == ("--eval-max-episodes", None, "16 or more")
+    assert "15 is below one evaluation batch (16 episodes)" in str(caught.value)
+    for bad in (0.0, -1.0, math.inf, math.nan):
+        with pytest.raises(ConfigError) as caught:
+            SequentialPlan(batch=16, max_wall_s=bad)
+        assert (caught.value.source, caught.value.key) == ("--eval-max-seconds", None)
+        assert f"must be a positive number of seconds, got {bad}" in str(caught.value)
+    assert SequentialPlan(batch=16, max_wall_s=0.5).max_wall_s == 0.5  # any positive time, under a second too
+
+
+def test_a_look_bounds_the_error_rate_by_its_sequence_at_the_rules_limit_and_a_report_by_the_exact_bound():
+    from econmotor.economics.uncertainty import ERROR_SEQUENCE_METHOD, error_rate_sequence
+
+    task = get_task("hopper_courier")
+    eps = [{"units_completed": 10.0, "errors": 1.0 if i == 0 else 0.0, "episode_length_s": 8.0, "energy_wh": 0.05}
+           for i in range(8)]  # 1 error in 81 attempted
+    point = price_task(task.economics, 4500.0, 1 / 81, 0.0225)
+    strict = Acceptance(max_error_rate=0.01, min_units_per_hour=100.0, error_name="fall")
+    fixed, _ = judge(task.economics, strict, "leg", eps, point)  # a report's judgement: the exact bound
+    assert fixed.intervals["error_rate"] == Interval(1 / 81, *clopper_pearson(1, 81), "Clopper-Pearson exact binomial")
+    look, verdict = judge(task.economics, strict, "leg", eps, point, confidence=0.99, sequential=True)
+    assert look.intervals["error_rate"] == Interval(1 / 81, *error_rate_sequence(1, 81, 0.95, 0.01),
+                                                    ERROR_SEQUENCE_METHOD, 0.95)
+    assert look.intervals["error_rate"] != Interval(1 / 81, *error_rate_sequence(1, 81, 0.95), ERROR_SEQUENCE_METHOD,
+                                                    0.95)  # the sequence is built for the rule's own limit
+    assert look.confidence == 0.99 and "95% upper bound on the fall rate" in verdict.checks[1]["text"]
+
+
+def test_a_certain_failure_is_a_bound_strictly_outside_its_limit_and_an_open_look_gives_every_reason():
+    at_limit = {"error_rate": Interval(0.1, 0.05, 0.2, "a sequence", confidence=0.9),
+                "mpl_units_per_hour": Interval(100.0, 50.0, 100.0, "given")}
+    unc = Uncertainty(0.95, Evidence(4, 20.0, 18.0, 2.0, 2, 1.0), at_limit, NOTHING, 0, 0)
+    verdict = decide(HOPPER, unc, 0.002, "leg")
+    assert len(verdict.reasons) == 2  # both bounds on the wrong side of their limits, neither certainly
+    assert look_outcome(HOPPER, unc, verdict) == (CONTINUE, "; ".join(verdict.reasons))
+    above = dict(at_limit, error_rate=Interval(0.1, 0.0501, 0.2, "a sequence", confidence=0.9))
+    unc = Uncertainty(0.95, Evidence(4, 20.0, 18.0, 2.0, 2, 1.0), above, NOTHING, 0, 0)
+    assert look_outcome(HOPPER, unc, decide(HOPPER, unc, 0.002, "leg")) == (
+        FAIL, "the fall rate is above 0.05 (90% lower bound 0.0501)")
+    one = Acceptance(max_error_rate=0.05, min_units_per_hour=1.0, error_name="fall")
+    slow = dict(at_limit, error_rate=Interval(0.0, 0.0, 0.01, "exact"), mpl_units_per_hour=Interval(0.5, 0.2, 0.9, "g"))
+    unc = Uncertainty(0.95, Evidence(4, 20.0, 20.0, 0.0, 0, 1.0), slow, NOTHING, 0, 0)
+    assert look_outcome(one, unc, decide(one, unc, 0.002, "leg")) == (
+        FAIL, "throughput is below 1 units/h (95% upper bound 0.9)")
