@@ -135,3 +135,40 @@ def test_the_sequence_bounds_every_count_a_look_can_meet():
         for n in (k + 0.001, k + 0.4, k + 3.0, k + 50.0, k + 5000.0):
             low, high = error_rate_sequence(k, n, 0.95, 0.05)
             assert 0.0 <= low <= k / n <= high <= 1.0
+
+
+def mixture_bounds(k: float, n: float, rate: float, confidence: float = 0.95) -> tuple[float, float]:
+    """The confidence sequence's ends computed from its definition, by numerical integration rather than the
+    closed form: a rate p is excluded once the mixture of likelihood ratios, the integral of
+    q^k (1-q)^(n-k) / (p^k (1-p)^(n-k)) over the mixing distribution of q, reaches 1 / alpha. The upper end's
+    mixture: half on q = 0 (which adds nothing once k > 0), half Beta(1, b) with mean rate / 4; the lower
+    end's: Beta(1, b) with mean 4 rate (at most 1/2)."""
+    from scipy.integrate import quad
+    from scipy.optimize import brentq
+    from scipy.stats import beta
+
+    def log_mixture(b: float, weight: float) -> float:
+        peak = k / n  # integrate q^k (1-q)^(n-k) scaled by its maximum, so the integrand is at most 1
+        log_peak = k * np.log(peak) + (n - k) * np.log1p(-peak)
+        integrand = lambda q: np.exp(k * np.log(q) + (n - k) * np.log1p(-q) - log_peak) * beta.pdf(q, 1.0, b)
+        value, _ = quad(integrand, 0.0, 1.0, points=[peak], limit=200, epsabs=0.0, epsrel=1e-10)
+        return np.log(weight * value) + log_peak
+
+    def excluded(log_mix: float):
+        return lambda p: log_mix - (k * np.log(p) + (n - k) * np.log1p(-p)) - np.log(1.0 / (1.0 - confidence))
+
+    up = excluded(log_mixture(1.0 / (rate / 4.0) - 1.0, 0.5))
+    low = excluded(log_mixture(1.0 / min(4 * rate, 0.5) - 1.0, 1.0))
+    return brentq(low, 1e-12, k / n, xtol=1e-14), brentq(up, k / n, 1.0 - 1e-12, xtol=1e-14)
+
+
+@pytest.mark.parametrize(("k", "n", "rate"), [(1, 81, 0.05), (3, 120, 0.05), (2, 500, 0.01), (30, 100, 0.05)])
+def test_the_sequence_is_the_mixture_it_is_defined_by(k, n, rate):
+    assert error_rate_sequence(k, n, 0.95, rate) == pytest.approx(mixture_bounds(k, n, rate), rel=1e-6)
+    assert error_rate_sequence(k, n) == error_rate_sequence(k, n, 0.95, 0.05)  # the default rate: 0.05
+
+
+def test_one_clean_unit_bounds_the_rate_below_one():
+    assert 0.0 == error_rate_sequence(0, 1)[0] and error_rate_sequence(0, 1)[1] < 1.0
+    assert clopper_pearson(0, 1) == (0.0, pytest.approx(0.95))
+    assert clopper_pearson(1, 10)[0] == pytest.approx(1.0 - 0.95 ** 0.1)  # one error: Beta(1, 10)'s 5% quantile
