@@ -130,3 +130,10 @@ def test_a_bad_raw_metric_is_refused_naming_its_source_key_and_what_is_allowed(r
 def test_time_from_steps_is_steps_times_dt_and_one_unit_has_its_own_energy():
     m = METER.summarize({"units_completed": 1, "steps": 1800, "dt_s": 0.5, "energy_wh": 30})
     assert m["hours"] == 0.25 and m["energy_wh_per_unit"] == 30.0
+
+
+def test_a_bad_value_names_raw_metrics_when_the_caller_names_no_source():
+    with pytest.raises(ConfigError, match=r"^raw_metrics: key 'units_completed': expected a number, got str"):
+        read_raw({"units_completed": "many"}, "units_completed")
+    with pytest.raises(ConfigError, match=r"^raw_metrics: key 'energy_wh': must not be negative"):
+        METER.summarize({"units_completed": 1.0, "episode_length_s": 10.0, "energy_wh": -1.0})

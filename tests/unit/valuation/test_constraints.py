@@ -169,3 +169,12 @@ def test_an_object_summary_without_a_per_unit_energy_is_infinitely_far_from_the_
         wage_parity = 1.0
 
     assert ConstraintSet(max_energy_Wh=5.0).energy_value(Summary()) == math.inf
+
+
+def test_a_bad_constraint_set_names_its_source_or_constraints_by_default():
+    from econmotor.valuation.constraints import parse_constraint_set
+
+    with pytest.raises(ConfigError, match=r"^<constraints>: key 'max_error_rate'"):
+        parse_constraint_set({"max_error_rate": 2.0})
+    with pytest.raises(ConfigError, match=r"^sets\.yaml: key 'strict\.max_error_rate'"):
+        parse_constraint_set({"max_error_rate": -0.1}, "sets.yaml", prefix="strict")
