@@ -162,7 +162,8 @@ def mixture_bounds(k: float, n: float, rate: float, confidence: float = 0.95) ->
     return brentq(low, 1e-12, k / n, xtol=1e-14), brentq(up, k / n, 1.0 - 1e-12, xtol=1e-14)
 
 
-@pytest.mark.parametrize(("k", "n", "rate"), [(1, 81, 0.05), (3, 120, 0.05), (2, 500, 0.01), (30, 100, 0.05)])
+@pytest.mark.parametrize(("k", "n", "rate"),
+                         [(1, 81, 0.05), (3, 120, 0.05), (2, 500, 0.01), (30, 100, 0.05), (10, 40, 0.2)])
 def test_the_sequence_is_the_mixture_it_is_defined_by(k, n, rate):
     assert error_rate_sequence(k, n, 0.95, rate) == pytest.approx(mixture_bounds(k, n, rate), rel=1e-6)
     assert error_rate_sequence(k, n) == error_rate_sequence(k, n, 0.95, 0.05)  # the default rate: 0.05
