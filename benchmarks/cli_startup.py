@@ -11,8 +11,9 @@ alternating, each in a fresh interpreter:
 
 Run: ``.venv/bin/python benchmarks/cli_startup.py [--repeats 7]``. It prints the median wall seconds of
 each and the ratio lazy / eager for ``--help``.
-Measured on the project's 2-core machine (one core busy with a mutation run): median ``--help``
-1.27 s lazy against 2.85 s eager (ratio 0.45); the bad task id in 1.30 s.
+Measured on the project's 2 idle cores, 7 runs each: median ``--help`` 1.32 s lazy against 2.73 s
+with the eager imports (ratio 0.48); the bad task id in 1.62 s (before this change, with torch also
+imported before the flags were checked, about 7 s on a loaded machine).
 """
 
 from __future__ import annotations
