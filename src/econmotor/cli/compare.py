@@ -4,10 +4,11 @@ Every policy is evaluated by the same backend with the same request: the same se
 (episode ``i`` seeded ``seed + REPORT_EVAL_SEED_OFFSET + i``), course, commanded speed and
 datapack conditions. Each evaluation run is recorded and gets its usual report; then a
 table and a plot (``compare.md``, ``compare.json``, ``compare.png`` in ``--output-dir``)
-rank them by price per unit (lowest first, deployable policies ahead of the rest), with units per
-hour, Wh per unit and the fall-rate bound, and say whether the winner's price interval clears the
-runner-up's. Only a deployable policy can win: one that is not gets no recommended price, so when
-none is deployable there is no winner.
+rank deployable policies by price per unit (lowest first) and the refused ones after them by their
+fall-rate bound (lowest first), with units per hour, Wh per unit and the fall-rate bound, and say
+whether the winner's price interval clears the runner-up's. The plot marks refused policies and draws
+the acceptance limit on the fall-rate panel. Only a deployable policy can win: one that is not gets no
+recommended price, so when none is deployable there is no winner.
 """
 
 from __future__ import annotations
@@ -73,12 +74,13 @@ def comparison_row(policy_id: str, doc: dict[str, Any]) -> dict[str, Any]:
 def rank(rows: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], str]:
     """Rows in rank order and the verdict in words.
 
-    Deployable policies rank first, each group by price per unit (lowest first; a policy without a
-    finite price last). Only a deployable policy can win: a not-deployable one gets no recommended
-    price (its figures are diagnostics), so with none deployable there is no winner."""
+    Deployable policies rank first, by price per unit (lowest first; a policy without a finite price last). The
+    others follow by their fall-rate upper bound (lowest first; without one last), never by a price: they are
+    refused one, so their prices are diagnostics. Only a deployable policy can win, so with none deployable there
+    is no winner."""
     def key(r: dict[str, Any]) -> tuple[bool, float, float]:
-        price = r["price_usd_per_unit"]
-        return (not r["deployable"], price if price is not None else float("inf"), -(r["units_per_hour"] or 0.0))
+        figure = r["price_usd_per_unit"] if r["deployable"] else r["fall_rate_bound"]
+        return (not r["deployable"], figure if figure is not None else float("inf"), -(r["units_per_hour"] or 0.0))
 
     ranked = sorted(rows, key=key)
     eligible = [r for r in ranked if r["deployable"]]
@@ -141,11 +143,7 @@ def comparison_table(ranked: list[dict[str, Any]], title: str, out: Console) -> 
 
 
 def write_comparison(ranked: list[dict[str, Any]], summary: str, out_dir: Path, context: dict[str, Any]) -> list[Path]:
-    """``compare.json``, ``compare.md`` and ``compare.png`` (price per unit with its interval, units/h,
-    Wh/unit and the fall-rate bound per policy, in rank order)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
+    """``compare.json``, ``compare.md`` and ``compare.png`` (:func:`comparison_figure`)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / "compare.json").write_text(json.dumps({"context": context, "ranking": ranked, "summary": summary},
                                                      indent=2, default=str), encoding="utf-8")
@@ -155,27 +153,54 @@ def write_comparison(ranked: list[dict[str, Any]], summary: str, out_dir: Path, 
              "", "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
     lines += ["| " + " | ".join(_cells(r)) + " |" for r in ranked]
     (out_dir / "compare.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    comparison_figure(ranked, context.get("fall_rate_limit")).savefig(out_dir / "compare.png", dpi=100)
+    return [out_dir / "compare.json", out_dir / "compare.md", out_dir / "compare.png"]
+
+
+#: how a refused (not deployable) policy's bars look in ``compare.png``
+REFUSED_BAR = {"facecolor": "lightgrey", "edgecolor": "dimgray", "hatch": "//"}
+PANELS = (("price_usd_per_unit", "price per unit (USD)"), ("units_per_hour", "units per hour"),
+          ("wh_per_unit", "Wh per unit"), ("fall_rate_bound", "fall-rate bound (95%)"))
+
+
+def comparison_figure(ranked: list[dict[str, Any]], fall_rate_limit: float | None = None) -> Any:
+    """The comparison plot (a matplotlib Figure): price per unit with its interval, units/h, Wh/unit and the
+    fall-rate bound per policy, in rank order. A refused (not deployable) policy's bars are grey and hatched and
+    its price is labelled "refused"; the fall-rate panel draws the acceptance limit ``fall_rate_limit``."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(12, 3.2))
     FigureCanvasAgg(fig)
     names = [r["policy"].split(":", 1)[-1] for r in ranked]  # a shipped name without its backend prefix
-    panels = (("price_usd_per_unit", "price per unit (USD)"), ("units_per_hour", "units per hour"),
-              ("wh_per_unit", "Wh per unit"), ("fall_rate_bound", "fall-rate bound (95%)"))
-    for i, (key, label) in enumerate(panels):
+    for i, (key, label) in enumerate(PANELS):
         ax = fig.add_subplot(1, 4, i + 1)
         values = [r[key] if r[key] is not None else 0.0 for r in ranked]
-        if key == "price_usd_per_unit":
-            lows = [r["price_low"] if r["price_low"] is not None else v for v, r in zip(values, ranked, strict=True)]
-            highs = [r["price_high"] if r["price_high"] is not None else v for v, r in zip(values, ranked, strict=True)]
-            err = [[max(v - lo, 0.0) for v, lo in zip(values, lows, strict=True)],
-                   [max(hi - v, 0.0) for v, hi in zip(values, highs, strict=True)]]
-            ax.bar(names, values, yerr=err, capsize=4, color="tab:blue")
-        else:
-            ax.bar(names, values, color="tab:gray")
+        bars = ax.bar(names, values, color="tab:blue" if key == "price_usd_per_unit" else "tab:gray",
+                      **({"yerr": _price_errors(ranked, values), "capsize": 4} if key == "price_usd_per_unit" else {}))
+        for bar, row in zip(bars, ranked, strict=True):
+            if not row["deployable"]:
+                bar.set(**REFUSED_BAR)
+                if key == "price_usd_per_unit":  # a price it may not charge; the label above its interval
+                    top = max(bar.get_height(), row["price_high"] or 0.0)
+                    ax.annotate("refused", (bar.get_x() + bar.get_width() / 2, top), ha="center", va="bottom",
+                                fontsize=7, color="dimgray", xytext=(0, 4), textcoords="offset points")
+        if key == "fall_rate_bound" and fall_rate_limit is not None:
+            ax.axhline(fall_rate_limit, color="tab:red", linestyle="--", linewidth=1,
+                       label=f"acceptance limit {fmt(fall_rate_limit)}")
+            ax.legend(fontsize=7)
         ax.set_title(label, fontsize=9)
         ax.tick_params(axis="x", labelrotation=45, labelsize=7)
     fig.tight_layout()
-    fig.savefig(out_dir / "compare.png", dpi=100)
-    return [out_dir / "compare.json", out_dir / "compare.md", out_dir / "compare.png"]
+    return fig
+
+
+def _price_errors(ranked: list[dict[str, Any]], values: list[float]) -> list[list[float]]:
+    """Error bars of the price panel: each 90% interval around its point (none where it is unknown)."""
+    lows = [r["price_low"] if r["price_low"] is not None else v for v, r in zip(values, ranked, strict=True)]
+    highs = [r["price_high"] if r["price_high"] is not None else v for v, r in zip(values, ranked, strict=True)]
+    return [[max(v - lo, 0.0) for v, lo in zip(values, lows, strict=True)],
+            [max(hi - v, 0.0) for v, hi in zip(values, highs, strict=True)]]
 
 
 def check_policies(policies: list[str]) -> None:
@@ -260,7 +285,8 @@ def compare_command(
     seeds = f"{first}-{first + max(counts) - 1}"
     files = write_comparison(ranked, summary, out_dir, {"task_id": task_id, "seeds": seeds,
                                                          "datapacks": [p.id for p in packs],
-                                                         "commanded_speed_m_per_s": command_speed})
+                                                         "commanded_speed_m_per_s": command_speed,
+                                                         "fall_rate_limit": task.acceptance.max_error_rate})
     each = f"{eval_episodes} episodes each" if eval_episodes else \
         f"sequential evaluations ({', '.join(map(str, counts))} episodes, until each verdict was decided)"
     show_comparison(ranked, summary, files, f"{task_id}: {len(ranked)} policies, {each}, seeds {seeds}")

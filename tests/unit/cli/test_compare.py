@@ -1,15 +1,16 @@
-"""``econmotor compare``'s ranking: deployable policies first, lowest price per unit first, whether the intervals
-separate the two, and no winner among policies that are not deployable."""
+"""``econmotor compare``'s ranking: deployable policies first, lowest price per unit first, the refused ones after
+them by their fall-rate bound (never by the price they are refused), whether the intervals separate the two, no
+winner among policies that are not deployable; and its plot, which marks refused policies and draws the limit."""
 
 from __future__ import annotations
 
-from econmotor.cli.compare import rank
+from econmotor.cli.compare import comparison_figure, rank
 
 
 def _row(policy: str, price: float | None, low: float | None, high: float | None, units: float = 100.0,
-         deployable: bool = True) -> dict:
+         deployable: bool = True, bound: float | None = None) -> dict:
     return {"policy": policy, "price_usd_per_unit": price, "price_low": low, "price_high": high,
-            "units_per_hour": units, "deployable": deployable,
+            "units_per_hour": units, "deployable": deployable, "fall_rate_bound": bound, "wh_per_unit": 1.0,
             "charge_usd_per_unit": high if deployable else None}  # a report charges the cautious end
 
 
@@ -36,8 +37,8 @@ def test_a_policy_without_a_finite_price_ranks_last() -> None:
 
 def test_no_winner_when_no_policy_is_deployable() -> None:
     # the walkthrough's case: both not deployable, separated intervals; the old summary named a priced winner
-    ranked, summary = rank([_row("holosoma:g1_29dof/ppo", 0.1206, 0.1187, 0.1225, deployable=False),
-                            _row("holosoma:g1_29dof/fastsac", 0.1157, 0.1154, 0.1159, deployable=False)])
+    ranked, summary = rank([_row("holosoma:g1_29dof/ppo", 0.1206, 0.1187, 0.1225, deployable=False, bound=0.26),
+                            _row("holosoma:g1_29dof/fastsac", 0.1157, 0.1154, 0.1159, deployable=False, bound=0.22)])
     assert [r["policy"] for r in ranked] == ["holosoma:g1_29dof/fastsac", "holosoma:g1_29dof/ppo"]
     assert summary.startswith("no winner: none of the 2 policies is deployable")
     assert "winner:" not in summary.removeprefix("no winner:") and "USD/unit" not in summary
@@ -65,3 +66,31 @@ def test_only_deployable_policies_are_compared_for_the_win() -> None:
     assert summary.startswith("winner: a, charging 0.11 USD/unit (its report's price; point estimate 0.1); "
                               "the difference is larger than the intervals")
     assert "below b's" in summary and summary.endswith("not deployable, so not in the running: cheap")
+
+
+def test_refused_policies_rank_after_the_deployable_by_their_fall_rate_bound_not_their_price() -> None:
+    """The README's case: a G1 that fell in 20 of 20 episodes ranked first by a price it is refused."""
+    ranked, summary = rank([_row("fell_every_time", 0.05, 0.04, 0.06, deployable=False, bound=1.0),
+                            _row("falls_now_and_then", 0.3, 0.29, 0.31, deployable=False, bound=0.09),
+                            _row("safe", 0.2, 0.19, 0.21, bound=0.03)])
+    assert [r["policy"] for r in ranked] == ["safe", "falls_now_and_then", "fell_every_time"]
+    assert summary.startswith("winner: safe")
+    none_deployable, _ = rank([_row("fell_every_time", 0.05, 0.04, 0.06, deployable=False, bound=1.0),
+                               _row("unknown", 0.01, 0.01, 0.01, deployable=False),
+                               _row("falls_now_and_then", 0.3, 0.29, 0.31, deployable=False, bound=0.09)])
+    # the lowest bound first; a policy without one (nothing attempted) last
+    assert [r["policy"] for r in none_deployable] == ["falls_now_and_then", "fell_every_time", "unknown"]
+
+
+def test_the_plot_marks_refused_policies_and_draws_the_acceptance_limit_on_the_fall_rate_panel() -> None:
+    ranked, _ = rank([_row("safe", 0.2, 0.19, 0.21, bound=0.03),
+                      _row("fell_every_time", 0.05, 0.04, 0.06, deployable=False, bound=1.0)])
+    fig = comparison_figure(ranked, fall_rate_limit=0.05)
+    price, *_, falls = fig.axes
+    for ax in fig.axes:  # every panel: the refused bar hatched and grey, the deployable one plain
+        safe_bar, refused_bar = ax.patches[:2]
+        assert not safe_bar.get_hatch() and refused_bar.get_hatch()
+        assert refused_bar.get_facecolor() != safe_bar.get_facecolor()
+    assert [t.get_text() for t in price.texts] == ["refused"]  # its price is not one it may charge
+    limits = [line for line in falls.get_lines() if list(line.get_ydata()) == [0.05, 0.05]]
+    assert len(limits) == 1 and "0.05" in limits[0].get_label()
