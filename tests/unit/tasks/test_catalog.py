@@ -83,3 +83,28 @@ def test_shipped_example_user_file_loads():
     path = Path(__file__).parents[3] / "configs" / "tasks" / "example_user_tasks.yaml"
     spec = load_catalog([path]).get("dishwashing_hotel_eu")
     assert spec.economics.value_per_unit == pytest.approx(24.0 / 70.0)
+
+
+LOCOMOTION = sorted(spec.task_id for spec in load_catalog() if "locomotion" in spec.tags)
+
+
+@pytest.mark.parametrize("task_id", LOCOMOTION)
+def test_a_locomotion_task_calls_its_errors_falls(task_id):
+    """The report's sentences come from the task's own ``error_name``: the hopper's and the G1's alike."""
+    assert get_task(task_id).acceptance.error_name == "fall"
+
+
+def test_the_g1_report_says_falls_and_keeps_the_humans_rate_as_its_limit():
+    from econmotor.economics.pricing import price_task
+    from econmotor.economics.uncertainty import judge
+
+    task = get_task("humanoid_locomotion_g1")
+    assert {"humanoid_locomotion_g1", "humanoid_locomotion_t1", "hopper_courier"} <= set(LOCOMOTION)
+    assert task.acceptance.max_error_rate == task.economics.error_rate_human == 0.01  # the default rule
+    assert task.acceptance.sources["max_error_rate"] == "default: the human's error rate (error_rate_human)"
+    episodes = [{"units_completed": 3.0, "errors": 0.0, "episode_length_s": 120.0, "energy_wh": 4.0}] * 120
+    point = price_task(task.economics, 90.0, 0.0, 0.12)
+    _, verdict = judge(task.economics, task.acceptance, task.unit, episodes, point)
+    text = verdict.checks[1]["text"]
+    assert text.startswith("falls in none of 120 episodes (0 in 360 attempted); 95% upper bound on the fall rate")
+    assert "error" not in text
