@@ -40,7 +40,7 @@ def main() -> None:
     import numpy as np
 
     from econmotor.motor_backend.holosoma import sim2sim as s
-    from econmotor.motor_backend.holosoma.policy_import import resolve_contract
+    from econmotor.couriers.policy_import import resolve_contract
 
     contract = resolve_contract(args.policy)
     robot = s.build_robot(contract)

@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from econmotor.couriers.datapack_mapping import map_datapacks, validate_motion_npz
+from econmotor.couriers.walker_task import meter_settings
 from econmotor.economics import courier_formulas as cf
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.datapacks import (
@@ -22,7 +24,6 @@ from econmotor.motor_backend.datapacks import (
     parse_datapack,
 )
 from econmotor.motor_backend.holosoma import backend as holosoma_backend
-from econmotor.motor_backend.holosoma.datapack_mapping import map_datapacks, validate_motion_npz
 from econmotor.motor_backend.holosoma.econ_formulas import (
     base_tilt_rad,
     commanded_progress_m_per_s,
@@ -30,7 +31,7 @@ from econmotor.motor_backend.holosoma.econ_formulas import (
     overlay_term_rates,
 )
 from econmotor.motor_backend.holosoma.jobs import holosoma_error_text
-from econmotor.motor_backend.holosoma.plan import Capabilities, choose_simulator, meter_settings, plan_training
+from econmotor.motor_backend.holosoma.plan import Capabilities, choose_simulator, plan_training
 from econmotor.motor_backend.holosoma.protocol import PREFIX, parse_line
 from econmotor.motor_backend.holosoma.recording_metrics import episodes_from_recording
 from econmotor.robots import card

@@ -30,7 +30,7 @@ INDEPENDENT = r"""
 import json, sys
 import numpy as np
 from econmotor.motor_backend.holosoma import sim2sim as s
-from econmotor.motor_backend.holosoma.policy_import import resolve_contract
+from econmotor.couriers.policy_import import resolve_contract
 
 out = {}
 for name in sys.argv[1:]:

@@ -18,9 +18,9 @@ import jax
 import numpy as np
 import pytest
 
+from econmotor.couriers.policy_import import holosoma_export_metadata, shipped_policy_path
 from econmotor.motor_backend.holosoma.backend import find_holosoma_python
 from econmotor.motor_backend.holosoma.jobs import job_environment
-from econmotor.motor_backend.holosoma.policy_import import holosoma_export_metadata, shipped_policy_path
 from econmotor.motor_backend.mjx import ppo
 from econmotor.motor_backend.mjx.export import export_onnx
 from econmotor.motor_backend.mjx.onnx_import import read_actor
@@ -34,7 +34,7 @@ LOAD = r"""
 import json, sys
 import numpy as np
 from holosoma_inference.policies.locomotion import LocomotionPolicy
-from econmotor.motor_backend.holosoma.policy_import import resolve_contract
+from econmotor.couriers.policy_import import resolve_contract
 
 out = {}
 for name, path in (("ours", sys.argv[1]), ("shipped", sys.argv[2])):

@@ -16,9 +16,9 @@ import onnx
 import pytest
 
 from econmotor.cli import main
+from econmotor.couriers.policy_import import shipped_policy_path
 from econmotor.motor_backend.holosoma.backend import find_holosoma_python
 from econmotor.motor_backend.holosoma.jobs import job_environment
-from econmotor.motor_backend.holosoma.policy_import import shipped_policy_path
 
 pytestmark = [pytest.mark.holosoma]
 REPO = Path(__file__).resolve().parents[2]
@@ -56,7 +56,7 @@ CASES = {"no-kp": (drop_kp, "metadata", "lacks Holosoma export metadata ['kp']")
 RESOLVE = r"""
 import sys
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.holosoma.policy_import import resolve_contract
+from econmotor.couriers.policy_import import resolve_contract
 
 for path in sys.argv[1:]:
     try:

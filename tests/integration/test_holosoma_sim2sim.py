@@ -17,10 +17,10 @@ from pathlib import Path
 
 import pytest
 
+from econmotor.couriers.policy_import import PolicyContract, check_obs_size, robot_card_for
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.holosoma.backend import HolosomaBackend, find_holosoma_python
 from econmotor.motor_backend.holosoma.jobs import job_environment
-from econmotor.motor_backend.holosoma.policy_import import PolicyContract, check_obs_size, robot_card_for
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.robots import card
 
@@ -37,9 +37,9 @@ import numpy as np
 from holosoma_inference.config.config_values.inference import INFERENCE_REGISTRY
 from holosoma_inference.policies.locomotion import LocomotionPolicy
 from econmotor.economics import courier_formulas as cf
-from econmotor.motor_backend.couriers.physics import root_tilt_rad
+from econmotor.couriers.physics import root_tilt_rad
 from econmotor.motor_backend.holosoma import sim2sim as s
-from econmotor.motor_backend.holosoma.policy_import import resolve_contract
+from econmotor.couriers.policy_import import resolve_contract
 
 out = {}
 for name in sys.argv[1:]:
@@ -199,7 +199,7 @@ def test_onnx_whose_joints_fit_no_robot_is_a_clear_error(backend: HolosomaBacken
                                                           tmp_path: Path) -> None:
     """Joint names renamed in a shipped policy's metadata: the error names the policy's joints and the presets'."""
     onnx_file = tmp_path / "renamed.onnx"
-    script = ("import json, sys, onnx; from econmotor.motor_backend.holosoma.policy_import import shipped_policy_path\n"
+    script = ("import json, sys, onnx; from econmotor.couriers.policy_import import shipped_policy_path\n"
               "m = onnx.load(str(shipped_policy_path('holosoma:g1_29dof/ppo')))\n"
               "for p in m.metadata_props:\n"
               "    if p.key == 'dof_names': p.value = json.dumps(['knee_x'] + json.loads(p.value)[1:])\n"
@@ -251,7 +251,7 @@ def test_onnx_with_the_wrong_observation_width_is_a_clear_error(backend: Holosom
     """A policy taking 50 observations with G1's metadata: the error names its width and the card's 100."""
     onnx_file = tmp_path / "narrow.onnx"
     script = ("import sys, onnx\nfrom onnx import TensorProto, helper\n"
-              "from econmotor.motor_backend.holosoma.policy_import import shipped_policy_path\n"
+              "from econmotor.couriers.policy_import import shipped_policy_path\n"
               "shipped = onnx.load(str(shipped_policy_path('holosoma:g1_29dof/ppo')))\n"
               "w = helper.make_tensor('w', TensorProto.FLOAT, [50, 29], [0.0] * (50 * 29))\n"
               "graph = helper.make_graph([helper.make_node('MatMul', ['actor_obs', 'w'], ['action'])], 'narrow',\n"

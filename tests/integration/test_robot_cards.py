@@ -41,7 +41,7 @@ from holosoma_inference.config.config_values.inference import INFERENCE_REGISTRY
 from holosoma_inference.policies.locomotion import LocomotionPolicy
 import importlib
 from pathlib import Path
-from econmotor.motor_backend.holosoma.policy_import import onnx_metadata, shipped_policy_path
+from econmotor.couriers.policy_import import onnx_metadata, shipped_policy_path
 from econmotor.robots import CARDS
 from econmotor.robots.model import joint_indices, load_model, mjcf_path
 

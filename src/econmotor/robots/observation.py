@@ -1,7 +1,8 @@
 """The policy's observation, holosoma_inference's convention, written once for NumPy and JAX.
 
 Every function takes ``xp``, the array namespace (``numpy`` on the host, ``jax.numpy`` inside a
-jitted, vmapped step) and works on one robot's arrays (1-D). The terms
+jitted, vmapped step) and works on one robot's arrays (1-D) or a batch of robots (``[N, ...]``:
+every function reads and writes the last axis). The terms
 (holosoma_inference's ``get_current_obs_buffer_dict``):
 
 - ``base_ang_vel``: the root's angular velocity in its own frame (MuJoCo's ``qvel[3:6]``),
@@ -25,8 +26,8 @@ from econmotor.robots.card import RobotCard
 
 def projected_gravity(quat_wxyz: Any, xp: Any) -> Any:
     """Gravity's direction in the body frame: minus the third row of the body-to-world rotation."""
-    w, x, y, z = quat_wxyz[0], quat_wxyz[1], quat_wxyz[2], quat_wxyz[3]
-    return -xp.stack([2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)])
+    w, x, y, z = quat_wxyz[..., 0], quat_wxyz[..., 1], quat_wxyz[..., 2], quat_wxyz[..., 3]
+    return -xp.stack([2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)], axis=-1)
 
 
 def initial_phase(xp: Any) -> Any:
@@ -44,9 +45,9 @@ def advance_phase(phase: Any, standing: Any, lin_vel_cmd: Any, ang_vel_cmd: Any,
     """
     eps = card.observation.stand_eps
     moved = xp.fmod(phase + card.phase_dt + math.pi, 2.0 * math.pi) - math.pi
-    stand = xp.logical_and(xp.sqrt(xp.sum(xp.square(lin_vel_cmd))) < eps, xp.abs(ang_vel_cmd) < eps)
-    restarted = xp.where(standing, initial_phase(xp), moved)
-    return xp.where(stand, xp.full_like(moved, math.pi), restarted), stand
+    stand = xp.logical_and(xp.sqrt(xp.sum(xp.square(lin_vel_cmd), axis=-1)) < eps, xp.abs(ang_vel_cmd) < eps)
+    restarted = xp.where(xp.expand_dims(xp.asarray(standing), -1), initial_phase(xp), moved)
+    return xp.where(xp.expand_dims(stand, -1), xp.full_like(moved, math.pi), restarted), stand
 
 
 def observation_terms(card: RobotCard, *, quat_wxyz: Any, ang_vel_body: Any, q: Any, qd: Any, lin_vel_cmd: Any,
@@ -55,7 +56,7 @@ def observation_terms(card: RobotCard, *, quat_wxyz: Any, ang_vel_body: Any, q: 
     return {
         "actions": last_action,
         "base_ang_vel": ang_vel_body,
-        "command_ang_vel": xp.reshape(xp.asarray(ang_vel_cmd), (1,)),
+        "command_ang_vel": xp.expand_dims(xp.asarray(ang_vel_cmd), -1),
         "command_lin_vel": lin_vel_cmd,
         "cos_phase": xp.cos(phase),
         "dof_pos": q - xp.asarray(card.default_dof_angles),
@@ -76,7 +77,7 @@ def actor_obs(card: RobotCard, terms: dict[str, Any], xp: Any) -> Any:
                                   "(one frame is built here)")
     # scaled in the terms' own precision, then float32 (as holosoma_inference and the evaluator do)
     parts = [xp.asarray(xp.asarray(terms[t]) * conv.scales[t], dtype=xp.float32) for t in conv.terms]
-    return xp.concatenate(parts)
+    return xp.concatenate(parts, axis=-1)
 
 
 def build_observation(card: RobotCard, xp: Any, **state: Any) -> Any:

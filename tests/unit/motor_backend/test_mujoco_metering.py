@@ -4,9 +4,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from econmotor.couriers.overlay import TERM_METRICS
 from econmotor.economics.courier_formulas import episode_metric
 from econmotor.errors import ConfigError, UnknownNameError
-from econmotor.motor_backend.couriers.overlay import TERM_METRICS
 from econmotor.motor_backend.mujoco.backend import MujocoBackend
 from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper, VisitNovelty
 from econmotor.motor_backend.mujoco.settings import parse_mujoco_settings

@@ -39,10 +39,29 @@ import math
 import os
 import shutil
 from collections.abc import Mapping, Sequence
-from dataclasses import replace
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any, ClassVar
 
+from econmotor.couriers.datapack_mapping import map_datapacks
+from econmotor.couriers.policy_import import (
+    NAME_PREFIX,
+    find_shipped_policy,
+    is_imported_policy,
+    model_text,
+    resolve_contract,
+)
+from econmotor.couriers.stress import Stress
+from econmotor.couriers.walker_eval import WalkerEvaluation
+from econmotor.couriers.walker_eval import evaluate as evaluate_walkers
+from econmotor.couriers.walker_task import (
+    HOLOSOMA_TASK_PRESETS,
+    SIM2SIM_KEYS,
+    MeterSettings,
+    course_settings,
+    meter_settings,
+    task_settings,
+)
 from econmotor.economics.courier_formulas import mechanical_from_electrical_w
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import (
@@ -64,25 +83,14 @@ from econmotor.motor_backend.base import (
     write_run_config,
 )
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
-from econmotor.motor_backend.holosoma.datapack_mapping import map_datapacks
 from econmotor.motor_backend.holosoma.econ_formulas import OVERLAY_TERM_KEYS
-from econmotor.motor_backend.holosoma.job_specs import EvaluateJob, Overlay, ProbeJob, Sim2SimJob, TrainJob
-from econmotor.motor_backend.holosoma.jobs import run_episode_jobs, run_job
+from econmotor.motor_backend.holosoma.job_specs import EvaluateJob, Overlay, ProbeJob, TrainJob
+from econmotor.motor_backend.holosoma.jobs import run_job
 from econmotor.motor_backend.holosoma.plan import (
     DEFAULT_CPU_MAX_ENV_STEPS,
-    HOLOSOMA_TASK_PRESETS,
-    SIM2SIM_KEYS,
     Capabilities,
     choose_simulator,
-    meter_settings,
     plan_training,
-    task_settings,
-)
-from econmotor.motor_backend.holosoma.policy_import import (
-    NAME_PREFIX,
-    is_imported_policy,
-    model_text,
-    shipped_policy_path,
 )
 from econmotor.motor_backend.holosoma.recording_metrics import episodes_from_recording
 from econmotor.motor_backend.onnx_policy import ECONMOTOR_PREFIX, OnnxPolicyHandle
@@ -349,8 +357,11 @@ class HolosomaBackend(MotorBackendBase):
     def _sim2sim(self, policy: str, policy_id: str, imported: bool, spec: Any, settings: dict[str, Any],
                  num_episodes: int, seed: int, packs: list[DatapackConfig], run_dir: Path,
                  progress: ProgressFn, stop: StopFn | None = None) -> MotorEvalResult:
-        """``sim2sim`` jobs, one per worker process (:attr:`eval_workers`; worker w runs episodes w, w + W,
-        ...): the course, the shared meter and the datapack's stress from the task catalog."""
+        """The batched MuJoCo walker env in this interpreter (:mod:`econmotor.couriers.walker_eval`), on
+        :attr:`eval_workers` processes: the course, the shared meter and the datapack's stress from the
+        task catalog."""
+        import mujoco
+
         task_id = spec.task_id
         missing = [k for k in SIM2SIM_KEYS if k not in settings]
         if missing:
@@ -358,44 +369,53 @@ class HolosomaBackend(MotorBackendBase):
                               "the sim-to-sim evaluation needs it (with its unit and source)", SIM2SIM_KEYS)
         bundle = DatapackProvider().resolve(task_id, [p.id for p in packs], packs)
         overrides = map_datapacks(bundle, packs, uses_motion_clip=False)
-        speed = float(self.course_speed_m_per_s or settings["course_speed_m_per_s"])
+        course = course_settings(settings, self.course_speed_m_per_s)
         episode_s = float(self.eval_episode_length_s or settings["sim2sim_episode_s"])
-        leg_m = float(settings["unit_length_m"])
-        course = {"leg_m": leg_m, "dwell_s": float(settings["dwell_s"]), "speed_m_per_s": speed,
-                  "legs": int(settings["sim2sim_legs"])}
         meter = meter_settings(task_id, settings, spec.source)  # the training terms' constants too
-        job = Sim2SimJob(run_dir=str(run_dir), policy=policy, num_episodes=int(num_episodes), episode_s=episode_s,
-                         seed=int(seed), course=course, meter=meter, overrides=overrides.to_dict(), task_id=task_id,
-                         start_joint_noise_rad=float(settings["sim2sim_start_joint_noise_rad"]),
-                         task_experiments=sorted(set(settings["experiment"].values())),
-                         sequential=stop is not None)  # the message says "up to" the cap
+        contract = resolve_contract(policy, self._holosoma_python())
+        experiments = sorted(set(settings["experiment"].values()))
+        if contract.experiment not in experiments:
+            raise ConfigError("--policy", policy_id, f"drives Holosoma's '{contract.experiment}' robot but task "
+                              f"'{task_id}' is priced for {experiments} (its catalog's experiments)")
+        noise = float(settings["sim2sim_start_joint_noise_rad"])
+        stress = Stress.from_overrides(overrides.randomization, overrides.evaluation,
+                                       {"push_randomizer_state": dict(contract.card.push_preset)}, noise)
         notes = list(overrides.messages)
+        if stress.ignored:
+            notes.append("not applied in the sim-to-sim evaluation: " + "; ".join(stress.ignored))
         if not overrides.randomization and not overrides.evaluation:
             notes.append("nominal conditions (no datapack randomization): episodes differ by seed only in their "
-                         f"start pose (joints within +-{float(settings['sim2sim_start_joint_noise_rad']):g} rad of "
-                         "the default); a datapack such as configs/datapacks/humanoid_stress.yaml adds stress")
+                         f"start pose (joints within +-{noise:g} rad of the default); a datapack such as "
+                         "configs/datapacks/humanoid_stress.yaml adds stress")
+        workers = max(1, min(self.eval_workers, int(num_episodes)))
+        notes.append(f"sim-to-sim: {contract.policy} ({contract.inference_preset} observations, "
+                     f"{contract.control_rate_hz:g} Hz policy, {1 / contract.physics_dt_s:g} Hz PD in MuJoCo "
+                     f"{mujoco.__version__}'s actuators) on {workers} process(es), "
+                     f"{'up to ' if stop is not None else ''}{num_episodes} episode(s) of "
+                     f"{course.legs or 'unlimited'} {course.leg_m:g} m leg(s) with a {course.dwell_s:g} s dwell "
+                     f"each (at most {episode_s:g} s) at {course.speed_m_per_s:g} m/s commanded")
         for text in notes:
             progress(f"holosoma: {text}", 1.0, 1.0)
-        workers = max(1, min(self.eval_workers, int(num_episodes)))
-        jobs = [replace(job, worker=w, announce=w == 0, episode_indices=list(range(w, int(num_episodes), workers)))
-                for w in range(workers)]
-        stream, wall_s = run_episode_jobs(self.python, jobs, run_dir, progress, int(num_episodes),
-                                          self.evaluation_batch(task_id), stop, self.job_timeout_s)
-        episodes = stream.prefix()
+        ev = WalkerEvaluation(policy=contract.onnx_path, course=course, meter=MeterSettings(**meter), stress=stress,
+                              episode_s=episode_s, seed=int(seed))
+        episodes, wall_s = evaluate_walkers(ev, int(num_episodes), workers, progress=progress, stop=stop,
+                                            batch=self.evaluation_batch(task_id), timeout_s=self.job_timeout_s)
         power_w = mean_power_w(aggregate_raw(episodes)) or 0.0
+        contract_dict = contract.to_dict()
         provenance = EvalProvenance(
             evaluator="sim2sim", imported=imported,
-            figures_from="MuJoCo sim-to-sim (plain MuJoCo, the policy's ONNX, holosoma_inference's observations; "
-                         f"{model_text(stream.setup['contract'])})",
-            commanded_speed_m_per_s=speed, achieved_speed_m_per_s=walking_speed_m_per_s(episodes) or 0.0,
+            figures_from=f"MuJoCo {mujoco.__version__} sim-to-sim (the batched walker env in econmotor's "
+                         "interpreter, the policy's ONNX, holosoma_inference's observations; "
+                         f"{model_text(contract_dict)})",
+            commanded_speed_m_per_s=course.speed_m_per_s,
+            achieved_speed_m_per_s=walking_speed_m_per_s(episodes) or 0.0,
             mean_power_w=power_w, mean_mech_power_w=mechanical_from_electrical_w(
                 power_w, meter["drivetrain_efficiency"], meter["idle_power_w"]))
         config = {
-            "seed": int(seed), "policy": policy_id, "episode_length_s": episode_s, "course": course, "meter": meter,
-            "datapacks": list(bundle.datapack_ids),
-            "stress": stream.setup.get("stress"), "contract": stream.setup.get("contract"), "wall_s": wall_s,
-            "workers": workers, "messages": [*notes, *stream.messages],
-            "eval_log": str(run_dir / "sim2sim_0.log")}
+            "seed": int(seed), "policy": policy_id, "episode_length_s": episode_s, "course": asdict(course),
+            "meter": meter, "datapacks": list(bundle.datapack_ids), "stress": asdict(stress),
+            "contract": contract_dict, "wall_s": wall_s, "workers": workers, "mujoco": mujoco.__version__,
+            "messages": notes}
         return evaluation_result(self.name, policy_id, task_id, episodes, spec.economics, config, output_dir=run_dir,
                                  provenance=provenance)
 
@@ -442,7 +462,7 @@ class HolosomaBackend(MotorBackendBase):
     def deploy_policy_handle(self, policy_id: str) -> OnnxPolicyHandle:
         """An onnxruntime handle for a trained run directory, an ONNX file or a shipped policy name."""
         if str(policy_id).startswith(NAME_PREFIX):
-            onnx_path = shipped_policy_path(str(policy_id), self.python)
+            onnx_path = find_shipped_policy(str(policy_id), self._holosoma_python())
         else:
             path = Path(policy_id)
             onnx_path = path if path.suffix == ".onnx" else Path(self._run_config(policy_id)["onnx"])
@@ -450,11 +470,18 @@ class HolosomaBackend(MotorBackendBase):
             raise BackendError(f"no ONNX policy at {onnx_path}")
         return OnnxPolicyHandle(onnx_path)
 
+    def _holosoma_python(self) -> Path | None:
+        """.venv-holosoma's interpreter where there is one (its shipped walkers), else None."""
+        try:
+            return self.python
+        except BackendError:
+            return None
+
     def check_policy(self, policy_id: str) -> None:
         """An imported policy must be a shipped name this .venv-holosoma has or an existing ONNX file; a run
         directory must hold its ``run_config.json`` (ConfigErrors, before any job starts)."""
         if str(policy_id).startswith(NAME_PREFIX):
-            shipped_policy_path(str(policy_id), self.python)
+            find_shipped_policy(str(policy_id), self._holosoma_python())
         elif str(policy_id).endswith(".onnx"):
             if not Path(policy_id).is_file():
                 raise ConfigError("--policy", str(policy_id), "no such ONNX file")

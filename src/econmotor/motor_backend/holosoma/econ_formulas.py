@@ -3,7 +3,7 @@
 One meter per robot: a G1 trained here (Holosoma's reward terms, torch) and a G1 priced here (the
 sim-to-sim evaluator, :mod:`.sim2sim`) are metered by the same formulas,
 :mod:`econmotor.economics.courier_formulas`, with the same constants (the task catalog's
-``backends.holosoma`` entry, :func:`econmotor.motor_backend.holosoma.plan.meter_settings`):
+``backends.holosoma`` entry, ``walker_task.meter_settings``):
 
 - electrical power ``P_el = sum_i |tau_i qd_i| / eta + idle_power_w`` (W; ``cf.mechanical_power_w``,
   ``cf.electrical_power_w``; braking counted as dissipated: the G1/T1 drivers burn regenerated
@@ -27,8 +27,8 @@ from collections.abc import Mapping
 from types import SimpleNamespace
 from typing import Any
 
+from econmotor.couriers.physics import quat_tilt_rad
 from econmotor.economics import courier_formulas as cf
-from econmotor.motor_backend.couriers.physics import quat_tilt_rad
 
 #: overlay keys with a per-step Holosoma reward term (the named keys of compile_economic_overlay).
 OVERLAY_TERM_KEYS = ("mpl_per_hour", "energy_kwh", "error_rate", "risk_score", "novelty_score")
@@ -49,7 +49,7 @@ def torch_namespace() -> Any:
 
 
 def meter_constants(meter: Mapping[str, float], dt_s: float) -> cf.MeterConstants:
-    """The courier meter's constants from a task's meter settings (:func:`.plan.meter_settings`: ``leg_distance_m``,
+    """The courier meter's constants from a task's meter settings (``walker_task.meter_settings``: ``leg_distance_m``,
     ``drivetrain_efficiency``, ``idle_power_w``, ``tilt_margin_rad``, ``fall_tilt_rad``), metering steps of ``dt_s``."""
     return cf.MeterConstants(leg_distance_m=float(meter["leg_distance_m"]),
                              drivetrain_efficiency=float(meter["drivetrain_efficiency"]),

@@ -1,7 +1,7 @@
 """The jobs the main interpreter hands to .venv-holosoma's runner: typed, serialised once, parsed once.
 
-The backend builds one of :class:`ProbeJob`, :class:`TrainJob`, :class:`EvaluateJob` or
-:class:`Sim2SimJob`; :func:`.jobs.run_job` writes it as JSON (:meth:`HolosomaJob.to_json`:
+The backend builds one of :class:`ProbeJob`, :class:`TrainJob` or :class:`EvaluateJob`;
+:func:`.jobs.run_job` writes it as JSON (:meth:`HolosomaJob.to_json`:
 ``{"action": ..., <its fields>}``) and the runner reads it back with :func:`parse_job`. A file that is
 not a job of a known action, lacks a field, has one it does not know, or holds a value of the wrong
 type is a ConfigError naming the file and the field. It imports in both interpreters (the main one and
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 import typing
-from dataclasses import MISSING, asdict, dataclass, field, fields
+from dataclasses import MISSING, asdict, dataclass, fields
 from typing import Any, ClassVar
 
 from econmotor.errors import ConfigError
@@ -88,45 +88,8 @@ class EvaluateJob(HolosomaJob):
     simulator: str
 
 
-@dataclass(frozen=True)
-class Sim2SimJob(HolosomaJob):
-    """One worker's sim-to-sim episodes of an ONNX locomotion policy (:mod:`.sim2sim`).
-
-    Attributes:
-        policy: the ONNX file or shipped name; ``task_id`` / ``task_experiments``: the task and the Holosoma
-            experiments it is priced for (the policy's robot must be one).
-        num_episodes / seed: the evaluation's episodes, episode ``i`` seeded ``seed + i``.
-        episode_indices: the episodes this worker runs (empty: all); ``worker``: its number (log name);
-            ``announce``: it says the setup; ``sequential``: the evaluation may stop early ("up to").
-        episode_s: an episode's time limit, s; ``course``: ``sim2sim.CourseSettings``' fields; ``meter``:
-            ``sim2sim.MeterSettings``' (:func:`.plan.meter_settings`); ``overrides``: as :class:`TrainJob`'s;
-            ``start_joint_noise_rad``: the start pose's joint noise, rad.
-    """
-
-    action: ClassVar[str] = "sim2sim"
-    run_dir: str
-    policy: str
-    num_episodes: int
-    episode_s: float
-    seed: int
-    course: dict[str, float]
-    meter: dict[str, float]
-    overrides: dict[str, Any]
-    task_id: str
-    start_joint_noise_rad: float
-    task_experiments: list[str]
-    sequential: bool = False
-    worker: int = 0
-    announce: bool = True
-    episode_indices: list[int] = field(default_factory=list)
-
-    @property
-    def log_name(self) -> str:
-        return f"{self.action}_{self.worker}"
-
-
 #: action -> job class
-JOB_TYPES: dict[str, type[HolosomaJob]] = {cls.action: cls for cls in (ProbeJob, TrainJob, EvaluateJob, Sim2SimJob)}
+JOB_TYPES: dict[str, type[HolosomaJob]] = {cls.action: cls for cls in (ProbeJob, TrainJob, EvaluateJob)}
 
 _PLAIN = {"int": int, "float": (int, float), "str": str, "bool": bool, "list": list, "tuple": list, "dict": dict}
 

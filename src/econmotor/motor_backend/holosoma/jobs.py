@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from econmotor.errors import BackendError, ConfigError
-from econmotor.motor_backend.holosoma.job_specs import HolosomaJob, Sim2SimJob
+from econmotor.motor_backend.holosoma.job_specs import HolosomaJob
 from econmotor.motor_backend.holosoma.protocol import parse_line
 
 _ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
@@ -128,105 +128,3 @@ def run_job(
     return JobOutcome(result, tuple(messages), tuple(curve), str(log_path), time.monotonic() - start)
 
 
-@dataclass
-class EpisodeStream:
-    """The episodes of several workers' jobs, gathered in episode order as they arrive."""
-
-    rows: dict[int, dict[str, Any]] = field(default_factory=dict)
-    messages: list[str] = field(default_factory=list)
-    setup: dict[str, Any] = field(default_factory=dict)
-
-    def prefix(self) -> list[dict[str, Any]]:
-        """The episodes finished in an unbroken run from the first (what a sequential look may judge)."""
-        out: list[dict[str, Any]] = []
-        while len(out) in self.rows:
-            out.append(self.rows[len(out)])
-        return out
-
-
-def run_episode_jobs(python: str | Path, jobs: list[Sim2SimJob], run_dir: str | Path,
-                     progress: Callable[[str, float, float], None], total: int, batch: int,
-                     stop: Callable[[list[dict[str, Any]]], bool] | None = None,
-                     timeout_s: float | None = None) -> tuple[EpisodeStream, float]:
-    """Run episode jobs in parallel (one process each; ``job.worker`` names its log), gathering the
-    ``episode`` events they stream. Every ``batch`` episodes finished in order, ``stop(episodes)`` may
-    end the evaluation: the workers are then killed. Returns the stream and the wall seconds."""
-    import queue
-    import threading
-    import time
-
-    run_dir = Path(run_dir)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    events: queue.Queue = queue.Queue()
-    procs: list[subprocess.Popen] = []
-    logs, tails = [], []
-
-    def pump(k: int, proc: subprocess.Popen, log: Any, tail: deque[str]) -> None:
-        assert proc.stdout is not None
-        for line in proc.stdout:
-            log.write(line)
-            event = parse_line(line)
-            if event is None:
-                tail.append(line)
-            else:
-                events.put((k, event))
-        events.put((k, None))
-
-    stream, start, finished, asked = EpisodeStream(), time.monotonic(), set(), 0
-    errors: dict[int, dict[str, Any]] = {}
-    try:
-        for k, job in enumerate(jobs):
-            job_path = run_dir / f"{job.log_name}_job.json"
-            job_path.write_text(job.to_json(), encoding="utf-8")
-            log = open(run_dir / f"{job.log_name}.log", "w", encoding="utf-8")
-            logs.append(log)
-            tails.append(deque(maxlen=400))
-            cmd = [str(python), "-u", "-m", "econmotor.motor_backend.holosoma.runner", str(job_path)]
-            procs.append(subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                                          env=job_environment(), cwd=str(run_dir), bufsize=1, errors="replace"))
-            threading.Thread(target=pump, args=(k, procs[-1], log, tails[-1]), daemon=True).start()
-        progress("sim-to-sim episodes", 0, total)
-        while len(finished) < len(jobs):
-            try:
-                k, event = events.get(timeout=1.0)
-            except queue.Empty:
-                k, event = -1, {"event": "tick"}
-            if timeout_s is not None and time.monotonic() - start > timeout_s:
-                raise BackendError(f"Holosoma sim2sim jobs exceeded {timeout_s:.0f} s; logs: {run_dir}")
-            if event is None:
-                finished.add(k)
-                if procs[k].wait() != 0 and k not in errors:
-                    errors[k] = {"text": holosoma_error_text(list(tails[k]))}
-                if errors:
-                    break
-                continue
-            kind = event["event"]
-            if kind == "episode":
-                stream.rows[int(event["index"])] = event["episode"]
-                done = stream.prefix()
-                progress("sim-to-sim episodes", len(stream.rows), total)
-                if stop is not None and len(done) >= asked + batch and len(done) < total:
-                    asked = len(done) - len(done) % batch
-                    if stop(done):
-                        break
-            elif kind == "message" and event["text"] not in stream.messages:
-                stream.messages.append(str(event["text"]))
-                progress(f"holosoma: {event['text']}", 1.0, 1.0)
-            elif kind == "setup" and not stream.setup:
-                stream.setup = {key: v for key, v in event.items() if key != "event"}
-            elif kind == "error":
-                errors[k] = event
-    finally:
-        for proc in procs:
-            if proc.poll() is None:
-                proc.kill()
-            proc.wait()
-        for log in logs:
-            log.close()
-    if errors:
-        k, error = next(iter(errors.items()))
-        if error.get("config_error"):  # the job's bad input: the same ConfigError here, as run_job raises it
-            raise ConfigError(*error["config_error"])
-        text = f"{error['text']}\n{error.get('traceback', '')}".strip()
-        raise BackendError(f"Holosoma sim2sim worker {k} failed:\n{text}\nlogs: {run_dir}")
-    return stream, time.monotonic() - start

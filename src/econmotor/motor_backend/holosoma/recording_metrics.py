@@ -39,7 +39,7 @@ REQUIRED_CHANNELS = ("dof_pos", "torques_substep", "dof_vel_substep", "root_quat
 
 def step_series(data: Any, settings: Mapping[str, Any], meter: Mapping[str, float]) -> dict[str, np.ndarray]:
     """Per-step progress (units/s), electrical power (W), fall flag, risk and novelty of a recording
-    (``meter``: the courier meter's settings, :func:`.plan.meter_settings`)."""
+    (``meter``: the courier meter's settings, :func:`econmotor.couriers.walker_task.meter_settings`)."""
     c = meter_constants(meter, 0.0)  # the control step does not enter power or risk
     steps = len(data["dof_pos"])
     if settings["progress_mode"] == "time":
@@ -75,7 +75,7 @@ def episode_bounds(reset: np.ndarray, num_episodes: int) -> list[tuple[int, int]
 def episodes_from_recording(path: str | Path, settings: Mapping[str, Any], meter: Mapping[str, float],
                             num_episodes: int) -> list[dict[str, Any]]:
     """Raw metrics of each evaluation episode in the recording (see the module docstring); ``settings``: the
-    run's Holosoma settings, ``meter``: its courier meter's (:func:`.plan.meter_settings`)."""
+    run's Holosoma settings, ``meter``: its courier meter's (:func:`econmotor.couriers.walker_task.meter_settings`)."""
     try:
         with np.load(path, allow_pickle=False) as npz:
             missing = [c for c in REQUIRED_CHANNELS if c not in npz.files]

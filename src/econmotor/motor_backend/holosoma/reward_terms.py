@@ -22,7 +22,7 @@ each step (see :func:`econmotor.motor_backend.holosoma.econ_formulas.overlay_ter
 - novelty: distance of the joint configuration from its running statistics.
 
 Power and risk are the sim-to-sim evaluator's meter (:mod:`econmotor.economics.courier_formulas`) with
-the evaluator's constants (``params["meter"]``, the task catalog's: :func:`.plan.meter_settings`).
+the evaluator's constants (``params["meter"]``, the task catalog's: ``walker_task.meter_settings``).
 
 All econ terms of one env share one computation per step: the first term the manager
 calls (the "leader") computes every rate, the others read them.
@@ -115,7 +115,7 @@ class EconOverlayTerm(RewardTermBase):
     """One overlay key as a stateful Holosoma reward term (raw, unweighted value).
 
     Params (``RewardTermCfg.params``): ``key`` (one of :data:`SUPPORTED_KEYS`), ``meter`` (the
-    courier meter's constants, :func:`.plan.meter_settings`: ``leg_distance_m`` metres per unit of
+    courier meter's constants, ``walker_task.meter_settings``: ``leg_distance_m`` metres per unit of
     work, ``drivetrain_efficiency``, ``idle_power_w``, ``tilt_margin_rad``, ``fall_tilt_rad``),
     ``unit_duration_s`` (seconds per unit in ``"time"`` mode), ``progress_mode`` (``"velocity"`` |
     ``"time"``), ``novelty_rate``.

@@ -11,9 +11,6 @@ raises again):
   own ``train_agent.train``; report each iteration and the checkpoint / ONNX paths.
 - :class:`.job_specs.EvaluateJob`: run Holosoma's ``eval_agent`` on a checkpoint with
   the (extended) recording callback; report the recording and exported ONNX paths.
-- :class:`.job_specs.Sim2SimJob`: evaluate an ONNX locomotion policy (imported or trained
-  here) on the delivery course in plain MuJoCo (:mod:`.sim2sim`); report each episode's raw
-  metrics, the resolved contract and the stress applied.
 
 Results and progress go out as protocol lines (:mod:`.protocol`); Holosoma's own
 log lines pass through untouched so the parent can surface its error text.
@@ -25,7 +22,6 @@ import dataclasses
 import importlib.util
 import os
 import sys
-import time
 import traceback
 from pathlib import Path
 from typing import Any
@@ -35,7 +31,6 @@ from econmotor.motor_backend.holosoma.job_specs import (
     EvaluateJob,
     HolosomaJob,
     Overlay,
-    Sim2SimJob,
     TrainJob,
     parse_job,
 )
@@ -257,58 +252,17 @@ def evaluate(job: EvaluateJob) -> dict[str, Any]:
     return {"recording": recording_path, "onnx": str(onnx) if onnx.is_file() else None}
 
 
-def sim2sim(job: Sim2SimJob) -> dict[str, Any]:
-    from holosoma.config_values.experiment import EXPERIMENT_REGISTRY
-
-    from econmotor.motor_backend.holosoma import sim2sim as s
-    from econmotor.motor_backend.holosoma.policy_import import resolve_contract
-
-    contract = resolve_contract(job.policy)
-    if contract.experiment not in job.task_experiments:
-        raise ValueError(f"{job.policy} drives Holosoma's '{contract.experiment}' robot but task "
-                         f"'{job.task_id}' is priced for {job.task_experiments} (its catalog's experiments)")
-    preset_terms = {name: dict(term.params) for name, term in
-                    EXPERIMENT_REGISTRY[contract.experiment].randomization.setup_terms.items()}
-    stress = s.Stress.from_overrides(job.overrides["randomization"], job.overrides.get("evaluation", {}),
-                                     preset_terms, job.start_joint_noise_rad)
-    if stress.ignored:
-        emit("message", text="not applied in the sim-to-sim evaluation: " + "; ".join(stress.ignored))
-    course = s.CourseSettings(**job.course)
-    meter = s.MeterSettings(**job.meter)
-    indices = job.episode_indices or list(range(job.num_episodes))
-    total = job.num_episodes
-    count = f"up to {total}" if job.sequential else str(total)
-    if job.announce:
-        emit("message", text=f"sim-to-sim: {contract.policy} ({contract.inference_preset} observations, "
-                             f"{contract.control_rate_hz:g} Hz policy, {1 / contract.physics_dt_s:g} Hz PD) in "
-                             f"MuJoCo, {count} episode(s) of {course.legs or 'unlimited'} {course.leg_m:g} m leg(s) "
-                             f"with a {course.dwell_s:g} s dwell each (at most {job.episode_s:g} s) at "
-                             f"{course.speed_m_per_s:g} m/s commanded")
-    emit("setup", contract=contract.to_dict(), stress=dataclasses.asdict(stress))
-    # episode i is seeded seed + i whichever worker runs it: one process or several give the same episodes
-    robot, policy = s.build_robot(contract), s.onnx_policy(contract)
-    episodes, start = [], time.perf_counter()
-    for done, i in enumerate(indices, 1):
-        episode = s.run_episode(robot, contract, policy, course, meter, stress, float(job.episode_s), job.seed + i)
-        episodes.append(episode)
-        emit("episode", index=i, episode=episode)
-        emit("progress", label="sim-to-sim episodes", done=done, total=len(indices))
-    return {"episodes": episodes, "wall_s": time.perf_counter() - start, "contract": contract.to_dict(),
-            "stress": dataclasses.asdict(stress)}
-
-
 def main(argv: list[str]) -> int:
     if len(argv) != 1:
         sys.stderr.write("usage: python -m econmotor.motor_backend.holosoma.runner JOB.json\n")
         return 2
     os.environ.setdefault("WANDB_MODE", "disabled")
-    actions = {"probe": lambda _job: probe(), "train": train, "evaluate": evaluate, "sim2sim": sim2sim}
+    actions = {"probe": lambda _job: probe(), "train": train, "evaluate": evaluate}
     try:
         job: HolosomaJob = parse_job(Path(argv[0]).read_text(encoding="utf-8"), argv[0])
-        if job.action != "sim2sim":  # the sim-to-sim evaluator needs no torch (a 2 s import)
-            import torch
+        import torch
 
-            torch.set_num_threads(int(os.environ.get("OMP_NUM_THREADS", "1")))
+        torch.set_num_threads(int(os.environ.get("OMP_NUM_THREADS", "1")))
         result = actions[job.action](job)
     except ConfigError as exc:  # bad input (e.g. an imported policy's metadata): the caller raises it again
         emit("error", text=f"{type(exc).__name__}: {exc}", config_error=[exc.source, exc.key, exc.detail, exc.allowed])

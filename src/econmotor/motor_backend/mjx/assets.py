@@ -28,8 +28,8 @@ from typing import Any
 import mujoco
 
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.couriers.robots import ROBOTS, RobotSpec, robot_spec
 from econmotor.motor_backend.mjx.settings import INTEGRATORS
+from econmotor.robots.gym_couriers import ROBOTS, RobotSpec, robot_spec
 
 __all__ = ["MJX_ADJUSTMENTS", "ROBOTS", "RobotSpec", "apply_model_options", "load_model", "robot_spec"]
 

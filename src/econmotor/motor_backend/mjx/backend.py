@@ -35,6 +35,7 @@ from typing import Any, ClassVar
 
 import jax
 
+from econmotor.couriers.policy_import import holosoma_export_metadata
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import (
     BackendCapabilities,
@@ -52,10 +53,8 @@ from econmotor.motor_backend.base import (
     no_progress,
     walking_speed_m_per_s,
 )
-from econmotor.motor_backend.couriers.robots import robot_name
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.motor_backend.holosoma.backend import VENV_ENV
-from econmotor.motor_backend.holosoma.policy_import import holosoma_export_metadata
 from econmotor.motor_backend.mjx import ppo
 from econmotor.motor_backend.mjx.compile import CompiledAhead
 from econmotor.motor_backend.mjx.export import export_onnx
@@ -72,6 +71,7 @@ from econmotor.motor_backend.onnx_policy import OnnxPolicyHandle
 from econmotor.motor_backend.selection import selection_for
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.robots import card as robot_card
+from econmotor.robots.gym_couriers import robot_name
 from econmotor.tasks.catalog import TaskCatalog
 
 ONNX_FILE = "policy.onnx"

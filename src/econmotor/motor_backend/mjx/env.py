@@ -43,16 +43,16 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
+from econmotor.couriers.overlay import TERM_METRICS, human_baseline_references, overlay_term_factors
+from econmotor.couriers.physics import actuated_dof_span, has_free_root, root_tilt_rad
+from econmotor.couriers.randomization import DomainRandomization, parse_randomization
 from econmotor.economics import courier_formulas as cf
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.couriers import robots
-from econmotor.motor_backend.couriers.overlay import TERM_METRICS, human_baseline_references, overlay_term_factors
-from econmotor.motor_backend.couriers.physics import actuated_dof_span, has_free_root, root_tilt_rad
-from econmotor.motor_backend.couriers.randomization import DomainRandomization, parse_randomization
 from econmotor.motor_backend.mjx._mjx import mjx
 from econmotor.motor_backend.mjx.assets import RobotSpec, load_model, robot_spec
 from econmotor.motor_backend.mjx.settings import MjxTaskSettings, parse_mjx_settings
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
+from econmotor.robots import gym_couriers as robots
 from econmotor.tasks import load_catalog
 
 #: running sums of the current episode kept on the device (``EnvState.episode``).

@@ -16,7 +16,7 @@ card (:mod:`econmotor.robots`), never from the robot's name.
 - **observation**: holosoma_inference's ``actor_obs`` (:func:`econmotor.robots.observation.build_observation`),
   the command being the course's (below); so a policy trained here runs in the sim-to-sim
   evaluator and in holosoma_inference, and theirs here.
-- **the course** (:mod:`econmotor.motor_backend.couriers.course`): the sim-to-sim evaluator's,
+- **the course** (:mod:`econmotor.couriers.course`): the sim-to-sim evaluator's,
   legs of ``leg_m`` at the course speed with a dwell at each end; the episode ends at its time
   limit (``locomotion.episode_s``), when the course is done, or at a fall.
 - **metering**: every physics step through :func:`econmotor.economics.courier_formulas.meter_step`
@@ -27,7 +27,7 @@ card (:mod:`econmotor.robots`), never from the robot's name.
   :mod:`.locomotion_rewards` with the catalog's weights, plus the economic overlay's potential
   ``J`` (as the other mjx couriers: each term's episode sum is the episode metric of its key).
 - **stress in the graph**, from the datapacks' Holosoma keys (``humanoid_stress.yaml``, read by
-  :func:`~econmotor.motor_backend.holosoma.datapack_mapping.map_datapacks` as for the evaluator):
+  :func:`~econmotor.couriers.datapack_mapping.map_datapacks` as for the evaluator):
   floor friction and torso payload per episode, base-velocity pushes at random intervals, kp/kd
   scale per joint (``kp_range`` / ``kd_range``), start-pose noise.
 """
@@ -44,9 +44,7 @@ import mujoco
 import numpy as np
 
 from econmotor.config.loading import as_float, check_keys, require_mapping
-from econmotor.economics import courier_formulas as cf
-from econmotor.errors import ConfigError
-from econmotor.motor_backend.couriers.course import (
+from econmotor.couriers.course import (
     CourseSettings,
     CourseState,
     course_command,
@@ -54,10 +52,12 @@ from econmotor.motor_backend.couriers.course import (
     course_start,
     heading_yaw,
 )
-from econmotor.motor_backend.couriers.overlay import human_baseline_references, overlay_term_factors
-from econmotor.motor_backend.couriers.physics import root_tilt_rad
-from econmotor.motor_backend.holosoma.datapack_mapping import map_datapacks
-from econmotor.motor_backend.holosoma.sim2sim import Stress
+from econmotor.couriers.datapack_mapping import map_datapacks
+from econmotor.couriers.overlay import human_baseline_references, overlay_term_factors
+from econmotor.couriers.physics import root_tilt_rad
+from econmotor.couriers.stress import Stress
+from econmotor.economics import courier_formulas as cf
+from econmotor.errors import ConfigError
 from econmotor.motor_backend.mjx._mjx import mjx
 from econmotor.motor_backend.mjx.assets import apply_model_options
 from econmotor.motor_backend.mjx.env import auto_reset, task_settings, with_overlay_columns
@@ -98,36 +98,25 @@ class HumanoidEnvState(NamedTuple):
     randomization: dict[str, jax.Array]
 
 
-@dataclasses.dataclass(frozen=True)
-class HumanoidStress(Stress):
-    """The evaluator's :class:`Stress` plus the PD gains' per-joint scale ranges (None: off)."""
-
-    kp_range: tuple[float, float] | None = None
-    kd_range: tuple[float, float] | None = None
-
-
 def parse_humanoid_stress(datapacks: Sequence[Any], push_preset: Mapping[str, Any],
-                          start_joint_noise_rad: float) -> HumanoidStress:
-    """The datapacks' Holosoma keys (``holosoma/datapack_mapping.py``) as this env's stress; what it
-    cannot apply (terrain other than flat, link masses, control delay, a curriculum, motion clips) is a
-    ConfigError naming the datapack and key."""
-    stress, kp, kd = Stress(initial_joint_noise_rad=start_joint_noise_rad), None, None
+                          start_joint_noise_rad: float) -> Stress:
+    """The datapacks' Holosoma keys (:mod:`econmotor.couriers.datapack_mapping`) as this env's stress
+    (:class:`econmotor.couriers.stress.Stress`); what it cannot apply (terrain other than flat, link
+    masses, control delay, a curriculum, motion clips) is a ConfigError naming the datapack and key."""
+    stress = Stress(initial_joint_noise_rad=start_joint_noise_rad)
     for bundle in datapacks:
         overrides = map_datapacks(bundle, uses_motion_clip=False)
         source = ", ".join(getattr(bundle, "sources", {}).values()) or "<datapacks>"
         if overrides.curriculum or bundle.motion_clips or overrides.terrain not in (None, "terrain_locomotion_plane"):
             raise ConfigError(source, "curriculum / motion_clips / terrain",
                               "the mjx humanoid couriers run on flat ground without a curriculum or clips")
-        rand = overrides.randomization
-        stress = Stress.from_overrides(rand, overrides.evaluation, {"push_randomizer_state": push_preset},
-                                       start_joint_noise_rad)
-        unsupported = [s for s in stress.ignored if not s.startswith("actuator_randomizer_state")]
+        stress = Stress.from_overrides(overrides.randomization, overrides.evaluation,
+                                       {"push_randomizer_state": push_preset}, start_joint_noise_rad)
+        unsupported = [*stress.ignored, *(["setup_action_delay_buffers (ctrl_delay_step_range)"]
+                                          if stress.ctrl_delay_steps else [])]
         if unsupported:
             raise ConfigError(source, "domain_randomization", f"the mjx humanoid couriers cannot apply {unsupported}")
-        actuators = rand.get("actuator_randomizer_state", {})
-        kp, kd = (tuple(actuators[k]) if k in actuators else None for k in ("kp_range", "kd_range"))
-    return HumanoidStress(**{f.name: getattr(stress, f.name) for f in dataclasses.fields(Stress)},
-                          kp_range=kp, kd_range=kd)
+    return stress
 
 
 def check_humanoid_datapack(pack: Any, source: str) -> None:

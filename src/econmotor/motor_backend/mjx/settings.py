@@ -25,10 +25,10 @@ A real robot's courier (``mjx/humanoid_env.py``) names its robot card instead of
 The metering keys (:data:`INHERITED_KEYS`) are the couriers' (``couriers/settings.py``): with
 ``inherit: mujoco`` they are read from the task's ``backends.mujoco`` entry, so the two backends
 cannot drift; with ``inherit: holosoma`` from its ``backends.holosoma`` entry
-(:func:`~econmotor.motor_backend.holosoma.plan.meter_settings`: the constants Holosoma's training terms
+(:func:`~econmotor.couriers.walker_task.meter_settings`: the constants Holosoma's training terms
 and the sim-to-sim evaluator read, one meter per robot; and the course:
 :data:`HOLOSOMA_COURSE`); without it they may be written here with the same meaning. Both go through
-:func:`~econmotor.motor_backend.couriers.settings.parse_metering_settings`.
+:func:`~econmotor.couriers.settings.parse_metering_settings`.
 """
 
 from __future__ import annotations
@@ -37,9 +37,9 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 from econmotor.config.loading import as_int, as_str, check_keys, require_mapping
+from econmotor.couriers.settings import METERING_KEYS, MeteringSettings, parse_metering_settings
+from econmotor.couriers.walker_task import meter_settings, task_settings
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.couriers.settings import METERING_KEYS, MeteringSettings, parse_metering_settings
-from econmotor.motor_backend.holosoma.plan import meter_settings, task_settings
 from econmotor.tasks.catalog import TaskSpec
 
 #: keys shared with the mujoco backend's entry (the economics of the physics).

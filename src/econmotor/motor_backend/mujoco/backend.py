@@ -20,6 +20,7 @@ from typing import Any
 import gymnasium as gym
 import torch
 
+from econmotor.couriers.overlay import human_baseline_references
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import (
     RUN_CONFIG_FILE,
@@ -38,8 +39,6 @@ from econmotor.motor_backend.base import (
     no_progress,
     read_run_config,
 )
-from econmotor.motor_backend.couriers.overlay import human_baseline_references
-from econmotor.motor_backend.couriers.robots import robot_name
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.motor_backend.mujoco.clips import check_clip_file, load_bundle_clips, record_clip
 from econmotor.motor_backend.mujoco.env_factory import EnvRecipe, make_env
@@ -53,6 +52,7 @@ from econmotor.motor_backend.mujoco.step_summary import MujocoStepSummaryWrapper
 from econmotor.motor_backend.mujoco.training import obs_normalizer
 from econmotor.motor_backend.selection import selection_for
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
+from econmotor.robots.gym_couriers import robot_name
 from econmotor.tasks.catalog import TaskCatalog, TaskSpec
 
 ONNX_FILE = "policy.onnx"

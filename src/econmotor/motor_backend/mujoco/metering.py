@@ -49,6 +49,8 @@ from typing import Any, NamedTuple
 import gymnasium as gym
 import numpy as np
 
+from econmotor.couriers.overlay import overlay_term_factors
+from econmotor.couriers.physics import actuated_dof_span, has_free_root, root_tilt_rad
 from econmotor.economics.courier_formulas import (
     PY,
     MeterConstants,
@@ -64,8 +66,6 @@ from econmotor.economics.courier_formulas import (
     running_metrics,
 )
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.couriers.overlay import overlay_term_factors
-from econmotor.motor_backend.couriers.physics import actuated_dof_span, has_free_root, root_tilt_rad
 
 __all__ = ["EconomicMeteringWrapper", "EpisodeSums", "VisitNovelty", "actuated_dof_span", "find_wrapper"]
 

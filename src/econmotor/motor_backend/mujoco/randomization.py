@@ -20,8 +20,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from econmotor.couriers.randomization import Curriculum, DomainRandomization, parse_randomization
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.couriers.randomization import Curriculum, DomainRandomization, parse_randomization
 
 __all__ = ["Curriculum", "DomainRandomization", "DomainRandomizationWrapper", "make_base_env", "parse_randomization",
            "rough_terrain_xml"]

@@ -34,8 +34,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from econmotor.config.loading import as_float, as_int, as_str, check_keys, require_mapping
+from econmotor.couriers.settings import MeteringSettings, parse_metering_settings
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.couriers.settings import MeteringSettings, parse_metering_settings
 from econmotor.tasks.catalog import TaskSpec
 
 ALGORITHMS = ("ppo", "sac")
@@ -49,7 +49,7 @@ SETTINGS_KEYS = (
 @dataclass(frozen=True, kw_only=True)
 class MujocoTaskSettings(MeteringSettings):
     """How the mujoco backend runs one catalog task (keys as in the module docstring; the metering
-    keys are :class:`~econmotor.motor_backend.couriers.settings.MeteringSettings`')."""
+    keys are :class:`~econmotor.couriers.settings.MeteringSettings`')."""
 
     task_id: str
     pose_tracking_scale: float = 1.0

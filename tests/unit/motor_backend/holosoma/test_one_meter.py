@@ -3,7 +3,7 @@
 The same physics steps (joint forces and velocities, the base's pose) go through the training reward terms'
 formulas (``econ_formulas.overlay_term_rates`` on ``cf.mechanical_power_w`` and ``base_tilt_rad``, on numpy
 and on torch, the tensors Holosoma's terms see) and through the evaluator's meter (``sim2sim.step_reading``
-and ``courier_formulas.meter_step``), each with the constants the backend hands it (``plan.meter_settings``
+and ``courier_formulas.meter_step``), each with the constants the backend hands it (``walker_task.meter_settings``
 of the task catalog's entry): every step's energy and risk agree, idle power and the tilt margin included.
 """
 
@@ -14,6 +14,7 @@ import math
 import numpy as np
 import pytest
 
+from econmotor.couriers.walker_task import meter_settings, task_settings
 from econmotor.economics import courier_formulas as cf
 from econmotor.motor_backend.holosoma import sim2sim
 from econmotor.motor_backend.holosoma.econ_formulas import (
@@ -22,7 +23,6 @@ from econmotor.motor_backend.holosoma.econ_formulas import (
     overlay_term_rates,
     torch_namespace,
 )
-from econmotor.motor_backend.holosoma.plan import meter_settings, task_settings
 from econmotor.robots import card
 from econmotor.tasks import get_task
 

@@ -187,7 +187,7 @@ def test_mjx_humanoid_steps_meter_and_observe_as_mujoco_c(robot: str) -> None:
 SIM2SIM = r"""
 import json, sys
 from econmotor.motor_backend.holosoma import sim2sim as s
-from econmotor.motor_backend.holosoma.policy_import import resolve_contract
+from econmotor.couriers.policy_import import resolve_contract
 c = resolve_contract("holosoma:g1_29dof/ppo")
 course = s.CourseSettings(**json.loads(sys.argv[1]))
 meter = s.MeterSettings(**json.loads(sys.argv[2]))

@@ -15,7 +15,8 @@ Name parsing (:func:`parse_policy_name`, :func:`is_imported_policy`), finding a 
 (:func:`shipped_policy_path`, without importing holosoma_inference) and the metadata a policy
 trained here is exported with (:func:`holosoma_export_metadata`) import nothing and run in the
 main interpreter; :func:`resolve_contract` runs in either (a shipped name needs
-holosoma_inference's files: .venv-holosoma).
+holosoma_inference's files: the main interpreter installs them with ``--no-deps``, else
+.venv-holosoma's are read).
 
 The export format (Holosoma 0.0.3's ``PPO.export``): input ``actor_obs``, output ``action``, and
 JSON metadata entries ``dof_names``, ``kp``, ``kd``, ``action_scale``, ``command_ranges``,
@@ -157,6 +158,16 @@ def shipped_policy_path(name: str, python: str | Path | None = None, flag: str =
     return found[0]
 
 
+def find_shipped_policy(name: str, fallback_python: str | Path | None = None, flag: str = "--policy") -> Path:
+    """:func:`shipped_policy_path` in this interpreter, else in ``fallback_python``'s (``.venv-holosoma``)."""
+    try:
+        return shipped_policy_path(name, None, flag)
+    except ConfigError:
+        if fallback_python is None:
+            raise
+        return shipped_policy_path(name, fallback_python, flag)
+
+
 def onnx_metadata(path: str | Path) -> dict[str, Any]:
     """The ONNX file's metadata, JSON-decoded where it is JSON."""
     import onnx
@@ -185,11 +196,12 @@ def robot_card_for(dof_names: Sequence[str], source: str) -> RobotCard:
                       [f"{c.name} ({c.num_dofs} joints: {', '.join(c.dof_names[:2])}, ...)" for c in CARDS.values()])
 
 
-def resolve_contract(policy: str) -> PolicyContract:
-    """The :class:`PolicyContract` of a shipped policy name or an ONNX file (module docstring)."""
+def resolve_contract(policy: str, fallback_python: str | Path | None = None) -> PolicyContract:
+    """The :class:`PolicyContract` of a shipped policy name (found by :func:`find_shipped_policy`) or an
+    ONNX file (module docstring)."""
     import onnxruntime as ort
 
-    path = shipped_policy_path(policy) if policy.startswith(NAME_PREFIX) else Path(policy)
+    path = find_shipped_policy(policy, fallback_python) if policy.startswith(NAME_PREFIX) else Path(policy)
     if not path.is_file():
         raise ConfigError("--policy", policy, "no such ONNX file")
     source = str(path)
@@ -224,3 +236,31 @@ def check_obs_size(contract: PolicyContract, source: str) -> None:
     if contract.action_dim != len(contract.dof_names):
         raise ConfigError(source, "dof_names", f"the ONNX policy outputs {contract.action_dim} actions for "
                           f"{len(contract.dof_names)} dof_names")
+
+
+def batched_onnx_policy(contract: PolicyContract) -> Any:
+    """The policy as ``f(obs [B, obs_dim] float32) -> actions [B, n]`` for any batch ``B``.
+
+    Holosoma's exporter fixes the batch at 1; the graph is a plain MLP, so the loaded copy's input and
+    output take a symbolic batch (the file is not changed). onnxruntime's one-row kernel rounds
+    differently from its many-row one: callers that want a row's action not to depend on the batch
+    pass at least two rows (:func:`econmotor.couriers.walker_env.run_episodes` does).
+    """
+    import onnx
+    import onnxruntime as ort
+
+    model = onnx.load(contract.onnx_path)
+    for value in [*model.graph.input, *model.graph.output]:
+        dims = value.type.tensor_type.shape.dim
+        if len(dims) > 0:
+            dims[0].dim_param = "batch"
+    options = ort.SessionOptions()
+    options.intra_op_num_threads = 1
+    options.inter_op_num_threads = 1
+    session = ort.InferenceSession(model.SerializeToString(), options, providers=["CPUExecutionProvider"])
+    name = contract.input_name
+
+    def act(obs: Any) -> Any:
+        return session.run(None, {name: obs.astype("float32", copy=False)})[0]
+
+    return act

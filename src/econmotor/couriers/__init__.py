@@ -1,6 +1,6 @@
 """What the MuJoCo and MJX couriers share; imports no gymnasium, torch or jax.
 
-- ``robots.py``: one :class:`~econmotor.motor_backend.couriers.robots.CourierRobot` record per
+- ``robots.py``: one :class:`~econmotor.robots.gym_couriers.CourierRobot` record per
   robot (Gymnasium v5 defaults, healthy rule, observation parts, reward and reset facts),
 - ``physics.py``: what metering reads from any MuJoCo model (actuated dofs, root tilt),
 - ``settings.py``: the metering settings of a catalog entry, validated once,

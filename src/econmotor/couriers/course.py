@@ -1,9 +1,8 @@
 """The delivery course as pure functions of an array namespace ``xp`` (NumPy, or JAX in a jitted step).
 
-The sim-to-sim evaluator's :class:`~econmotor.motor_backend.holosoma.sim2sim.CourseController`
-(its settings: :class:`~econmotor.motor_backend.holosoma.sim2sim.CourseSettings`), written as a
-state and a step so the ``mjx`` humanoid couriers run the same course inside their compiled step
-(``tests/unit/motor_backend/couriers/test_course.py`` holds the two to the same commands):
+One implementation for every caller: the batched MuJoCo walker env (:mod:`.walker_env`, NumPy
+arrays over its robots) and the ``mjx`` humanoid couriers (JAX, inside their compiled step) run
+the same lines on the settings :class:`CourseSettings`:
 
 - legs of ``leg_m`` along +x; on a leg the command is the course speed (capped at the policy's
   command range) and a yaw rate ``clip(yaw_gain * heading error)`` towards the point
@@ -15,11 +14,28 @@ state and a step so the ``mjx`` humanoid couriers run the same course inside the
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, NamedTuple
 
-from econmotor.motor_backend.holosoma.sim2sim import CourseSettings
-
 __all__ = ["CourseSettings", "CourseState", "course_command", "course_finished", "course_start", "heading_yaw"]
+
+
+@dataclass(frozen=True)
+class CourseSettings:
+    """The delivery course: legs of ``leg_m`` along +x, ``dwell_s`` standing at each leg end.
+
+    ``speed_m_per_s``: the commanded walking speed; ``legs``: the episode ends when the last leg's
+    dwell does (0: at the time limit only), so every unit an episode counts carries its dwell, as
+    the human's does; ``lookahead_m`` / ``yaw_gain``: the heading controller (yaw rate in rad/s per
+    rad of heading error towards the point ``lookahead_m`` ahead on the centre line).
+    """
+
+    leg_m: float
+    dwell_s: float
+    speed_m_per_s: float
+    legs: int = 0
+    lookahead_m: float = 1.0
+    yaw_gain: float = 2.0
 
 
 class CourseState(NamedTuple):
@@ -30,15 +46,14 @@ class CourseState(NamedTuple):
     legs_done: Any
 
 
-def course_start(xp: Any) -> CourseState:
-    """The first leg, no dwell, nothing walked."""
-    zero = xp.asarray(0.0)
-    return CourseState(zero, zero, zero)
+def course_start(xp: Any, shape: tuple[int, ...] = ()) -> CourseState:
+    """The first leg, no dwell, nothing walked (``shape``: one state per robot of a batch)."""
+    return CourseState(xp.zeros(shape), xp.zeros(shape), xp.zeros(shape))
 
 
 def heading_yaw(quat_wxyz: Any, xp: Any) -> Any:
-    """The yaw (rad) of the base quaternion (w, x, y, z)."""
-    w, x, y, z = quat_wxyz[0], quat_wxyz[1], quat_wxyz[2], quat_wxyz[3]
+    """The yaw (rad) of the base quaternion (w, x, y, z) on the last axis."""
+    w, x, y, z = quat_wxyz[..., 0], quat_wxyz[..., 1], quat_wxyz[..., 2], quat_wxyz[..., 3]
     return xp.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 

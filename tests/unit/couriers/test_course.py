@@ -13,7 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from econmotor.motor_backend.couriers.course import (
+from econmotor.couriers.course import (
     CourseSettings,
     course_command,
     course_finished,

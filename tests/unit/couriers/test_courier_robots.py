@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.couriers.robots import ROBOTS, UNSUPPORTED_KWARGS, is_healthy, robot_spec
+from econmotor.robots.gym_couriers import ROBOTS, UNSUPPORTED_KWARGS, is_healthy, robot_spec
 
 
 def gymnasium_defaults(env_id: str) -> dict:

@@ -1,0 +1,404 @@
+"""N card robots in one process, stepped by MuJoCo C: the walker env that prices (and trains) the G1 and T1.
+
+One :class:`WalkerBatch` holds ``num_slots`` robots of one robot card (:mod:`econmotor.robots`), each
+walking the delivery course (:mod:`.course`) under the datapack's stress (:mod:`.stress`), metered by
+the couriers' shared formulas (:func:`econmotor.economics.courier_formulas.meter_step`):
+
+- **the model**: the card's (:func:`econmotor.robots.model.model_spec`: the maker's MJCF, the floor,
+  the maker's collision filter, the physics step), with the PD law inside MuJoCo's actuators
+  (:func:`pd_actuator_spec`: gain ``kp`` on the target, bias ``-kp q - kd qd``, force range the
+  effort limits): ``tau = clip(kp (target - q) - kd qd, -limit, limit)`` at every physics step,
+  exactly the law Holosoma's simulators apply, computed in C. Each slot has its own model copy,
+  so its friction, payload and gains are its episode's draws.
+- **a control step** (:meth:`WalkerBatch.observe`, then :meth:`WalkerBatch.act`): pushes due,
+  the course's command from the pose, the gait clock and the observation (the card's convention,
+  :mod:`econmotor.robots.observation`, over the whole batch at once); then the policy's actions
+  (clipped, delayed by the episode's control delay) become PD targets, and one
+  ``mujoco.rollout`` call steps every robot ``decimation`` physics steps (C threads, no GIL).
+- **metering** from what the rollout records at each physics step: the base pose (units on the
+  forward high-water mark, tilt risk, the fall rule) from the state, joint power from the
+  actuator-force sensors (``actuatorfrc``, added to the model) times the joint velocities: the
+  same readings the meter takes from ``qfrc_actuator`` and ``qvel``. A fall ends the episode at
+  its physics step; nothing after it is metered.
+- **seeds**: episode ``i`` draws everything from ``numpy.random.default_rng(seed_i)`` in a fixed
+  order, the rollout starts every control step from the recorded state with a zero solver warm
+  start, and the policy runs on at least two rows (onnxruntime's one-row kernel rounds
+  differently): an episode's outcome depends on its seed only, not on its slot, batch or process.
+
+The fall rule: the card's (tilt past ``fall_tilt_rad`` or the base below ``min_base_z_m``), plus a
+runaway rule (a non-finite state, or the base faster than ``runaway_speed_m_per_s``): a blow-up
+with the base upright ends the episode as a fall instead of being scored.
+
+Imports NumPy and MuJoCo only (and onnxruntime for a policy file): worker processes start fast.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import mujoco
+import numpy as np
+from mujoco import rollout
+
+from econmotor.couriers import course as crs
+from econmotor.couriers.physics import root_tilt_rad
+from econmotor.couriers.stress import Stress
+from econmotor.couriers.walker_task import MeterSettings
+from econmotor.economics import courier_formulas as cf
+from econmotor.robots import RobotCard
+from econmotor.robots import observation as robot_obs
+from econmotor.robots.model import FLOOR, joint_indices, model_spec
+
+#: the base's speed (m/s) past which a state counts as a blow-up (a walker moves at ~1 m/s; a push
+#: adds at most a few)
+RUNAWAY_SPEED_M_PER_S = 20.0
+_FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+#: the meter's running sums a walker keeps (no novelty or pose tracking on the course)
+_SUMS = ("steps", "units", "best_x", "errors", "energy_wh", "risk_sum")
+
+
+def pd_actuator_spec(card: RobotCard, kp: np.ndarray, kd: np.ndarray) -> mujoco.MjSpec:
+    """The card's model with the PD law in its actuators (card joint order), and one ``actuatorfrc``
+    sensor per actuator (named ``econmotor_frc_<joint>``)."""
+    spec = model_spec(card)
+    model = spec.compile()
+    _, _, actuators = joint_indices(model, card)
+    limit = card.array("effort_limits")
+    for j, a in enumerate(actuators):
+        act = spec.actuators[int(a)]
+        if abs(float(act.gear[0]) - 1.0) > 1e-12:
+            raise ValueError(f"robot card {card.name}: actuator {act.name} has gear {act.gear[0]}, PD by "
+                             "actuators assumes 1 (torque = actuator force)")
+        act.gaintype, act.biastype = mujoco.mjtGain.mjGAIN_FIXED, mujoco.mjtBias.mjBIAS_AFFINE
+        act.gainprm[0] = kp[j]
+        act.biasprm[0], act.biasprm[1], act.biasprm[2] = 0.0, -kp[j], -kd[j]
+        act.forcerange, act.forcelimited = [-limit[j], limit[j]], mujoco.mjtLimited.mjLIMITED_TRUE
+        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        spec.add_sensor(name=f"econmotor_frc_{card.dof_names[j]}", type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+                        objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=act.name)
+    return spec
+
+
+def set_pd_gains(model: mujoco.MjModel, actuators: np.ndarray, kp: np.ndarray, kd: np.ndarray) -> None:
+    """Set the PD law's gains of a model built by :func:`pd_actuator_spec` (per joint, card order)."""
+    model.actuator_gainprm[actuators, 0] = kp
+    model.actuator_biasprm[actuators, 1] = -kp
+    model.actuator_biasprm[actuators, 2] = -kd
+
+
+@dataclass
+class WalkerModel:
+    """The compiled PD-actuated model of a card and where to read it (card joint order)."""
+
+    card: RobotCard
+    model: mujoco.MjModel
+    qpos_adr: np.ndarray
+    dof_adr: np.ndarray
+    actuators: np.ndarray
+    frc_adr: np.ndarray  # the actuator-force sensors in sensordata
+    torso: int
+    floor: int
+    kp: np.ndarray
+    kd: np.ndarray
+
+    @classmethod
+    def build(cls, card: RobotCard, kp: np.ndarray | None = None, kd: np.ndarray | None = None) -> WalkerModel:
+        """The card's model with PD gains ``kp``/``kd`` (default: the card's; an imported policy's own)."""
+        kp = card.array("kp") if kp is None else np.asarray(kp, dtype=np.float64)
+        kd = card.array("kd") if kd is None else np.asarray(kd, dtype=np.float64)
+        model = pd_actuator_spec(card, kp, kd).compile()
+        qpos_adr, dof_adr, actuators = joint_indices(model, card)
+        frc = np.asarray([model.sensor_adr[model.sensor(f"econmotor_frc_{n}").id] for n in card.dof_names])
+        return cls(card, model, qpos_adr, dof_adr, actuators, frc, model.body(card.torso_body).id,
+                   model.geom(FLOOR).id, kp, kd)
+
+    @property
+    def nstate(self) -> int:
+        return mujoco.mj_stateSize(self.model, _FULL)
+
+
+@dataclass
+class Episode:
+    """One slot's episode: its seed, its draws and what the course and meter have counted."""
+
+    index: int
+    seed: int
+    rng: np.random.Generator
+    draws: dict[str, float]
+    delay: int
+    pushes: int = 0
+    history: list[np.ndarray] = field(default_factory=list)  # the last ``delay`` actions, oldest first
+
+
+class WalkerBatch:
+    """``num_slots`` robots of one card on the course (module docstring).
+
+    Args:
+        walker: the compiled model (:meth:`WalkerModel.build`).
+        course: the delivery course; ``command_ranges``: the policy's (caps the speed and yaw rate).
+        meter: the meter's constants; ``stress``: the per-episode conditions.
+        episode_s: the time limit, s; ``num_slots``: robots stepped together; ``nthread``: the rollout's
+            C threads (1: this process's core only).
+    """
+
+    def __init__(self, walker: WalkerModel, course: crs.CourseSettings, meter: MeterSettings, stress: Stress,
+                 episode_s: float, num_slots: int, command_ranges: dict[str, Any] | None = None,
+                 nthread: int = 1, runaway_speed_m_per_s: float = RUNAWAY_SPEED_M_PER_S) -> None:
+        card = walker.card
+        self.walker, self.card, self.course, self.meter, self.stress = walker, card, course, meter, stress
+        self.n, self.nthread, self.runaway = int(num_slots), int(nthread), float(runaway_speed_m_per_s)
+        self.control_steps = round(episode_s / card.control_dt_s)
+        ranges = dict(command_ranges or card.command_ranges)
+        self.vx_max = float(ranges.get("lin_vel_x", (-1.0, 1.0))[1])
+        lo, hi = ranges.get("ang_vel_yaw", (-1.0, 1.0))
+        self.yaw_range = (float(lo), float(hi))
+        self.constants = cf.MeterConstants(meter.leg_distance_m, meter.drivetrain_efficiency, meter.idle_power_w,
+                                           card.physics_dt_s, meter.tilt_margin_rad, meter.fall_tilt_rad)
+        m = walker.model
+        self.models = [copy.copy(m) for _ in range(self.n)]
+        self.datas = [mujoco.MjData(m) for _ in range(max(1, self.nthread))]
+        self._scratch = mujoco.MjData(m)
+        self.nq, self.nv = m.nq, m.nv
+        self.state = np.zeros((self.n, walker.nstate))
+        self.episodes: list[Episode | None] = [None] * self.n
+        nd = card.num_dofs
+        self.last_action = np.zeros((self.n, nd), dtype=np.float32)
+        self.phase = np.tile(robot_obs.initial_phase(np), (self.n, 1))
+        self.standing = np.zeros(self.n, dtype=bool)
+        self.course_state = crs.course_start(np, (self.n,))
+        self.command = np.zeros((self.n, 2))  # (vx, yaw rate) of the current control step
+        # per slot: control steps done, the next push's time (s), walking time (s) and distance (m), |y| max
+        self.steps = np.zeros(self.n, dtype=np.int64)
+        self.next_push_s = np.full(self.n, math.inf)
+        self.walk_s, self.walk_m, self.max_lateral_m = np.zeros(self.n), np.zeros(self.n), np.zeros(self.n)
+        self.delayed = np.zeros(self.n, dtype=bool)
+        self.sums = cf.MeterSums(steps=np.zeros(self.n), units=np.zeros(self.n), best_x=np.zeros(self.n),
+                                 errors=np.zeros(self.n), energy_wh=np.zeros(self.n), risk_sum=np.zeros(self.n))
+        self.default = card.array("default_dof_angles")
+        self._pool = rollout.Rollout(nthread=self.nthread) if self.nthread > 1 else None
+
+    # ------------------------------------------------------------------ episodes
+    def start(self, slot: int, index: int, seed: int) -> None:
+        """Start episode ``index`` (seeded ``seed``) in ``slot``: its draws, its model, its start state."""
+        rng = np.random.default_rng(seed)
+        card, st, w, m = self.card, self.stress, self.walker, self.models[slot]
+        d = self._scratch
+        mujoco.mj_resetData(m, d)
+        d.qpos[0:3], d.qpos[3:7] = card.init_pos, (1.0, 0.0, 0.0, 0.0)
+        noise = st.initial_joint_noise_rad
+        d.qpos[w.qpos_adr] = self.default + (rng.uniform(-noise, noise, card.num_dofs) if noise > 0 else 0.0)
+        draws: dict[str, float] = {}
+        base = w.model
+        m.pair_friction[:] = base.pair_friction
+        m.geom_friction[w.floor] = base.geom_friction[w.floor]
+        if st.friction_range is not None:
+            mu = float(rng.uniform(*st.friction_range))
+            m.geom_friction[w.floor, 0] = mu
+            m.pair_friction[:, 0:2] = mu
+            draws["friction"] = mu
+        payload = float(rng.uniform(*st.payload_kg_range)) if st.payload_kg_range is not None else 0.0
+        m.body_mass[w.torso] = base.body_mass[w.torso] + payload
+        draws["payload_kg"] = payload
+        kp_scale = rng.uniform(*st.kp_range, card.num_dofs) if st.kp_range is not None else 1.0
+        kd_scale = rng.uniform(*st.kd_range, card.num_dofs) if st.kd_range is not None else 1.0
+        set_pd_gains(m, w.actuators, w.kp * kp_scale, w.kd * kd_scale)
+        delay = int(rng.integers(st.ctrl_delay_steps[0], st.ctrl_delay_steps[1] + 1)) \
+            if st.ctrl_delay_steps is not None else 0
+        if delay:
+            draws["ctrl_delay_steps"] = float(delay)
+        first_push = float(rng.uniform(*st.push_interval_s)) if st.push_interval_s is not None else math.inf
+        mujoco.mj_forward(m, d)
+        mujoco.mj_getState(m, d, self.state[slot], _FULL)
+        self.episodes[slot] = Episode(index, seed, rng, draws, delay,
+                                      history=[np.zeros(card.num_dofs, dtype=np.float32)] * delay)
+        self.steps[slot], self.next_push_s[slot], self.delayed[slot] = 0, first_push, delay > 0
+        self.walk_s[slot] = self.walk_m[slot] = self.max_lateral_m[slot] = 0.0
+        self.last_action[slot] = 0.0
+        self.phase[slot], self.standing[slot] = robot_obs.initial_phase(np), False
+        for part in self.course_state:
+            part[slot] = 0.0
+        for name in _SUMS:
+            getattr(self.sums, name)[slot] = 0.0
+        self.sums.best_x[slot] = d.qpos[0]
+
+    def active(self) -> np.ndarray:
+        """The slots running an episode."""
+        return np.asarray([e is not None for e in self.episodes])
+
+    # ------------------------------------------------------------------ one control step
+    def _qpos(self, state: np.ndarray) -> np.ndarray:
+        return state[..., 1:1 + self.nq]
+
+    def _qvel(self, state: np.ndarray) -> np.ndarray:
+        return state[..., 1 + self.nq:1 + self.nq + self.nv]
+
+    def observe(self, slots: np.ndarray) -> np.ndarray:
+        """Advance ``slots`` to their control step (pushes due, the course's command, the gait clock)
+        and return their observations ``[len(slots), obs_dim]`` (float32)."""
+        card = self.card
+        for s in slots[self.steps[slots] * card.control_dt_s >= self.next_push_s[slots]]:
+            self._push(int(s))
+        qpos = self._qpos(self.state[slots])
+        sub = crs.CourseState(*(p[slots] for p in self.course_state))
+        new, vx, yaw_rate = crs.course_command(sub, qpos[:, 0], qpos[:, 1], crs.heading_yaw(qpos[:, 3:7], np),
+                                               self.course, card.control_dt_s, self.vx_max, self.yaw_range, np)
+        for part, value in zip(self.course_state, new, strict=True):
+            part[slots] = value
+        self.command[slots, 0], self.command[slots, 1] = vx, yaw_rate
+        lin = np.stack([vx, np.zeros_like(vx)], axis=-1)
+        phase, standing = robot_obs.advance_phase(self.phase[slots], self.standing[slots], lin, yaw_rate, card, np)
+        self.phase[slots], self.standing[slots] = phase, standing
+        return self._observation(slots)
+
+    def _observation(self, slots: np.ndarray) -> np.ndarray:
+        """The observation of ``slots`` at their current state, command and gait clock."""
+        w = self.walker
+        qpos, qvel = self._qpos(self.state[slots]), self._qvel(self.state[slots])
+        lin = np.stack([self.command[slots, 0], np.zeros(len(slots))], axis=-1)
+        return robot_obs.build_observation(
+            self.card, np, quat_wxyz=qpos[:, 3:7], ang_vel_body=qvel[:, 3:6], q=qpos[:, w.qpos_adr],
+            qd=qvel[:, w.dof_adr], lin_vel_cmd=lin, ang_vel_cmd=self.command[slots, 1],
+            last_action=self.last_action[slots], phase=self.phase[slots])
+
+    def _push(self, slot: int) -> None:
+        """The base velocity kick due in ``slot`` (Holosoma's push randomizer) and the next push's time."""
+        ep, st = self.episodes[slot], self.stress
+        lo, hi = st.max_push_vel_m_per_s  # type: ignore[misc]
+        qvel = self._qvel(self.state[slot])
+        qvel[0:2] += ep.rng.uniform(-1.0, 1.0, 2) * np.array([lo, hi])
+        self.next_push_s[slot] = self.steps[slot] * self.card.control_dt_s + float(ep.rng.uniform(*st.push_interval_s))
+        ep.pushes += 1
+
+    def act(self, slots: np.ndarray, actions: np.ndarray) -> np.ndarray:
+        """Step ``slots`` one control step with the policy's ``actions`` ``[len(slots), n]``; returns
+        which of them ended (course done, fall, time limit): read them with :meth:`finish`."""
+        card, w = self.card, self.walker
+        action = np.clip(np.asarray(actions, dtype=np.float32).reshape(len(slots), -1),
+                         -card.action_clip, card.action_clip)
+        self.last_action[slots] = action
+        applied = np.array(action)
+        for row in np.flatnonzero(self.delayed[slots]):
+            history = self.episodes[slots[row]].history
+            history.append(action[row].copy())
+            applied[row] = history.pop(0)
+        targets = self.default + card.action_scale * applied.astype(np.float64)
+        x_before = self._qpos(self.state[slots])[:, 0].copy()
+        states, sensors = self._rollout(slots, targets)
+        fell = self._meter(slots, states, sensors[:, :, w.frc_adr])
+        last = states[:, -1]
+        self.state[slots] = last
+        walking = self.command[slots, 0] > 0.0  # a walking step's progress counts toward the achieved speed
+        qpos = self._qpos(last)
+        self.steps[slots] += 1
+        self.walk_s[slots] += np.where(walking, card.control_dt_s, 0.0)
+        self.walk_m[slots] += np.where(walking, qpos[:, 0] - x_before, 0.0)
+        self.max_lateral_m[slots] = np.maximum(self.max_lateral_m[slots], np.abs(qpos[:, 1]))
+        finished = crs.course_finished(crs.CourseState(*(p[slots] for p in self.course_state)), self.course, np)
+        return fell | finished | (self.steps[slots] >= self.control_steps)
+
+    def _rollout(self, slots: np.ndarray, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``decimation`` physics steps of ``slots`` at PD ``targets``: states and sensordata per step."""
+        w = self.walker
+        ctrl = np.zeros((len(slots), 1, w.model.nu))
+        ctrl[:, 0, w.actuators] = targets
+        models = [self.models[s] for s in slots]
+        kwargs = {"nstep": self.card.decimation, "initial_warmstart": np.zeros((len(slots), w.model.nv))}
+        if self._pool is not None:
+            return self._pool.rollout(models, self.datas, self.state[slots], ctrl, **kwargs)
+        return rollout.rollout(models, self.datas[0], self.state[slots], ctrl, **kwargs)
+
+    def _meter(self, slots: np.ndarray, states: np.ndarray, frc: np.ndarray) -> np.ndarray:
+        """Meter the physics steps ``[B, decimation]`` of ``slots`` up to and including a fall (later steps
+        are not metered); returns who fell.
+
+        The same sums as :func:`econmotor.economics.courier_formulas.meter_step` applied at each live
+        physics step, taken over the control step at once: the high-water mark over the live steps,
+        energy and risk summed over them, one error for a fall.
+        """
+        w, card, c, s = self.walker, self.card, self.constants, self.sums
+        qpos, qvel = self._qpos(states), self._qvel(states)
+        tilt = root_tilt_rad(np.moveaxis(qpos[..., :7], -1, 0), True, np)
+        runaway = ~np.isfinite(states).all(axis=-1) | (np.linalg.norm(qvel[..., 0:3], axis=-1) > self.runaway)
+        fell_at = (tilt > card.fall_tilt_rad) | (qpos[..., 2] < card.min_base_z_m) | runaway
+        # live: the steps up to the first fall (a robot that fell is metered no further)
+        live = np.cumsum(np.cumsum(fell_at, axis=1), axis=1) <= 1
+        fell = fell_at.any(axis=1)
+        x = np.where(live, qpos[..., 0], -np.inf)
+        best, units = cf.forward_units(s.best_x[slots], np.nan_to_num(x.max(axis=1), nan=-np.inf), c.leg_distance_m,
+                                       np)
+        energy = cf.electrical_energy_wh(cf.mechanical_power_w(frc, qvel[..., w.dof_adr], np), c.drivetrain_efficiency,
+                                         c.idle_power_w, c.dt_s)
+        risk = cf.tilt_risk(tilt, c.tilt_margin_rad, c.fall_tilt_rad, np)
+        s.steps[slots] += live.sum(axis=1)
+        s.units[slots] += units
+        s.best_x[slots] = best
+        s.errors[slots] += fell * 1.0
+        s.energy_wh[slots] += np.where(live, energy, 0.0).sum(axis=1)
+        s.risk_sum[slots] += np.where(live, risk, 0.0).sum(axis=1)
+        return fell
+
+    # ------------------------------------------------------------------ an episode's figures
+    def finish(self, slot: int) -> dict[str, Any]:
+        """The ended episode of ``slot`` as raw metrics (the standard keys plus the course's); frees the slot."""
+        ep, card, s = self.episodes[slot], self.card, self.sums
+        n, units, best_x, errors, energy_wh, risk_sum = (float(getattr(s, k)[slot]) for k in _SUMS)
+        legs_done = float(self.course_state.legs_done[slot])
+        walk_s, walk_m = float(self.walk_s[slot]), float(self.walk_m[slot])
+        finished = bool(crs.course_finished(crs.CourseState(*(p[slot] for p in self.course_state)), self.course, np))
+        length_s = n * card.physics_dt_s
+        power_w = energy_wh * cf.SECONDS_PER_HOUR / length_s if length_s > 0 else 0.0
+        self.episodes[slot] = None
+        return {
+            "units_completed": units, "units_attempted": units + errors, "errors": errors,
+            "episode_length_s": length_s, "length_steps": float(self.steps[slot]), "energy_wh": energy_wh,
+            "risk_score": risk_sum / n if n else 0.0, "novelty_score": 0.0,
+            "termination_reason": "fall" if errors > 0 else "course_done" if finished else "time_out",
+            "distance_m": best_x - card.init_pos[0], "legs_reached": legs_done,
+            "commanded_speed_m_per_s": min(self.course.speed_m_per_s, self.vx_max),
+            "achieved_speed_m_per_s": walk_m / walk_s if walk_s > 0 else 0.0, "walking_s": walk_s,
+            "max_lateral_m": float(self.max_lateral_m[slot]), "mean_power_w": power_w,
+            "mean_mech_power_w": cf.mechanical_from_electrical_w(power_w, self.meter.drivetrain_efficiency,
+                                                                 self.meter.idle_power_w),
+            "pushes": float(ep.pushes), **{f"stress_{k}": v for k, v in ep.draws.items()},
+        }
+
+    def close(self) -> None:
+        """Stop the rollout's thread pool."""
+        if self._pool is not None:
+            self._pool.close()
+            self._pool = None
+
+
+Policy = Callable[[np.ndarray], np.ndarray]
+
+
+def run_episodes(batch: WalkerBatch, policy: Policy, episodes: list[tuple[int, int]],
+                 on_episode: Callable[[int, dict[str, Any]], bool | None] = lambda i, ep: None) -> None:
+    """Run ``episodes`` (``(index, seed)`` pairs, started in this order as slots free up) to their ends.
+
+    ``policy(obs [B, obs_dim]) -> actions [B, n]``, one call per control step over every running slot
+    (at least two rows: a lone slot's row is padded); ``on_episode(index, metrics)`` as each ends (a
+    True return stops starting new episodes).
+    """
+    queue = list(episodes)
+    stop = False
+    for slot in range(batch.n):
+        if queue:
+            batch.start(slot, *queue.pop(0))
+    while True:
+        slots = np.flatnonzero(batch.active())
+        if len(slots) == 0:
+            return
+        obs = batch.observe(slots)
+        rows = obs if len(slots) > 1 else np.concatenate([obs, obs])
+        actions = np.asarray(policy(rows))[:len(slots)]
+        done = batch.act(slots, actions)
+        for s in slots[done]:
+            index = batch.episodes[s].index
+            stop = bool(on_episode(index, batch.finish(int(s)))) or stop
+            if queue and not stop:
+                batch.start(int(s), *queue.pop(0))

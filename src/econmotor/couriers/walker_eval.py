@@ -1,0 +1,161 @@
+"""Pricing a walker on every core: seeded episodes of the batched MuJoCo env in worker processes.
+
+:func:`evaluate` runs ``num_episodes`` episodes (episode ``i`` seeded ``seed + i``) of an ONNX walker
+(a Holosoma-format file or a shipped ``holosoma:<robot>/<algo>``) on the course, under the stress,
+through :class:`~econmotor.couriers.walker_env.WalkerBatch`:
+
+- ``workers`` processes (started with ``spawn``: no fork of a process whose threads run), worker ``w``
+  running episodes ``w, w + W, ...`` on ``slots`` robots stepped together; one worker runs in this
+  process. Why processes and not the rollout's C threads: the control step's Python (course,
+  observation, policy, meter) runs beside the physics on each core, instead of one core's Python
+  holding both threads back (``benchmarks/walker_throughput.py`` measures both; docs/architecture.md).
+- every ``batch`` episodes finished in order, ``stop(episodes)`` may end the evaluation (a sequential
+  verdict); the workers are then stopped. An episode's figures depend on its seed only.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import queue as queue_module
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from econmotor.couriers.course import CourseSettings
+from econmotor.couriers.policy_import import PolicyContract, batched_onnx_policy, resolve_contract
+from econmotor.couriers.stress import Stress
+from econmotor.couriers.walker_env import WalkerBatch, WalkerModel, run_episodes
+from econmotor.couriers.walker_task import MeterSettings
+from econmotor.errors import BackendError
+
+#: robots stepped together per worker: enough to amortise the Python of a control step, few enough
+#: that a sequential look wastes little of the episodes in flight when it stops the evaluation
+DEFAULT_SLOTS = 8
+
+ProgressFn = Callable[[str, float, float], None]
+StopFn = Callable[[list[dict[str, Any]]], bool]
+
+
+@dataclass(frozen=True)
+class WalkerEvaluation:
+    """One evaluation's settings (what a worker process receives)."""
+
+    policy: str
+    course: CourseSettings
+    meter: MeterSettings
+    stress: Stress
+    episode_s: float
+    seed: int
+    slots: int = DEFAULT_SLOTS
+
+
+def build_batch(ev: WalkerEvaluation, contract: PolicyContract | None = None,
+                slots: int | None = None) -> tuple[WalkerBatch, Callable[[np.ndarray], np.ndarray]]:
+    """The env of ``ev`` (the contract's card, its own PD gains and command ranges) and its batched policy."""
+    contract = contract or resolve_contract(ev.policy)
+    walker = WalkerModel.build(contract.card, np.asarray(contract.kp), np.asarray(contract.kd))
+    batch = WalkerBatch(walker, ev.course, ev.meter, ev.stress, ev.episode_s, slots or ev.slots,
+                        contract.command_ranges)
+    return batch, batched_onnx_policy(contract)
+
+
+def _run(ev: WalkerEvaluation, indices: list[int], emit: Callable[[int, dict[str, Any]], bool | None],
+         contract: PolicyContract | None = None) -> None:
+    batch, policy = build_batch(ev, contract, min(ev.slots, max(1, len(indices))))
+    try:
+        run_episodes(batch, policy, [(i, ev.seed + i) for i in indices], emit)
+    finally:
+        batch.close()
+
+
+def _worker(ev: WalkerEvaluation, indices: list[int], out: Any, stop: Any) -> None:
+    """A worker process: episodes to ``out`` as ``("episode", index, metrics)``; ``("end", None, None)``."""
+    try:
+        _run(ev, indices, lambda i, episode: out.put(("episode", i, episode)) or stop.is_set())
+        out.put(("end", None, None))
+    except BaseException:
+        out.put(("error", None, traceback.format_exc()))
+
+
+class _Prefix:
+    """Episodes gathered by index; the unbroken run from episode 0 is what a look may judge."""
+
+    def __init__(self) -> None:
+        self.rows: dict[int, dict[str, Any]] = {}
+
+    def prefix(self) -> list[dict[str, Any]]:
+        out: list[dict[str, Any]] = []
+        while len(out) in self.rows:
+            out.append(self.rows[len(out)])
+        return out
+
+
+def evaluate(ev: WalkerEvaluation, num_episodes: int, workers: int = 1, *, progress: ProgressFn | None = None,
+             stop: StopFn | None = None, batch: int = 10, timeout_s: float | None = None,
+             ) -> tuple[list[dict[str, Any]], float]:
+    """``num_episodes`` seeded episodes on ``workers`` processes: (the episodes finished in order, wall s).
+
+    ``stop(episodes)`` is asked every ``batch`` episodes finished in order (all of them when it is None).
+    """
+    contract = resolve_contract(ev.policy)  # a bad policy is a ConfigError here, before any worker starts
+    gathered, asked, start = _Prefix(), 0, time.monotonic()
+    report = progress or (lambda label, done, total: None)
+    report("sim-to-sim episodes", 0, num_episodes)
+
+    def take(index: int, episode: dict[str, Any]) -> bool:
+        nonlocal asked
+        gathered.rows[index] = episode
+        report("sim-to-sim episodes", len(gathered.rows), num_episodes)
+        done = gathered.prefix()
+        if stop is not None and len(done) >= asked + batch and len(done) < num_episodes:
+            asked = len(done) - len(done) % batch
+            return bool(stop(done))
+        return False
+
+    workers = max(1, min(int(workers), num_episodes))
+    if workers == 1:
+        _run(ev, list(range(num_episodes)), take, contract)
+    else:
+        _in_processes(ev, num_episodes, workers, take, timeout_s, start)
+    return gathered.prefix(), time.monotonic() - start
+
+
+def _in_processes(ev: WalkerEvaluation, num_episodes: int, workers: int, take: Callable[[int, dict[str, Any]], bool],
+                  timeout_s: float | None, start: float) -> None:
+    ctx = mp.get_context("spawn")
+    out, stop_event = ctx.Queue(), ctx.Event()
+    procs = [ctx.Process(target=_worker, args=(ev, list(range(w, num_episodes, workers)), out, stop_event),
+                         daemon=True, name=f"econmotor-walker-{w}") for w in range(workers)]
+    try:
+        for proc in procs:
+            proc.start()
+        ended = 0
+        while ended < workers:
+            try:
+                kind, index, payload = out.get(timeout=1.0)
+            except queue_module.Empty:
+                if timeout_s is not None and time.monotonic() - start > timeout_s:
+                    raise BackendError(f"the walker evaluation exceeded {timeout_s:.0f} s") from None
+                if any(not p.is_alive() and p.exitcode not in (0, None) for p in procs):
+                    raise BackendError("a walker worker process died: exit codes "
+                                       f"{[p.exitcode for p in procs]}") from None
+                continue
+            if kind == "error":
+                raise BackendError(f"a walker worker failed:\n{payload}")
+            if kind == "end":
+                ended += 1
+            elif take(int(index), payload):
+                stop_event.set()
+                return
+    finally:
+        stop_event.set()
+        for proc in procs:
+            if proc.is_alive():
+                proc.terminate()
+            proc.join(timeout=10)
+        out.close()
+        out.cancel_join_thread()
