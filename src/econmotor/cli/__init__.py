@@ -15,7 +15,13 @@ from rich.markup import escape
 from typer._click.exceptions import ClickException  # typer vendors click
 
 from econmotor.cli._app import app, err_console
-from econmotor.cli._interrupts import InterruptGuard, end_interrupted_process, interrupted_exit_code, was_interrupted
+from econmotor.cli._interrupts import (
+    CommandInterrupted,
+    InterruptGuard,
+    end_interrupted_process,
+    interrupted_exit_code,
+    was_interrupted,
+)
 from econmotor.errors import EconmotorError
 
 
@@ -58,7 +64,7 @@ def _run(argv: list[str] | None) -> int:
         if not was_interrupted():
             err_console.print("[yellow]aborted[/]")
         return interrupted_exit_code()
-    except KeyboardInterrupt as exc:  # a command without its own note
+    except (KeyboardInterrupt, CommandInterrupted) as exc:  # a command without its own note
         err_console.print(f"[yellow]interrupted[/] ({exc or 'Ctrl-C'}): nothing further was written", highlight=False)
         return interrupted_exit_code()
     except typer.Exit as exc:

@@ -30,7 +30,10 @@ from rich.progress import (
 from rich.table import Table
 from rich.text import Text
 
+from econmotor.cli._interrupts import InterruptibleGroup
+
 app = typer.Typer(
+    cls=InterruptibleGroup,  # a command's KeyboardInterrupt reaches main(), which exits 143 on SIGTERM
     name="econmotor",
     help="Train robot motor policies for economic objectives and price the labour they deliver.",
     no_args_is_help=True,

@@ -21,6 +21,10 @@ main thread (``_thread.interrupt_main``) a moment later, outside the callback.
 
 An interrupted command that did stop in time ends the process at once
 (:func:`end_interrupted_process`), without the interpreter's teardown.
+
+Typer turns a KeyboardInterrupt that leaves a command into exit status 130, whatever the signal (a
+SIGTERM too), and says nothing. The app's group (:class:`InterruptibleGroup`) carries it past Typer
+as :class:`CommandInterrupted`, so :func:`econmotor.cli.main` says so and exits with the signal's status.
 """
 
 from __future__ import annotations
@@ -34,7 +38,9 @@ import sys
 import threading
 import time
 from collections.abc import Callable
-from typing import NoReturn
+from typing import Any, NoReturn
+
+from typer.core import TyperGroup
 
 from econmotor.store.registry import interrupt_own_runs
 
@@ -93,6 +99,22 @@ def end_interrupted_process(exit_code: int) -> NoReturn:
             except (OSError, ValueError):
                 pass
         os._exit(exit_code)
+
+
+class CommandInterrupted(Exception):
+    """A KeyboardInterrupt that left a command (its message: the signal), on its way to
+    :func:`econmotor.cli.main` past Typer, which would end it as exit 130 whatever the signal."""
+
+
+class InterruptibleGroup(TyperGroup):
+    """The app's command group: a KeyboardInterrupt that leaves a command leaves Typer as
+    :class:`CommandInterrupted` (module docstring)."""
+
+    def invoke(self, ctx: Any) -> Any:
+        try:
+            return super().invoke(ctx)
+        except KeyboardInterrupt as exc:
+            raise CommandInterrupted(str(exc)) from exc
 
 
 class InterruptGuard:

@@ -111,3 +111,38 @@ def test_the_deadline_ends_a_command_that_does_not_stop_and_says_its_note():
     assert proc.returncode == 143  # 128 + SIGTERM
     assert "interrupted (SIGTERM): still busy 1 s later" in err
     assert err.rstrip().endswith("exiting now. Resume with: econmotor train --resume"), err
+
+
+#: a command that never stops by itself and has no note of its own: the interrupt's KeyboardInterrupt leaves it
+#: (registered on the real app in this child process only)
+UNTIL_INTERRUPTED = """
+import sys, time
+from econmotor.cli import app, main
+
+@app.command("until-interrupted")
+def until_interrupted() -> None:
+    print("ready", flush=True)
+    while True:
+        time.sleep(0.05)
+
+sys.exit(main(["until-interrupted"]))
+"""
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_command_without_its_own_note_exits_with_the_signals_status(signum):
+    """Typer turns a KeyboardInterrupt that leaves a command into exit 130, whatever the signal: a SIGTERM to a
+    holosoma ``report --policy`` (whose evaluation has no note of its own) exited 130, not 143."""
+    proc = subprocess.Popen([sys.executable, "-c", UNTIL_INTERRUPTED], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline() == "ready\n"
+        proc.send_signal(signum)
+        _, err = proc.communicate(timeout=20)
+    finally:
+        proc.kill()
+        proc.wait()
+    assert proc.returncode == 128 + signum, err  # 130 for SIGINT, 143 for SIGTERM
+    name = signal.Signals(signum).name
+    assert f"interrupted (signal {name}): nothing further was written" in " ".join(err.split())
+    assert "still busy" not in err  # it stopped by itself, not by the deadline
