@@ -13,8 +13,8 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet torch==2.13.0
 	$(PY) -m pip install --quiet -e '.[dev,mjx]'
-	# the robot cards' MJCF (econmotor/robots): Holosoma's robot files only; its code needs numpy<2
-	$(PY) -m pip install --quiet --no-deps holosoma==0.0.3
+	# the robot cards' MJCF (econmotor/robots) and the shipped walkers' ONNX: Holosoma's files only (its code needs numpy<2)
+	$(PY) -m pip install --quiet --no-deps holosoma==0.0.3 holosoma-inference==0.1.3
 	touch $(STAMP)
 
 venv: $(STAMP)

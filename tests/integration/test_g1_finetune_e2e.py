@@ -18,8 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from econmotor.couriers.policy_import import shipped_policy_path
-from econmotor.motor_backend.holosoma.backend import find_holosoma_python
+from econmotor.couriers.policy_import import find_holosoma_python, shipped_policy_path
 from econmotor.motor_backend.mjx import ppo
 from econmotor.motor_backend.mjx.backend import MjxBackend
 from econmotor.motor_backend.mjx.onnx_import import read_actor, warm_start

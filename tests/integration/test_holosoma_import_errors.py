@@ -16,8 +16,7 @@ import onnx
 import pytest
 
 from econmotor.cli import main
-from econmotor.couriers.policy_import import shipped_policy_path
-from econmotor.motor_backend.holosoma.backend import find_holosoma_python
+from econmotor.couriers.policy_import import find_holosoma_python, shipped_policy_path
 from econmotor.motor_backend.holosoma.jobs import job_environment
 
 pytestmark = [pytest.mark.holosoma]

@@ -97,3 +97,43 @@ def test_every_module_imports():
         except ImportError as exc:  # an optional extra (ray, psycopg, holosoma) not installed here
             skipped.append(f"{name}: {exc}")
     assert len(skipped) < len(module_files()) // 4, skipped
+
+
+BACKENDS = ("dishwashing", "mujoco", "mjx", "holosoma")
+#: what the backends share and build on: these import no backend
+SHARED = ("econmotor.couriers", "econmotor.robots", "econmotor.economics", "econmotor.objectives",
+          "econmotor.valuation", "econmotor.config", "econmotor.tasks")
+
+
+def backend_of(module: str) -> str | None:
+    parts = module.split(".")
+    return parts[2] if len(parts) > 2 and parts[1] == "motor_backend" and parts[2] in BACKENDS else None
+
+
+def layer_violations(graph: dict[str, set[str]]) -> list[str]:
+    """Imports that cross the layers: a backend package into another, a shared package into any backend,
+    holosoma's host side into its venv side (``holosoma.venv``, run only inside ``.venv-holosoma``)."""
+    bad = []
+    for module, targets in graph.items():
+        for target in targets:
+            mine, theirs = backend_of(module), backend_of(target)
+            if theirs and mine and theirs != mine:
+                bad.append(f"{module} -> {target} (backends are peers)")
+            if theirs and module.startswith(SHARED):
+                bad.append(f"{module} -> {target} (a shared package imports a backend)")
+            venv = "econmotor.motor_backend.holosoma.venv"
+            if target.startswith(venv) and not module.startswith(venv):
+                bad.append(f"{module} -> {target} (holosoma's host side imports its venv side)")
+    return sorted(bad)
+
+
+def test_the_layer_rule_sees_a_crossing():
+    graph = {"econmotor.motor_backend.mjx.backend": {"econmotor.motor_backend.holosoma.plan"},
+             "econmotor.couriers.course": {"econmotor.motor_backend.mjx.env"},
+             "econmotor.motor_backend.holosoma.backend": {"econmotor.motor_backend.holosoma.venv.runner"},
+             "econmotor.motor_backend.holosoma.venv.runner": {"econmotor.motor_backend.holosoma.job_specs"}}
+    assert len(layer_violations(graph)) == 3
+
+
+def test_backends_are_peers_and_shared_packages_import_none():
+    assert layer_violations(import_graph(module_files())) == []

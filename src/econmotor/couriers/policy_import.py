@@ -36,9 +36,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from econmotor.errors import ConfigError
+from econmotor.errors import BackendError, ConfigError
 from econmotor.robots import CARDS, RobotCard
 
+#: the environment variable naming Holosoma's interpreter's venv (the CLI passes it to the backends)
+VENV_ENV = "ECONMOTOR_HOLOSOMA_VENV"
+_REPO_ROOT = Path(__file__).resolve().parents[3]
 #: ``holosoma:<robot>/<algo>`` (the shipped locomotion policies)
 NAME_PREFIX = "holosoma:"
 _NAME = re.compile(r"^holosoma:([A-Za-z0-9_]+)/([A-Za-z0-9_]+)$")
@@ -61,6 +64,21 @@ def holosoma_export_metadata(card: Any, observation_clip: float | None = None) -
             "action_scale": float(card.action_scale),
             "command_ranges": {k: [float(v) for v in r] for k, r in card.command_ranges.items()},
             "observation_layout": layout, "observation_clip": observation_clip}
+
+
+def find_holosoma_python(venv: str | Path | None = None) -> Path:
+    """The Holosoma interpreter: ``venv`` (the CLI passes $ECONMOTOR_HOLOSOMA_VENV) > ./.venv-holosoma > repo's."""
+    candidates = [Path(venv)] if venv else []
+    candidates += [Path.cwd() / ".venv-holosoma", _REPO_ROOT / ".venv-holosoma"]
+    for candidate in candidates:
+        python = candidate / "bin" / "python"
+        if python.exists():
+            return python
+    raise BackendError(
+        "the Holosoma environment (.venv-holosoma) is missing: run `make holosoma` in the econmotor checkout, "
+        f"or `pip install -r requirements-holosoma.txt` into a venv and set {VENV_ENV} to it "
+        f"(looked in: {', '.join(str(c) for c in candidates)})"
+    )
 
 
 def is_imported_policy(policy_id: str) -> bool:

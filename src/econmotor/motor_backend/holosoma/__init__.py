@@ -5,7 +5,7 @@ Two interpreters meet here. The main environment (numpy 2) imports
 and :mod:`.jobs` (the subprocess client), which hands the runner a :mod:`.job_specs` dataclass as JSON;
 none of them imports Holosoma or torch.
 The isolated ``.venv-holosoma`` (numpy 1.x, Holosoma, torch) runs :mod:`.runner`
-(``python -m econmotor.motor_backend.holosoma.runner JOB.json``) and :mod:`.recording`
+(``python -m econmotor.motor_backend.holosoma.venv.runner JOB.json``) and :mod:`.recording`
 (an eval callback), and imports the reward terms in
 :mod:`.reward_terms`. Everything shared between the
 two sides is a typed job (:mod:`.job_specs`, parsed once by the runner), plain JSON or

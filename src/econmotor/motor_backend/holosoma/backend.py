@@ -46,6 +46,8 @@ from typing import Any, ClassVar
 from econmotor.couriers.datapack_mapping import map_datapacks
 from econmotor.couriers.policy_import import (
     NAME_PREFIX,
+    VENV_ENV,
+    find_holosoma_python,
     find_shipped_policy,
     is_imported_policy,
     model_text,
@@ -99,27 +101,10 @@ from econmotor.tasks.catalog import TaskCatalog
 
 __all__ = ["HOLOSOMA_TASK_PRESETS", "HolosomaBackend", "find_holosoma_python"]
 
-VENV_ENV = "ECONMOTOR_HOLOSOMA_VENV"
 SIMULATOR_ENV = "ECONMOTOR_HOLOSOMA_SIMULATOR"
 ALGO_ENV = "ECONMOTOR_HOLOSOMA_ALGO"
 CPU_STEPS_ENV = "ECONMOTOR_HOLOSOMA_CPU_MAX_ENV_STEPS"
 LEGACY_MANIFEST = "policy.json"  # the run record before run_config.json
-_REPO_ROOT = Path(__file__).resolve().parents[4]
-
-
-def find_holosoma_python(venv: str | Path | None = None) -> Path:
-    """The Holosoma interpreter: ``venv`` (the CLI passes $ECONMOTOR_HOLOSOMA_VENV) > ./.venv-holosoma > repo's."""
-    candidates = [Path(venv)] if venv else []
-    candidates += [Path.cwd() / ".venv-holosoma", _REPO_ROOT / ".venv-holosoma"]
-    for candidate in candidates:
-        python = candidate / "bin" / "python"
-        if python.exists():
-            return python
-    raise BackendError(
-        "the Holosoma environment (.venv-holosoma) is missing: run `make holosoma` in the econmotor checkout, "
-        f"or `pip install -r requirements-holosoma.txt` into a venv and set {VENV_ENV} to it "
-        f"(looked in: {', '.join(str(c) for c in candidates)})"
-    )
 
 
 def attach_econmotor_metadata(onnx_path: str | Path, metadata: dict[str, Any]) -> None:

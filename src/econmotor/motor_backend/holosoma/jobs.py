@@ -1,7 +1,7 @@
 """Running a job in .venv-holosoma from the main interpreter (the subprocess client).
 
 :func:`run_job` writes the job (a :mod:`.job_specs` dataclass) as JSON, starts ``<venv>/bin/python -m
-econmotor.motor_backend.holosoma.runner job.json``, forwards ``progress`` events to the
+econmotor.motor_backend.holosoma.venv.runner job.json``, forwards ``progress`` events to the
 caller's :data:`~econmotor.motor_backend.base.ProgressFn` while the job runs, collects
 ``message`` and ``curve`` events, keeps Holosoma's log in ``<run_dir>/<action>.log``,
 and returns the ``result`` event. A failing job raises :class:`BackendError` carrying
@@ -81,7 +81,7 @@ def run_job(
     job_path = run_dir / f"{job.log_name}_job.json"
     job_path.write_text(job.to_json(), encoding="utf-8")
     log_path = run_dir / f"{job.log_name}.log"
-    cmd = [str(python), "-u", "-m", "econmotor.motor_backend.holosoma.runner", str(job_path)]
+    cmd = [str(python), "-u", "-m", "econmotor.motor_backend.holosoma.venv.runner", str(job_path)]
     tail: deque[str] = deque(maxlen=400)
     messages: list[str] = []
     curve: list[dict[str, Any]] = []

@@ -35,7 +35,7 @@ from typing import Any, ClassVar
 
 import jax
 
-from econmotor.couriers.policy_import import holosoma_export_metadata
+from econmotor.couriers.policy_import import VENV_ENV, holosoma_export_metadata
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import (
     BackendCapabilities,
@@ -54,7 +54,6 @@ from econmotor.motor_backend.base import (
     walking_speed_m_per_s,
 )
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
-from econmotor.motor_backend.holosoma.backend import VENV_ENV
 from econmotor.motor_backend.mjx import ppo
 from econmotor.motor_backend.mjx.compile import CompiledAhead
 from econmotor.motor_backend.mjx.export import export_onnx

@@ -101,8 +101,7 @@ def policy_file(policy: str, holosoma_venv: str | Path | None = None) -> Path:
     """The ONNX file of ``policy``: a shipped name (module docstring) or a path; a ConfigError otherwise."""
     import importlib.util
 
-    from econmotor.couriers.policy_import import NAME_PREFIX, shipped_policy_path
-    from econmotor.motor_backend.holosoma.backend import find_holosoma_python
+    from econmotor.couriers.policy_import import NAME_PREFIX, find_holosoma_python, shipped_policy_path
 
     if policy.startswith(NAME_PREFIX):
         here = importlib.util.find_spec("holosoma_inference") is not None

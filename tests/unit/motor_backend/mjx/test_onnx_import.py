@@ -14,9 +14,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from econmotor.couriers.policy_import import shipped_policy_path
+from econmotor.couriers.policy_import import find_holosoma_python, shipped_policy_path
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.holosoma.backend import find_holosoma_python
 from econmotor.motor_backend.mjx import networks as nets
 from econmotor.motor_backend.mjx import ppo
 from econmotor.motor_backend.mjx.export import export_onnx

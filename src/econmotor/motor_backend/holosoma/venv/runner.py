@@ -1,4 +1,4 @@
-"""The job runner: ``python -m econmotor.motor_backend.holosoma.runner JOB.json`` in .venv-holosoma.
+"""The job runner: ``python -m econmotor.motor_backend.holosoma.venv.runner JOB.json`` in .venv-holosoma.
 
 A job is one of :mod:`.job_specs`' dataclasses, written as JSON by :mod:`.jobs` in the main
 interpreter and parsed here once (:func:`.job_specs.parse_job`; a bad job is a ConfigError the caller
@@ -36,8 +36,8 @@ from econmotor.motor_backend.holosoma.job_specs import (
 )
 from econmotor.motor_backend.holosoma.protocol import emit
 
-OVERLAY_TERM = "econmotor.motor_backend.holosoma.reward_terms:EconOverlayTerm"
-RECORDING_TARGET = "econmotor.motor_backend.holosoma.recording.EconRecordingCallback"
+OVERLAY_TERM = "econmotor.motor_backend.holosoma.venv.reward_terms:EconOverlayTerm"
+RECORDING_TARGET = "econmotor.motor_backend.holosoma.venv.recording.EconRecordingCallback"
 PROJECT = "econmotor"
 MATERIAL_TERM = "randomize_robot_rigid_body_material_startup"
 
@@ -199,7 +199,7 @@ def train(job: TrainJob) -> dict[str, Any]:
     exp_dir = runs[-1]
     checkpoint = _latest(list(exp_dir.glob("model_*.pt")))
     onnx = checkpoint.with_suffix(".onnx") if checkpoint is not None else None
-    terms_module = sys.modules.get("econmotor.motor_backend.holosoma.reward_terms")
+    terms_module = sys.modules.get("econmotor.motor_backend.holosoma.venv.reward_terms")
     timer = dict(terms_module.TIMER) if terms_module is not None else {"seconds": 0.0, "calls": 0}
     return {"econ_term_seconds": timer["seconds"], "econ_term_calls": timer["calls"],
             "experiment_dir": str(exp_dir), "checkpoint": str(checkpoint) if checkpoint else None,
@@ -254,7 +254,7 @@ def evaluate(job: EvaluateJob) -> dict[str, Any]:
 
 def main(argv: list[str]) -> int:
     if len(argv) != 1:
-        sys.stderr.write("usage: python -m econmotor.motor_backend.holosoma.runner JOB.json\n")
+        sys.stderr.write("usage: python -m econmotor.motor_backend.holosoma.venv.runner JOB.json\n")
         return 2
     os.environ.setdefault("WANDB_MODE", "disabled")
     actions = {"probe": lambda _job: probe(), "train": train, "evaluate": evaluate}

@@ -3,7 +3,7 @@
 Each overlay key of a :class:`~econmotor.objectives.CompiledRewardOverlay` becomes one
 Holosoma reward term::
 
-    RewardTermCfg(func="econmotor.motor_backend.holosoma.reward_terms:EconOverlayTerm",
+    RewardTermCfg(func="econmotor.motor_backend.holosoma.venv.reward_terms:EconOverlayTerm",
                   params={"key": "energy_kwh", ...physical parameters...},
                   weight=gain * scale_k, tags=["econ_overlay"])
 

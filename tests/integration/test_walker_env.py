@@ -1,0 +1,162 @@
+"""The batched MuJoCo walker env (couriers/walker_env.py) on the real G1 and T1, in the main interpreter.
+
+- PD by MuJoCo's actuators equals the PD law computed in Python before each physics step (the one-robot
+  evaluator's inner loop), over a fixed action sequence: joint positions, and the electrical energy the
+  old meter read from ``qfrc_actuator`` and ``qvel`` against the env's from its actuator-force sensors;
+- an episode's figures depend on its seed only: one slot or several, one worker process or two, under a
+  stress datapack with every per-episode draw (friction, payload, pushes, gains, control delay);
+- the shipped PPO walkers walk the task's course at the speed and energy the one-robot evaluator measured
+  (seeds 0-3 there: G1 0.5282 m/s and 0.9987 Wh per leg, T1 0.5744 m/s and 1.1811 Wh per leg);
+- the runaway rule ends a blown-up episode as a fall; the SB3 ``VecEnv`` resets in the same step and
+  hands back the terminal observation, and SB3's PPO learns on it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from econmotor.couriers.course import CourseSettings
+from econmotor.couriers.policy_import import resolve_contract
+from econmotor.couriers.stress import Stress
+from econmotor.couriers.walker_env import WalkerBatch, WalkerModel, run_episodes
+from econmotor.couriers.walker_eval import WalkerEvaluation, build_batch, evaluate
+from econmotor.couriers.walker_task import MeterSettings, course_settings, meter_settings, task_settings
+from econmotor.economics import courier_formulas as cf
+from econmotor.robots.model import joint_indices, model_spec
+from econmotor.tasks.catalog import load_catalog
+
+METER = MeterSettings(leg_distance_m=2.0, drivetrain_efficiency=0.8, idle_power_w=50.0, tilt_margin_rad=0.2,
+                      fall_tilt_rad=0.8)
+SHORT = CourseSettings(leg_m=2.0, dwell_s=1.0, speed_m_per_s=0.8, legs=2)
+EVERY_DRAW = Stress(friction_range=(0.4, 1.0), payload_kg_range=(2.0, 5.0), push_interval_s=(1.0, 2.0),
+                    max_push_vel_m_per_s=(0.5, 0.5), initial_joint_noise_rad=0.05, kp_range=(0.9, 1.1),
+                    kd_range=(0.9, 1.1), ctrl_delay_steps=(0, 1))
+
+
+@pytest.fixture(scope="module")
+def g1_ppo():
+    return resolve_contract("holosoma:g1_29dof/ppo")
+
+
+def python_pd_reference(card, kp, kd, actions):
+    """The one-robot evaluator's loop: the card's own model (motor actuators), the PD torque computed in
+    Python before every physics step, energy metered from ``qfrc_actuator`` and ``qvel`` after it."""
+    import mujoco
+
+    model = model_spec(card).compile()
+    data = mujoco.MjData(model)
+    qadr, dadr, act = joint_indices(model, card)
+    data.qpos[0:3], data.qpos[3:7] = card.init_pos, (1.0, 0.0, 0.0, 0.0)
+    data.qpos[qadr] = card.array("default_dof_angles")
+    mujoco.mj_forward(model, data)
+    limit, default = card.array("effort_limits"), card.array("default_dof_angles")
+    mech_j, qpos = 0.0, []
+    for action in actions:
+        target = default + card.action_scale * action.astype(np.float64)
+        for _ in range(card.decimation):
+            q, qd = data.qpos[qadr], data.qvel[dadr]
+            data.ctrl[act] = np.clip(kp * (target - q) - kd * qd, -limit, limit)
+            mujoco.mj_step(model, data)
+            mech_j += float(np.sum(np.abs(data.qfrc_actuator[dadr] * data.qvel[dadr]))) * card.physics_dt_s
+        qpos.append(data.qpos[qadr].copy())
+    return np.asarray(qpos), mech_j
+
+
+def test_pd_by_actuators_equals_the_python_pd_law(g1_ppo):
+    card, kp, kd = g1_ppo.card, np.asarray(g1_ppo.kp), np.asarray(g1_ppo.kd)
+    steps = 50  # one second of control
+    phase = np.arange(card.num_dofs) * 0.7
+    actions = [np.float32(0.4) * np.sin(0.3 * k + phase).astype(np.float32) for k in range(steps)]
+    ref_qpos, ref_mech_j = python_pd_reference(card, kp, kd, actions)
+    batch = WalkerBatch(WalkerModel.build(card, kp, kd), SHORT, METER, Stress(), 60.0, 1, g1_ppo.command_ranges)
+    batch.start(0, 0, 0)
+    slots, qpos = np.array([0]), []
+    for action in actions:
+        batch.act(slots, action[None, :])
+        qpos.append(batch._qpos(batch.state[0])[batch.walker.qpos_adr].copy())
+    assert np.max(np.abs(np.asarray(qpos) - ref_qpos)) < 2e-3  # rad, after 200 physics steps
+    length_s = steps * card.control_dt_s
+    ref_wh = cf.electrical_energy_wh(ref_mech_j / length_s, METER.drivetrain_efficiency, METER.idle_power_w, length_s)
+    assert float(batch.sums.energy_wh[0]) == pytest.approx(ref_wh, rel=5e-3)
+    assert ref_mech_j > 1.0  # the sequence does work: the check compares something
+
+
+def figures(episodes):
+    return [(e["errors"], e["units_completed"], e["energy_wh"], e["stress_payload_kg"]) for e in episodes]
+
+
+def test_an_episode_depends_on_its_seed_only(g1_ppo):
+    ev = WalkerEvaluation(policy=g1_ppo.onnx_path, course=SHORT, meter=METER, stress=EVERY_DRAW, episode_s=12.0,
+                          seed=40)
+    alone = []
+    for i in range(4):  # one slot, one episode at a time
+        batch, policy = build_batch(ev, g1_ppo, slots=1)
+        run_episodes(batch, policy, [(i, ev.seed + i)], lambda _i, ep: alone.append(ep))
+    together, _ = evaluate(WalkerEvaluation(**{**ev.__dict__, "slots": 4}), 4, workers=1)
+    two_workers, _ = evaluate(WalkerEvaluation(**{**ev.__dict__, "slots": 2}), 4, workers=2)
+    assert len({e["stress_payload_kg"] for e in alone}) == 4  # the seeds drew different conditions
+    for a, b in ((alone, together), (alone, two_workers)):
+        for x, y in zip(figures(a), figures(b), strict=True):
+            assert x[0] == y[0] and x[3] == y[3]
+            assert x[1] == pytest.approx(y[1], rel=1e-3) and x[2] == pytest.approx(y[2], rel=1e-3)
+
+
+@pytest.mark.parametrize(("policy", "task_id", "speed", "wh_per_leg"), [
+    ("holosoma:g1_29dof/ppo", "humanoid_locomotion_g1", 0.5282, 0.9987),
+    ("holosoma:t1_29dof/ppo", "humanoid_locomotion_t1", 0.5744, 1.1811),
+])
+def test_the_shipped_walkers_walk_at_todays_nominal_speed_and_energy(policy, task_id, speed, wh_per_leg):
+    spec = load_catalog().get(task_id)
+    settings = task_settings(task_id, spec.backend_entry("holosoma"), spec.source)
+    ev = WalkerEvaluation(policy=policy, course=course_settings(settings),
+                          meter=MeterSettings(**meter_settings(task_id, settings, spec.source)),
+                          stress=Stress(initial_joint_noise_rad=float(settings["sim2sim_start_joint_noise_rad"])),
+                          episode_s=float(settings["sim2sim_episode_s"]), seed=0, slots=2)
+    episodes, _ = evaluate(ev, 2)
+    legs = sum(e["units_completed"] for e in episodes)
+    assert sum(e["errors"] for e in episodes) == 0 and legs > 5.9
+    assert np.mean([e["achieved_speed_m_per_s"] for e in episodes]) == pytest.approx(speed, rel=0.03)
+    assert sum(e["energy_wh"] for e in episodes) / legs == pytest.approx(wh_per_leg, rel=0.03)
+
+
+def test_the_runaway_rule_ends_a_blown_up_episode_as_a_fall(g1_ppo):
+    ev = WalkerEvaluation(policy=g1_ppo.onnx_path, course=SHORT, meter=METER, stress=Stress(), episode_s=10.0, seed=0)
+    batch, policy = build_batch(ev, g1_ppo, slots=1)
+    batch.runaway = 0.3  # m/s: a walker commanded 0.8 m/s passes it while upright
+    ended = []
+    run_episodes(batch, policy, [(0, 0)], lambda _i, ep: ended.append(ep))
+    [episode] = ended
+    assert episode["termination_reason"] == "fall" and episode["errors"] == 1.0
+    assert episode["episode_length_s"] < 5.0
+    assert episode["risk_score"] < 0.05  # upright all the while: only the runaway rule could end it
+
+
+def test_the_vec_env_resets_in_the_same_step_and_sb3_learns_on_it(g1_ppo):
+    from stable_baselines3 import PPO
+
+    from econmotor.motor_backend.mujoco.walker_vec_env import WalkerVecEnv
+
+    ev = WalkerEvaluation(policy=g1_ppo.onnx_path, course=SHORT, meter=METER, stress=Stress(), episode_s=0.2, seed=0)
+    batch, _ = build_batch(ev, g1_ppo, slots=2)
+    coefficients = cf.overlay_coefficients({"mpl_per_hour": 1.0, "energy_kwh": -1.0}, 0.2)
+    env = WalkerVecEnv(batch, coefficients, seed=7)
+    obs = env.reset()
+    assert obs.shape == (2, g1_ppo.card.obs_dim)
+    returns = np.zeros(2)
+    for _ in range(9):
+        obs, rewards, dones, infos = env.step(np.zeros((2, g1_ppo.card.num_dofs), np.float32))
+        assert not dones.any()
+        returns += rewards
+    obs, rewards, dones, infos = env.step(np.zeros((2, g1_ppo.card.num_dofs), np.float32))
+    assert dones.all()  # 10 control steps of 20 ms: the time limit
+    assert infos[0]["TimeLimit.truncated"] and infos[0]["terminal_observation"].shape == obs[0].shape
+    assert not np.array_equal(infos[0]["terminal_observation"], obs[0])  # the new episode's first row
+    assert env.next_seed == 11  # seeds 7, 8, then 9 and 10 for the restarted slots
+    # the rewards sum to the episode's overlay J (the potential's last value)
+    assert infos[0]["episode"]["r"] == pytest.approx(returns[0] + rewards[0], rel=1e-5)
+    assert infos[0]["episode"]["l"] == 10
+    model = PPO("MlpPolicy", env, n_steps=16, batch_size=32, n_epochs=1, seed=0, device="cpu")
+    model.learn(total_timesteps=64)
+    assert model.num_timesteps >= 64
+    env.close()
