@@ -44,11 +44,11 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
 
-    from econmotor.motor_backend.base import evaluation_result
     from econmotor.motor_backend.mjx.backend import MjxBackend
     from econmotor.motor_backend.mujoco.backend import MujocoBackend
     from econmotor.motor_backend.mujoco.env_factory import make_env
     from econmotor.motor_backend.mujoco.evaluation import rollout_episodes
+    from econmotor.motor_backend.results import evaluation_result
     from econmotor.objectives import EconomicObjectiveSpec
     from econmotor.tasks import load_catalog
 

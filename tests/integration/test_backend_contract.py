@@ -25,19 +25,16 @@ import numpy as np
 import pytest
 
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.base import (
+from econmotor.motor_backend.base import MotorBackendBase, PolicyHandle
+from econmotor.motor_backend.capabilities import BackendCapabilities, RunSize
+from econmotor.motor_backend.factory import backend_class, environment_options, known_backends, make_motor_backend
+from econmotor.motor_backend.results import PROVENANCE_KEY, EvalProvenance
+from econmotor.motor_backend.run_dir import (
     EVALUATION_FILE,
-    PROVENANCE_KEY,
     RUN_CONFIG_FILE,
     TRAINING_EVAL_DIR,
     TRAINING_EVAL_SEED_OFFSET,
-    BackendCapabilities,
-    EvalProvenance,
-    MotorBackendBase,
-    PolicyHandle,
-    RunSize,
 )
-from econmotor.motor_backend.factory import backend_class, environment_options, known_backends, make_motor_backend
 from econmotor.motor_backend.selection import SELECTION_SEED_OFFSET, Selection, SelectionConfig
 from econmotor.objectives import EconomicObjectiveSpec
 from econmotor.tasks import load_catalog

@@ -54,7 +54,7 @@ FIGURES = {
     "preset_differentiation.py": "best preset MPL / random policy MPL",
     "registry_episode_reads.py": "ratio records/arrays",
     "shadow_overhead.py": "SAC steps/s with shadow / without",
-    "sim2sim_throughput.py": "evaluation / raw:",
+    "walker_throughput.py": "env_processes / raw_2:",
     "solver_throughput.py": "speed-up (loop / vectorised)",
     "time_to_deployable.py": "ratio median fixed / median until",
     "training_throughput.py": "ratio",
@@ -68,7 +68,7 @@ SLOW = {"conditioned_vs_specialists.py", "constraints_dishwashing.py", "demo_rel
 HEAVY = {"mjx_model_options.py", "mjx_physics_gap.py", "mjx_throughput.py", "mjx_time_to_courier.py",
          "mjx_humanoid_throughput.py", "mjx_eval_timeline.py", "g1_objectives.py", "holosoma_overlay_overhead.py"}
 #: need the isolated Holosoma environment (the script runs in it, or starts jobs in it)
-HOLOSOMA = {"holosoma_overlay_overhead.py", "sim2sim_throughput.py", "g1_objectives.py"}
+HOLOSOMA = {"holosoma_overlay_overhead.py", "g1_objectives.py"}
 TIMEOUT_S = 900  # generous: minutes on 2 shared cores with a cold compilation cache
 
 

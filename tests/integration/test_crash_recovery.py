@@ -87,8 +87,8 @@ MujocoBackend().train_policy("hopper_courier", EconomicObjectiveSpec(), [], 2, 1
 
 
 def test_kill_9_during_checkpoint_writes_then_resume_skips_truncated_checkpoints(tmp_path, capsys):
-    from econmotor.motor_backend.base import read_run_config
     from econmotor.motor_backend.mujoco.training import checkpoint_vecnormalize, find_checkpoint
+    from econmotor.motor_backend.run_dir import read_run_config
 
     run_dir = tmp_path / "run"
     env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": os.pathsep.join(sys.path)}

@@ -17,7 +17,7 @@ import pytest
 import yaml
 
 from econmotor.cli import main
-from econmotor.motor_backend.base import REPORT_EVAL_SEED_OFFSET
+from econmotor.motor_backend.run_dir import REPORT_EVAL_SEED_OFFSET
 from econmotor.store import Registry
 
 pytestmark = [pytest.mark.holosoma]

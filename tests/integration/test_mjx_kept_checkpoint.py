@@ -28,7 +28,7 @@ def episode(legs: float, fell: bool) -> dict:
     """One 8 s courier episode's raw metrics (a fall ends it and counts as an attempted leg)."""
     return {"units_completed": legs, "units_attempted": legs + (1.0 if fell else 0.0), "errors": 1.0 if fell else 0.0,
             "episode_length_s": 8.0, "energy_wh": 0.05, "risk_score": 0.0, "novelty_score": 0.0,
-            "return": 100.0 * legs, "length_steps": 1000.0, "termination_reason": "fall" if fell else "time_out"}
+            "return": 100.0 * legs, "length_steps": 1000.0, "termination_reason": "fall" if fell else "max_steps"}
 
 
 SCRIPT = ([episode(0.2, i % 2 == 0) for i in range(EPISODES)],

@@ -11,8 +11,8 @@ import pytest
 from stable_baselines3 import PPO
 
 from econmotor.cli import main
-from econmotor.motor_backend.base import read_run_config
 from econmotor.motor_backend.mujoco.training import latest_checkpoint
+from econmotor.motor_backend.run_dir import read_run_config
 
 pytestmark = pytest.mark.slow
 

@@ -41,7 +41,7 @@ def test_report_from_a_postgresql_registry(pg_url: str, tmp_path: Path, monkeypa
     import json
 
     from econmotor.cli import main
-    from econmotor.motor_backend.base import MotorEvalResult, summarize_episodes
+    from econmotor.motor_backend.results import MotorEvalResult, summarize_episodes
     from econmotor.store import Registry
     from econmotor.tasks import get_task
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from econmotor.cli import main
-from econmotor.motor_backend.base import MotorEvalResult, summarize_episodes
+from econmotor.motor_backend.results import MotorEvalResult, summarize_episodes
 from econmotor.store import Registry
 from econmotor.tasks import get_task, load_catalog
 

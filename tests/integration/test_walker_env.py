@@ -118,6 +118,12 @@ def test_the_shipped_walkers_walk_at_todays_nominal_speed_and_energy(policy, tas
     assert sum(e["errors"] for e in episodes) == 0 and legs > 5.9
     assert np.mean([e["achieved_speed_m_per_s"] for e in episodes]) == pytest.approx(speed, rel=0.03)
     assert sum(e["energy_wh"] for e in episodes) / legs == pytest.approx(wh_per_leg, rel=0.03)
+    # a plausible amount of work for the walk: mechanical cost of transport P_mech / (m g v) in 0.2-1.5
+    # (metering a force that is not the actuators', such as gravity's qfrc_bias, gives about 0.1)
+
+    mass = float(np.sum(WalkerModel.build(resolve_contract(policy).card).model.body_mass))
+    cot = [e["mean_mech_power_w"] * e["episode_length_s"] / (mass * 9.81 * e["distance_m"]) for e in episodes]
+    assert all(0.2 < c < 1.5 for c in cot), cot
 
 
 def test_the_runaway_rule_ends_a_blown_up_episode_as_a_fall(g1_ppo):

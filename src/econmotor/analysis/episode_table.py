@@ -23,7 +23,7 @@ JSONL export format (``econmotor solve --export-jsonl``), one episode per line::
                                                # objectives that price energy (energy_term: usd)
 
 Lines are self-contained (run fields repeat), so files concatenate. Reading
-also accepts the summary names of ``econmotor.motor_backend.base.episode_summary``
+also accepts the summary names of ``econmotor.motor_backend.results.episode_summary``
 (``mpl_episode``, ``error_rate_episode``, ``energy_Wh``, ``energy_Wh_per_unit``), and
 the episode records of a shadow run (``shadow_episodes.jsonl``, format
 :data:`SHADOW_EPISODE_FORMAT`): their ``econ`` summary is the episode, the run id is

@@ -26,7 +26,7 @@ import os
 import signal
 import threading
 from collections.abc import Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -34,8 +34,9 @@ from typing import Any
 from econmotor.analysis.objective_surface import Objective
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.errors import BackendError, ConfigError
-from econmotor.motor_backend.base import MotorTrainingResult, ProgressFn, no_progress
+from econmotor.motor_backend.base import ProgressFn, no_progress
 from econmotor.motor_backend.datapacks import DatapackConfig
+from econmotor.motor_backend.results import MotorTrainingResult
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.objectives.loader import objective_from_vector
 
@@ -148,7 +149,8 @@ class RaySettings:
     """How to run cells on Ray.
 
     Attributes:
-        address: a cluster address (``"auto"``, ``"ray://host:10001"``); ``None`` starts a local Ray
+        address: a cluster address (``"auto"``, ``"ray://host:10001"``); ``None`` starts a local Ray in a
+            process of its own (:mod:`econmotor.analysis.ray_head`)
             (or uses one already initialised in this process).
         num_cpus: CPUs of a local Ray (ignored with ``address``).
         cpus_per_cell, gpus_per_cell: the resources each cell's task declares.
@@ -254,16 +256,32 @@ def _run_on_ray(registry: Any, cells: Sequence[SweepCell], output_dir: str, outc
         import ray
     except ImportError as exc:
         raise BackendError("Ray is not installed: pip install 'econmotor[ray]' (or run without --ray)") from exc
-    started_here = not ray.is_initialized()
-    if started_here:
-        kwargs: dict[str, Any] = {"include_dashboard": False, "configure_logging": False,
-                                  "log_to_driver": False, **settings.init_kwargs}
-        if settings.address:
-            kwargs["address"] = settings.address
-        elif settings.num_cpus:
-            kwargs["num_cpus"] = settings.num_cpus
-        with _callers_sigterm_kept():
-            ray.init(**kwargs)
+    with ExitStack() as stack:
+        if not ray.is_initialized():
+            _connect(ray, settings, stack)
+        _run_cells_on_ray(ray, registry, cells, output_dir, outcomes, tick, settings, backend_options)
+
+
+def _connect(ray: Any, settings: RaySettings, stack: ExitStack) -> None:
+    """Connect this process to ``settings.address``, else to a local Ray started in a process of its own
+    (:func:`~econmotor.analysis.ray_head.local_ray_head`: started here, Ray would fork this process, where JAX
+    or torch threads may run); ``stack`` disconnects, then stops that local Ray."""
+    from econmotor.analysis.ray_head import local_ray_head
+
+    kwargs: dict[str, Any] = {"include_dashboard": False, "configure_logging": False, "log_to_driver": False,
+                              **settings.init_kwargs}
+    address = settings.address
+    if not address:
+        address = stack.enter_context(local_ray_head(
+            {**kwargs, **({"num_cpus": settings.num_cpus} if settings.num_cpus else {})}))
+    with _callers_sigterm_kept():
+        ray.init(address=address, **kwargs)
+    stack.callback(ray.shutdown)
+
+
+def _run_cells_on_ray(ray: Any, registry: Any, cells: Sequence[SweepCell], output_dir: str,
+                      outcomes: dict[str, CellOutcome], tick: Any, settings: RaySettings,
+                      backend_options: Mapping[str, Any] | None) -> None:
     threads = max(1, int(settings.cpus_per_cell))
     remote = ray.remote(num_cpus=settings.cpus_per_cell, num_gpus=settings.gpus_per_cell,
                         max_retries=0)(train_cell)
@@ -287,6 +305,3 @@ def _run_on_ray(registry: Any, cells: Sequence[SweepCell], output_dir: str, outc
             ray.cancel(ref, force=True)
             registry.mark_run(run_id, "interrupted", f"{type(exc).__name__}: {exc}")
         raise
-    finally:
-        if started_here:
-            ray.shutdown()

@@ -39,8 +39,9 @@ from econmotor.cli.validation import check_db_url, check_flags, check_output_dir
 from econmotor.economics.pricing import PricingPolicy
 from econmotor.economics.uncertainty import SequentialPlan
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.base import PROVENANCE_KEY, REPORT_EVAL_SEED_OFFSET
 from econmotor.motor_backend.factory import load_checked_catalog
+from econmotor.motor_backend.results import PROVENANCE_KEY
+from econmotor.motor_backend.run_dir import REPORT_EVAL_SEED_OFFSET
 from econmotor.report.render import fmt
 
 #: intervals narrower than this fraction of the price cannot tell policies apart: the episodes barely

@@ -31,8 +31,8 @@ from econmotor.cli.options import (
     UNTIL_DEPLOYABLE_OPTION,
 )
 from econmotor.cli.reporting import NO_BACKEND, ReportArgs, run_report
-from econmotor.motor_backend.base import REPORT_EVAL_SEED_OFFSET
 from econmotor.motor_backend.factory import DEFAULT_BACKEND, known_backends
+from econmotor.motor_backend.run_dir import REPORT_EVAL_SEED_OFFSET
 from econmotor.store.registry import DB_URL_ENV
 
 # the command's own flags (module-level, as Typer allows and ruff's B008 prefers)

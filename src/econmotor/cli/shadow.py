@@ -22,7 +22,7 @@ from econmotor.cli.validation import (
 )
 from econmotor.config.objective_profile import OBJECTIVE_TERMS, ObjectiveVector
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.base import new_run_dir
+from econmotor.motor_backend.run_dir import new_run_dir
 from econmotor.store.registry import Registry
 from econmotor.tasks import load_catalog
 from econmotor.valuation import load_constraint_set

@@ -34,7 +34,7 @@ from econmotor.cli.validation import (
 )
 from econmotor.economics.uncertainty import counted
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.base import utc_stamp
+from econmotor.motor_backend.run_dir import utc_stamp
 from econmotor.rl.shadow_log import EPISODES_FILE
 from econmotor.valuation import ConstraintSet, load_constraint_sets
 

@@ -99,7 +99,7 @@ def write_json(path: Path | None, payload: dict[str, Any]) -> None:
 
 def completed_run_note(backend: str, run_dir: Path) -> str | None:
     """What a finished run of ``backend`` holds, or ``None`` when ``run_dir`` has no final policy."""
-    from econmotor.motor_backend.base import read_run_config
+    from econmotor.motor_backend.run_dir import read_run_config
 
     cls = backend_class(backend)
     if not cls.is_complete_run(run_dir):

@@ -49,6 +49,7 @@ from econmotor.couriers.physics import root_tilt_rad
 from econmotor.couriers.stress import Stress
 from econmotor.couriers.walker_task import MeterSettings
 from econmotor.economics import courier_formulas as cf
+from econmotor.economics.termination import TerminationReason
 from econmotor.robots import RobotCard
 from econmotor.robots import observation as robot_obs
 from econmotor.robots.model import FLOOR, joint_indices, model_spec
@@ -356,7 +357,8 @@ class WalkerBatch:
             "units_completed": units, "units_attempted": units + errors, "errors": errors,
             "episode_length_s": length_s, "length_steps": float(self.steps[slot]), "energy_wh": energy_wh,
             "risk_score": risk_sum / n if n else 0.0, "novelty_score": 0.0,
-            "termination_reason": "fall" if errors > 0 else "course_done" if finished else "time_out",
+            "termination_reason": TerminationReason.FALL if errors > 0 else TerminationReason.COURSE_DONE if finished
+            else TerminationReason.MAX_STEPS,
             "distance_m": best_x - card.init_pos[0], "legs_reached": legs_done,
             "commanded_speed_m_per_s": min(self.course.speed_m_per_s, self.vx_max),
             "achieved_speed_m_per_s": walk_m / walk_s if walk_s > 0 else 0.0, "walking_s": walk_s,

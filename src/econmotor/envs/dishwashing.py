@@ -63,6 +63,7 @@ from econmotor.config.econ_params import EconParams
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.economics import labour
 from econmotor.economics.legacy_reward import LegacyRewardWeights, compute_econ_reward
+from econmotor.economics.termination import TerminationReason
 from econmotor.envs.dishwashing_randomization import EconRandomization
 from econmotor.errors import ConfigError
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
@@ -75,7 +76,8 @@ from econmotor.valuation.reward_builder import (
 )
 
 REWARD_MODES = ("overlay", "legacy", "reward_builder")
-TERMINATION_REASONS = ("catastrophic_error", "sla_violation", "zero_throughput", "max_steps")
+TERMINATION_REASONS = (TerminationReason.CATASTROPHIC_ERROR, TerminationReason.SLA_VIOLATION,
+                       TerminationReason.ZERO_THROUGHPUT, TerminationReason.MAX_STEPS)
 FAILURE_REASONS = TERMINATION_REASONS[:3]
 OVERLAY_TERM_KEYS = ("mpl_per_hour", "energy_kwh", "error_rate", "risk_score", "novelty_score",
                      "energy_kwh_per_hour", "profit_usd", "units_completed")
@@ -240,8 +242,8 @@ class DishwashingEnv(gym.Env):
         summary = self._step_summary(speed, care, units, errors, attempts, wh, catastrophic)
 
         reason = self._termination_reason()
-        terminated = reason is not None and reason != "max_steps"
-        truncated = reason == "max_steps"
+        terminated = reason is not None and reason != TerminationReason.MAX_STEPS
+        truncated = reason == TerminationReason.MAX_STEPS
         summary["termination_reason"] = reason
         if terminated:
             summary["overlay_terms"]["risk_score"] += 1.0 - self._catastrophe_share()
@@ -302,13 +304,13 @@ class DishwashingEnv(gym.Env):
     def _termination_reason(self) -> str | None:
         p = self.params
         if self.catastrophic_steps >= p.max_catastrophic_errors:
-            return "catastrophic_error"
+            return TerminationReason.CATASTROPHIC_ERROR
         if self.t >= p.min_steps_for_sla and self.units > 0 and self.errors / self.units > p.max_error_rate_sla:
-            return "sla_violation"
+            return TerminationReason.SLA_VIOLATION
         if self.t >= p.zero_throughput_patience and self.units == 0:
-            return "zero_throughput"
+            return TerminationReason.ZERO_THROUGHPUT
         if self.t >= self.max_steps:
-            return "max_steps"
+            return TerminationReason.MAX_STEPS
         return None
 
     def _reward(self, summary: Mapping[str, Any]) -> float:

@@ -1,14 +1,6 @@
 """Motor backends: train, evaluate and deploy motor policies (spec: motor_backends.md)."""
 
-from econmotor.motor_backend.base import (
-    EvalProvenance,
-    MotorBackend,
-    MotorEvalResult,
-    MotorTrainingResult,
-    PolicyHandle,
-    ProgressFn,
-    summarize_episodes,
-)
+from econmotor.motor_backend.base import MotorBackendBase, PolicyHandle, ProgressFn
 from econmotor.motor_backend.datapacks import (
     DatapackBundle,
     DatapackConfig,
@@ -17,13 +9,14 @@ from econmotor.motor_backend.datapacks import (
     save_datapack_config,
 )
 from econmotor.motor_backend.factory import known_backends, make_motor_backend, register_motor_backend
+from econmotor.motor_backend.results import EvalProvenance, MotorEvalResult, MotorTrainingResult, summarize_episodes
 
 __all__ = [
     "DatapackBundle",
     "DatapackConfig",
     "DatapackProvider",
     "EvalProvenance",
-    "MotorBackend",
+    "MotorBackendBase",
     "MotorEvalResult",
     "MotorTrainingResult",
     "PolicyHandle",

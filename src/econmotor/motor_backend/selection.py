@@ -24,7 +24,7 @@ episodes its verdict needs.
 When held-out evaluations come (:meth:`Selection.due`): every ``every_steps`` env steps and, by
 default, only once the training since the last evaluation is at least ``(1 - max_share) / max_share``
 times that evaluation's cost, so they take at most ``max_share`` of the run's wall time (the
-backend's declared :class:`~econmotor.motor_backend.base.HeldOutCadence`); an explicit
+backend's declared :class:`~econmotor.motor_backend.capabilities.HeldOutCadence`); an explicit
 ``--select-every`` drops the share rule, so the cadence is exactly every ``every_steps`` steps.
 
 The report's verdict comes from a separate evaluation on fresh seeds, so it is not selected
@@ -46,7 +46,7 @@ from typing import Any
 
 from econmotor.economics.uncertainty import CONFIDENCE, SequentialPlan
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.base import SELECTION_SEED_OFFSET
+from econmotor.motor_backend.run_dir import SELECTION_SEED_OFFSET
 from econmotor.motor_backend.sequential import FAIL, Judged, SequentialEvaluation, judge_raw
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.objectives.loader import objective_weights_vector
@@ -290,7 +290,7 @@ def selection_for(task: Any, objective: EconomicObjectiveSpec, every_steps: int 
     """A backend's :class:`Selection` from its ``train_policy`` arguments; None when ``every_steps``
     is 0 (no held-out evaluations: the last weights are kept). ``until_deployable`` needs them.
 
-    ``every_steps`` None: the backend's ``cadence`` (a :class:`~econmotor.motor_backend.base.HeldOutCadence`;
+    ``every_steps`` None: the backend's ``cadence`` (a :class:`~econmotor.motor_backend.capabilities.HeldOutCadence`;
     its steps and its share of wall time), else exactly every ``every_steps``. ``episodes`` None: the
     default cap. ``batch``: the backend's evaluation batch (the first look)."""
     if every_steps is None:

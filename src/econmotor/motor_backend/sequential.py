@@ -40,7 +40,7 @@ from econmotor.economics.uncertainty import (
     judge,
     look_outcome,
 )
-from econmotor.motor_backend.base import MotorEvalResult, evaluation_result, summarize_episodes
+from econmotor.motor_backend.results import MotorEvalResult, evaluation_result, summarize_episodes
 
 #: how an evaluation ended, beyond pass and fail.
 EPISODE_CAP, TIME_CAP = "episode cap", "time cap"

@@ -24,8 +24,9 @@ from econmotor.config.loading import path_name
 from econmotor.economics.pricing import PricingPolicy, price_evaluation
 from econmotor.economics.uncertainty import SequentialPlan
 from econmotor.errors import BackendError, ConfigError, RegistryError, UnknownNameError
-from econmotor.motor_backend.base import REPORT_EVAL_SEED_OFFSET, ProgressFn, new_run_dir, no_progress
+from econmotor.motor_backend.base import ProgressFn, no_progress
 from econmotor.motor_backend.datapacks import DatapackConfig
+from econmotor.motor_backend.run_dir import REPORT_EVAL_SEED_OFFSET, new_run_dir
 from econmotor.motor_backend.sequential import evaluate_sequentially
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.report.document import ReportContext, build_document

@@ -19,7 +19,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from econmotor.motor_backend.base import PROVENANCE_KEY
+from econmotor.motor_backend.results import PROVENANCE_KEY
 from econmotor.report.plots import render_plots
 
 #: (field, label) of the pricing table, in reading order; every saving says what it counts.

@@ -45,7 +45,7 @@ from econmotor.config.task_economics import TaskEconomics
 from econmotor.economics.legacy_reward import LegacyRewardWeights, compute_econ_reward
 from econmotor.economics.meter import EconomicMeter
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.base import episode_summary
+from econmotor.motor_backend.results import episode_summary
 from econmotor.rl.conditioning import ObjectiveConditioningWrapper
 from econmotor.rl.constraint_shaping import ConstraintShaper
 from econmotor.rl.relabel_buffer import RELABEL_INFO_KEY

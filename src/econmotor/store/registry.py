@@ -55,8 +55,8 @@ from sqlalchemy.exc import SQLAlchemyError
 from sqlalchemy.orm import Session
 
 from econmotor.errors import ConfigError, RegistryError, UnknownNameError
-from econmotor.motor_backend.base import PROVENANCE_KEY
 from econmotor.motor_backend.datapacks import DatapackConfig, parse_datapack
+from econmotor.motor_backend.results import PROVENANCE_KEY
 from econmotor.store.engine import (
     DB_URL_ENV,
     check_db_url,

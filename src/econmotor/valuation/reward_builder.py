@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from econmotor.config.objective_profile import ObjectiveVector, RewardWeights, check_energy_term
+from econmotor.economics.termination import TerminationReason
 from econmotor.errors import ConfigError
 
 REWARD_TERM_NAMES: tuple[str, ...] = ("r_mpl", "r_error", "r_energy", "r_safety", "r_novelty")
@@ -51,7 +52,7 @@ SUMMARY_ALIASES: dict[str, tuple[str, ...]] = {
     "ep": ("ep", "ep_episode", "energy_productivity_units_per_kwh", "ep_t"),
     "novelty": ("novelty", "novelty_score"),
 }
-CATASTROPHIC_REASONS = frozenset({"catastrophic_error", "fall", "vase_broken"})
+CATASTROPHIC_REASONS = frozenset({TerminationReason.CATASTROPHIC_ERROR, TerminationReason.FALL, "vase_broken"})
 
 
 def default_objective_vector() -> list[float]:

@@ -14,7 +14,7 @@ from econmotor.analysis.episode_table import (
 )
 from econmotor.config.task_economics import TaskEconomics
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.base import summarize_episodes
+from econmotor.motor_backend.results import summarize_episodes
 
 
 def backend_summaries() -> list[dict]:

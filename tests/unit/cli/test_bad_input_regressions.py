@@ -192,7 +192,7 @@ def test_run_directory_names_cannot_escape(tmp_path):
 
 
 def test_markdown_escapes_user_strings_like_html(workdir, capsys):
-    from econmotor.motor_backend.base import MotorEvalResult, summarize_episodes
+    from econmotor.motor_backend.results import MotorEvalResult, summarize_episodes
     from econmotor.store import Registry
     from econmotor.tasks import get_task
 

@@ -27,7 +27,7 @@ from econmotor.economics.uncertainty import (
     percent,
 )
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.base import summarize_episodes
+from econmotor.motor_backend.results import summarize_episodes
 from econmotor.tasks import get_task
 
 

@@ -3,7 +3,7 @@ import pytest
 from econmotor.config.task_economics import TaskEconomics
 from econmotor.errors import UnknownNameError
 from econmotor.motor_backend import known_backends, make_motor_backend, register_motor_backend
-from econmotor.motor_backend.base import (
+from econmotor.motor_backend.results import (
     PROVENANCE_KEY,
     EvalProvenance,
     MotorEvalResult,

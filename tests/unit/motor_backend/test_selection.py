@@ -10,7 +10,7 @@ import pytest
 from econmotor.cli.demo import DEMO_OBJECTIVE
 from econmotor.economics.uncertainty import SequentialPlan
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.base import HeldOutCadence
+from econmotor.motor_backend.capabilities import HeldOutCadence
 from econmotor.motor_backend.selection import SELECTION_SEED_OFFSET, Selection, SelectionConfig, selection_for
 from econmotor.motor_backend.sequential import SequentialEvaluation, judge_raw
 from econmotor.objectives import load_objective_spec

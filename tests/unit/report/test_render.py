@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from econmotor.economics.pricing import PricingPolicy, price_evaluation
-from econmotor.motor_backend.base import summarize_episodes
+from econmotor.motor_backend.results import summarize_episodes
 from econmotor.objectives import EconomicObjectiveSpec
 from econmotor.report.document import (
     REPORT_SCHEMA,
@@ -167,7 +167,7 @@ def test_a_run_started_from_a_walker_says_so_in_the_document_and_the_report():
 
 
 def test_the_evaluated_line_reads_the_recorded_provenance_not_a_backends_keys():
-    from econmotor.motor_backend.base import EvalProvenance
+    from econmotor.motor_backend.results import EvalProvenance
     from econmotor.report.render import imported_policy_text
 
     walked = EvalProvenance(evaluator="sim2sim", figures_from="MuJoCo sim-to-sim (the card)", imported=True,

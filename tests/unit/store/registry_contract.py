@@ -10,8 +10,8 @@ import pytest
 from sqlalchemy import update
 
 from econmotor.errors import RegistryError, UnknownNameError
-from econmotor.motor_backend.base import MotorEvalResult, MotorTrainingResult, summarize_episodes
 from econmotor.motor_backend.datapacks import parse_datapack
+from econmotor.motor_backend.results import MotorEvalResult, MotorTrainingResult, summarize_episodes
 from econmotor.objectives import EconomicObjectiveSpec
 from econmotor.store import Registry
 from econmotor.store.models import SchemaVersionRow

@@ -1,7 +1,7 @@
 """What a run's config records of a backend result: the backend's own keys apart from the contract's
 declared provenance, which report and compare read."""
 
-from econmotor.motor_backend.base import PROVENANCE_KEY, EvalProvenance, MotorEvalResult, MotorTrainingResult
+from econmotor.motor_backend.results import PROVENANCE_KEY, EvalProvenance, MotorEvalResult, MotorTrainingResult
 from econmotor.store.registry import result_config
 
 

@@ -40,26 +40,18 @@ from econmotor.config.task_economics import TaskEconomics
 from econmotor.envs.dishwashing import DishwashingEnv
 from econmotor.envs.dishwashing_randomization import EconRandomization, parse_econ_randomization
 from econmotor.errors import BackendError, ConfigError
-from econmotor.motor_backend.base import (
-    RUN_CONFIG_FILE,
-    BackendCapabilities,
+from econmotor.motor_backend.base import MotorBackendBase, ProgressFn, StepAlias, StopFn, no_progress
+from econmotor.motor_backend.capabilities import BackendCapabilities, RunSize, ShadowEnv
+from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
+from econmotor.motor_backend.results import (
     EvalProvenance,
-    MotorBackendBase,
     MotorEvalResult,
     MotorTrainingResult,
-    ProgressFn,
-    RunSize,
-    ShadowEnv,
-    StepAlias,
-    StopFn,
     aggregate_raw,
     evaluation_result,
     mean_power_w,
-    no_progress,
-    read_run_config,
-    write_run_config,
 )
-from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
+from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, read_run_config, write_run_config
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.tasks.catalog import TaskCatalog, TaskSpec
 

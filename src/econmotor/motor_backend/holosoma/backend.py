@@ -66,24 +66,8 @@ from econmotor.couriers.walker_task import (
 )
 from econmotor.economics.courier_formulas import mechanical_from_electrical_w
 from econmotor.errors import BackendError, ConfigError
-from econmotor.motor_backend.base import (
-    RUN_CONFIG_FILE,
-    BackendCapabilities,
-    EvalProvenance,
-    MotorBackendBase,
-    MotorEvalResult,
-    MotorTrainingResult,
-    ProgressFn,
-    RunSize,
-    StopFn,
-    aggregate_raw,
-    evaluation_result,
-    mean_power_w,
-    no_progress,
-    read_run_config,
-    walking_speed_m_per_s,
-    write_run_config,
-)
+from econmotor.motor_backend.base import MotorBackendBase, ProgressFn, StopFn, no_progress
+from econmotor.motor_backend.capabilities import BackendCapabilities, RunSize
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.motor_backend.holosoma.econ_formulas import OVERLAY_TERM_KEYS
 from econmotor.motor_backend.holosoma.job_specs import EvaluateJob, Overlay, ProbeJob, TrainJob
@@ -96,6 +80,16 @@ from econmotor.motor_backend.holosoma.plan import (
 )
 from econmotor.motor_backend.holosoma.recording_metrics import episodes_from_recording
 from econmotor.motor_backend.onnx_policy import ECONMOTOR_PREFIX, OnnxPolicyHandle
+from econmotor.motor_backend.results import (
+    EvalProvenance,
+    MotorEvalResult,
+    MotorTrainingResult,
+    aggregate_raw,
+    evaluation_result,
+    mean_power_w,
+    walking_speed_m_per_s,
+)
+from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, read_run_config, write_run_config
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
 from econmotor.tasks.catalog import TaskCatalog
 

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from econmotor.economics import courier_formulas as cf
+from econmotor.economics.termination import TerminationReason
 from econmotor.errors import BackendError
 from econmotor.motor_backend.holosoma.econ_formulas import (
     base_tilt_rad,
@@ -91,7 +92,7 @@ def episodes_from_recording(path: str | Path, settings: Mapping[str, Any], meter
     for start, stop in episode_bounds(series["reset"], num_episodes):
         window = slice(start, stop)
         last = stop - 1
-        reason = "fall" if series["fell"][last] else ("time_out" if series["time_out"][last] else "max_steps")
+        reason = TerminationReason.FALL if series["fell"][last] else TerminationReason.MAX_STEPS
         units = float(np.sum(series["progress"][window]) * dt)
         episodes.append({
             "units_completed": units,

@@ -37,22 +37,8 @@ import jax
 
 from econmotor.couriers.policy_import import VENV_ENV, holosoma_export_metadata
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.base import (
-    BackendCapabilities,
-    EvalProvenance,
-    HeldOutCadence,
-    MotorBackendBase,
-    MotorEvalResult,
-    MotorTrainingResult,
-    ProgressFn,
-    RunSize,
-    StopFn,
-    aggregate_raw,
-    evaluation_result,
-    mean_power_w,
-    no_progress,
-    walking_speed_m_per_s,
-)
+from econmotor.motor_backend.base import MotorBackendBase, ProgressFn, StopFn, no_progress
+from econmotor.motor_backend.capabilities import BackendCapabilities, HeldOutCadence, RunSize
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.motor_backend.mjx import ppo
 from econmotor.motor_backend.mjx.compile import CompiledAhead
@@ -67,6 +53,15 @@ from econmotor.motor_backend.mjx.training import (
     read_run_config,
 )
 from econmotor.motor_backend.onnx_policy import OnnxPolicyHandle
+from econmotor.motor_backend.results import (
+    EvalProvenance,
+    MotorEvalResult,
+    MotorTrainingResult,
+    aggregate_raw,
+    evaluation_result,
+    mean_power_w,
+    walking_speed_m_per_s,
+)
 from econmotor.motor_backend.selection import selection_for
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.robots import card as robot_card

@@ -47,6 +47,7 @@ from econmotor.couriers.overlay import TERM_METRICS, human_baseline_references, 
 from econmotor.couriers.physics import actuated_dof_span, has_free_root, root_tilt_rad
 from econmotor.couriers.randomization import DomainRandomization, parse_randomization
 from econmotor.economics import courier_formulas as cf
+from econmotor.economics.termination import TerminationReason
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.mjx._mjx import mjx
 from econmotor.motor_backend.mjx.assets import RobotSpec, load_model, robot_spec
@@ -407,6 +408,6 @@ class MjxCourierEnv:
         for i in range(n):
             row = {k: float(cols[k][i]) for k in BASE_METRIC_KEYS if k != "fell"}
             row["control_dt_s"] = self.control_dt_s
-            row["termination_reason"] = "fall" if cols["fell"][i] > 0.5 else "max_steps"
+            row["termination_reason"] = TerminationReason.FALL if cols["fell"][i] > 0.5 else TerminationReason.MAX_STEPS
             rows.append(with_overlay_columns(row, cols, i, self.factors))
         return rows

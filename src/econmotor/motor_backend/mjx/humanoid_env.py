@@ -57,6 +57,7 @@ from econmotor.couriers.overlay import human_baseline_references, overlay_term_f
 from econmotor.couriers.physics import root_tilt_rad
 from econmotor.couriers.stress import Stress
 from econmotor.economics import courier_formulas as cf
+from econmotor.economics.termination import TerminationReason
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.mjx._mjx import mjx
 from econmotor.motor_backend.mjx.assets import apply_model_options
@@ -398,8 +399,8 @@ class MjxHumanoidCourierEnv:
         for i in range(len(cols["fell"])):
             row = {k: float(cols[k][i]) for k in BASE_METRIC_KEYS if k not in ("fell", "course_done")}
             row["control_dt_s"] = self.control_dt_s
-            row["termination_reason"] = "fall" if cols["fell"][i] > 0.5 else \
-                "course_done" if cols["course_done"][i] > 0.5 else "time_out"
+            row["termination_reason"] = TerminationReason.FALL if cols["fell"][i] > 0.5 else \
+                TerminationReason.COURSE_DONE if cols["course_done"][i] > 0.5 else TerminationReason.MAX_STEPS
             rows.append(with_overlay_columns(row, cols, i, self.factors))
         return rows
 

@@ -33,11 +33,12 @@ import jax
 import numpy as np
 
 from econmotor.errors import BackendError
-from econmotor.motor_backend import base
-from econmotor.motor_backend.base import RUN_CONFIG_FILE, ProgressFn, check_resume_request, no_progress
+from econmotor.motor_backend import run_dir as run_dirs
+from econmotor.motor_backend.base import ProgressFn, no_progress
 from econmotor.motor_backend.mjx import checkpoint as ckpt
 from econmotor.motor_backend.mjx import ppo
 from econmotor.motor_backend.mjx.compile import CacheWatch
+from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, check_resume_request
 from econmotor.motor_backend.selection import Selection
 
 POLICY_FILE = "policy.npz"
@@ -46,7 +47,7 @@ BEST_DIR = "best"
 
 def read_run_config(run_dir: str | Path, task_id: str | None = None) -> dict[str, Any]:
     """The ``run_config.json`` of an mjx run directory (the recorded backend must be ``mjx``)."""
-    return base.read_run_config(run_dir, "mjx", task_id)
+    return run_dirs.read_run_config(run_dir, "mjx", task_id)
 
 
 def load_learner(run_dir: str | Path, config: dict[str, Any], cfg: ppo.PPOConfig) -> ppo.Learner:
@@ -178,7 +179,7 @@ class MjxTrainingRun:
         if better:
             ckpt.save_tree(self.run_dir / BEST_DIR / POLICY_FILE, learner, key, steps)
         self.config = {**self.config, "selection": self.selection.record()}
-        base.write_run_config(self.run_dir, self.config, "mjx")
+        run_dirs.write_run_config(self.run_dir, self.config, "mjx")
         for name, value in result.scalars().items():
             writer.add_scalar(name, value, steps)
 
@@ -214,7 +215,7 @@ class MjxTrainingRun:
         }
         if self.selection is not None and self.selection.history:
             self.config["selection"] = self.selection.record()  # a resumed run's selection so far
-        base.write_run_config(self.run_dir, self.config, "mjx")
+        run_dirs.write_run_config(self.run_dir, self.config, "mjx")
 
         state = ppo.init_train_state(env, cfg, self.num_envs, self.seed, learner=learner, key=key)
         iteration = ppo.make_train_iteration(env, cfg, self.num_envs)
@@ -279,7 +280,7 @@ class MjxTrainingRun:
         learner = state.learner
         if self.selection is not None:  # the record first: policy.npz marks a complete run
             self.config = {**self.config, "trained_steps": steps, "selection": self.selection.record()}
-            base.write_run_config(self.run_dir, self.config, "mjx")
+            run_dirs.write_run_config(self.run_dir, self.config, "mjx")
         if self.selection is not None and self.selection.best is not None:
             best = self.run_dir / BEST_DIR / POLICY_FILE
             learner, _, _, _ = ckpt.load_tree(best, state.learner)

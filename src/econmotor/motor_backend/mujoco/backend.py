@@ -22,23 +22,8 @@ import torch
 
 from econmotor.couriers.overlay import human_baseline_references
 from econmotor.errors import BackendError, ConfigError
-from econmotor.motor_backend.base import (
-    RUN_CONFIG_FILE,
-    BackendCapabilities,
-    EvalProvenance,
-    MotorBackendBase,
-    MotorEvalResult,
-    MotorTrainingResult,
-    ProgressFn,
-    RunSize,
-    ShadowEnv,
-    StopFn,
-    aggregate_raw,
-    evaluation_result,
-    mean_power_w,
-    no_progress,
-    read_run_config,
-)
+from econmotor.motor_backend.base import MotorBackendBase, ProgressFn, StopFn, no_progress
+from econmotor.motor_backend.capabilities import BackendCapabilities, RunSize, ShadowEnv
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.motor_backend.mujoco.clips import check_clip_file, load_bundle_clips, record_clip
 from econmotor.motor_backend.mujoco.env_factory import EnvRecipe, make_env
@@ -50,6 +35,15 @@ from econmotor.motor_backend.mujoco.run import HELD_OUT_BATCH, TrainingRun
 from econmotor.motor_backend.mujoco.settings import MujocoTaskSettings, parse_mujoco_settings
 from econmotor.motor_backend.mujoco.step_summary import MujocoStepSummaryWrapper
 from econmotor.motor_backend.mujoco.training import obs_normalizer
+from econmotor.motor_backend.results import (
+    EvalProvenance,
+    MotorEvalResult,
+    MotorTrainingResult,
+    aggregate_raw,
+    evaluation_result,
+    mean_power_w,
+)
+from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, read_run_config
 from econmotor.motor_backend.selection import selection_for
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
 from econmotor.robots.gym_couriers import robot_name

@@ -65,6 +65,7 @@ from econmotor.economics.courier_formulas import (
     overlay_potential,
     running_metrics,
 )
+from econmotor.economics.termination import TerminationReason
 from econmotor.errors import ConfigError
 
 __all__ = ["EconomicMeteringWrapper", "EpisodeSums", "VisitNovelty", "actuated_dof_span", "find_wrapper"]
@@ -268,7 +269,7 @@ class EconomicMeteringWrapper(gym.Wrapper):
             "risk_score": metrics.risk_score,
             "return": self._task_return,
             "forward_distance_m": sums.best_x - self._x0,
-            "termination_reason": "fall" if fell else "max_steps",
+            "termination_reason": TerminationReason.FALL if fell else TerminationReason.MAX_STEPS,
         }
         if self._novelty is not None:
             raw["novelty_score"] = metrics.novelty_score

@@ -18,14 +18,7 @@ from typing import Any
 import mujoco
 
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.base import (
-    RUN_CONFIG_FILE,
-    ProgressFn,
-    check_resume_request,
-    no_progress,
-    read_run_config,
-    write_run_config,
-)
+from econmotor.motor_backend.base import ProgressFn, no_progress
 from econmotor.motor_backend.mujoco.env_factory import EnvRecipe, make_env, make_vec_env
 from econmotor.motor_backend.mujoco.evaluation import rollout_batched, torch_act_fn
 from econmotor.motor_backend.mujoco.settings import merge_hyperparameters
@@ -43,6 +36,7 @@ from econmotor.motor_backend.mujoco.training import (
     save_final,
     wrap_normalize,
 )
+from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, check_resume_request, read_run_config, write_run_config
 from econmotor.motor_backend.sb3_callbacks import HeldOutSelectionCallback, ProgressFnCallback, TrainingCurveCallback
 from econmotor.motor_backend.selection import Selection
 

@@ -28,6 +28,7 @@ import gymnasium as gym
 
 from econmotor.config.task_economics import TaskEconomics
 from econmotor.economics import labour
+from econmotor.economics.termination import TerminationReason
 from econmotor.errors import ConfigError
 
 
@@ -70,7 +71,8 @@ class MujocoStepSummaryWrapper(gym.Wrapper):
         mpl_step = units / self.dt_h
         err = errors / attempts if attempts > 0 else 0.0
         wage = labour.implied_wage(econ.value_per_unit, mpl_step, econ.damage_cost_usd_per_error, err)
-        reason = ("fall" if terminated else "max_steps") if (terminated or truncated) else None
+        ended = TerminationReason.FALL if terminated else TerminationReason.MAX_STEPS
+        reason = ended if (terminated or truncated) else None
         info["step_summary"] = {
             "units": units, "errors": errors, "attempts": attempts, "Wh": t.energy_wh - wh0,
             "mpl_t": mpl, "d_mpl": mpl - self._prev_mpl, "mpl_step": mpl_step,

@@ -22,6 +22,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
 from econmotor.couriers.walker_env import WalkerBatch
 from econmotor.economics import courier_formulas as cf
+from econmotor.economics.termination import TerminationReason
 
 
 class WalkerVecEnv(VecEnv):
@@ -69,7 +70,7 @@ class WalkerVecEnv(VecEnv):
             steps = int(self.batch.steps[slot])
             metrics = self.batch.finish(int(slot))
             infos[slot] = {"terminal_observation": terminal, "episode_metrics": metrics,
-                           "TimeLimit.truncated": metrics["termination_reason"] == "time_out",
+                           "TimeLimit.truncated": metrics["termination_reason"] == TerminationReason.MAX_STEPS,
                            "episode": {"r": float(self.returns[slot]), "l": steps,
                                        "t": round(time.monotonic() - self.started[slot], 6)}}
             self._start(int(slot))
