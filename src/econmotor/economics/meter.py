@@ -23,6 +23,10 @@ key                         aliases                                            m
 Good units come from ``units_completed``; else from ``mpl_units_per_hour`` times
 the hours; else from ``success`` (one unit per successful episode). Counts and
 times must be finite and non-negative: anything else is a ConfigError naming the key.
+
+The wage, cost and spread figures are :func:`econmotor.economics.pricing.price_task`'s, so the meter and
+the price never disagree; for a task with a battery they are per paid robot-hour (working or charging)
+and the summary adds :data:`BATTERY_METRIC_KEYS` (:mod:`econmotor.economics.battery`).
 """
 
 from __future__ import annotations
@@ -33,6 +37,8 @@ from typing import Any
 
 from econmotor.config.task_economics import TaskEconomics
 from econmotor.economics import labour
+from econmotor.economics.battery import BATTERY_UNITS
+from econmotor.economics.pricing import price_task
 from econmotor.errors import ConfigError
 
 RAW_KEY_ALIASES: dict[str, tuple[str, ...]] = {
@@ -76,6 +82,8 @@ ECON_METRIC_KEYS: tuple[str, ...] = (
     "risk_score",
     "novelty_score",
 )
+#: Keys :meth:`EconomicMeter.summarize` adds for a task whose robot runs on a battery.
+BATTERY_METRIC_KEYS: tuple[str, ...] = tuple(BATTERY_UNITS)
 
 
 def read_raw(raw: Mapping[str, Any], key: str, source: str = "raw_metrics") -> float | None:
@@ -107,7 +115,8 @@ class EconomicMeter:
         self.economics = economics
 
     def summarize(self, raw_metrics: Mapping[str, Any], source: str = "raw_metrics") -> dict[str, float]:
-        """Return the econ metrics (keys in :data:`ECON_METRIC_KEYS`) of ``raw_metrics``."""
+        """Return the econ metrics (keys in :data:`ECON_METRIC_KEYS`, plus :data:`BATTERY_METRIC_KEYS` for a
+        task with a battery) of ``raw_metrics``."""
         if not isinstance(raw_metrics, Mapping):
             raise ConfigError(source, None, f"expected a mapping, got {type(raw_metrics).__name__}")
         get = lambda key: read_raw(raw_metrics, key, source)
@@ -147,10 +156,8 @@ class EconomicMeter:
         mpl = labour.mpl_units_per_hour(units, hours)
         err = labour.error_rate(errors, attempted)
         kwh_per_hour = energy_kwh / hours if hours > 0 else 0.0
-        wage = labour.implied_wage(econ.value_per_unit, mpl, econ.damage_cost_usd_per_error, err)
-        cost_per_hour = labour.robot_cost_per_hour(econ, kwh_per_hour)
-        unit_cost = labour.robot_unit_cost(cost_per_hour, mpl)
-        return {
+        price = price_task(econ, mpl, err, kwh_per_hour)
+        summary = {
             "hours": hours,
             "num_episodes": get("num_episodes") or 1.0,
             "units_completed": units,
@@ -164,13 +171,16 @@ class EconomicMeter:
             "energy_wh_per_unit": energy_wh / units if units > 0 else math.inf,
             "energy_cost_usd": energy_kwh * econ.energy_price_usd_per_kwh,
             "energy_cost_usd_per_hour": kwh_per_hour * econ.energy_price_usd_per_kwh,
-            "implied_wage_usd_per_hour": wage,
-            "wage_parity": labour.wage_parity(wage, econ.wage_human_usd_per_hour),
-            "energy_productivity_units_per_kwh": labour.energy_productivity(mpl, kwh_per_hour),
-            "robot_cost_usd_per_hour": cost_per_hour,
-            "robot_unit_cost_usd": unit_cost,
-            "human_unit_cost_usd": labour.human_unit_cost(econ),
-            "spread_per_unit_usd": labour.spread_per_unit(econ, unit_cost),
+            "implied_wage_usd_per_hour": price.implied_wage_usd_per_hour,
+            "wage_parity": price.wage_parity,
+            "energy_productivity_units_per_kwh": price.energy_productivity_units_per_kwh,
+            "robot_cost_usd_per_hour": price.robot_cost_usd_per_hour,
+            "robot_unit_cost_usd": price.robot_unit_cost_usd,
+            "human_unit_cost_usd": price.human_unit_cost_usd,
+            "spread_per_unit_usd": price.spread_per_unit_usd,
             "risk_score": get("risk_score") or 0.0,
             "novelty_score": get("novelty_score") or 0.0,
         }
+        if price.has_battery:
+            summary.update({key: getattr(price, key) for key in BATTERY_METRIC_KEYS})
+        return summary

@@ -21,6 +21,15 @@ Inputs per evaluation (aggregate, or one episode): ``MP_r`` good units per hour,
                              = (human_unit_cost + c_d*e_h - price_per_unit - c_d*e_r) * MP_r   USD/h
     energy_productivity      = MP_r / E_r                                          units/kWh
 
+A robot on a battery (the task's economics give ``battery_capacity_wh`` and a recharge or swap
+time) loses a share ``f`` of its paid hours charging (:mod:`econmotor.economics.battery`): every
+formula above then takes ``MP_r (1 - f)`` units and ``E_r (1 - f)`` kWh per paid robot-hour in place
+of ``MP_r`` and ``E_r`` (``energy_productivity`` excepted: the ratio is the same), so the unit cost is
+``(capex/lifetime_h + maintenance + supervision) / (MP_r (1 - f)) + pi_e*E_r/MP_r`` and every per-hour
+money figure is per paid hour. :class:`TaskPrice` keeps the measured ``MP_r`` and ``E_r`` and adds the
+battery's figures (runtime and units per charge, the charging share, units per paid hour); a task
+without a battery has ``f = 0`` and is priced, to the bit, as the formulas above.
+
 ``s`` is the seller's share of the spread (``spread_share``, default 0.5): at 0 the
 customer keeps all the saving and the robot is sold at cost; at 1 the price equals
 the human's unit cost. When the robot is dearer than the human (spread <= 0) it is
@@ -48,7 +57,7 @@ from dataclasses import asdict, dataclass, fields
 from typing import Any
 
 from econmotor.config.task_economics import TaskEconomics
-from econmotor.economics import labour
+from econmotor.economics import battery, labour
 from econmotor.errors import ConfigError
 
 #: Quantiles reported over evaluation episodes.
@@ -93,9 +102,19 @@ class TaskPrice:
     break_even_hours: float
     energy_productivity_units_per_kwh: float
     competitive: bool
+    #: the battery's figures (:data:`econmotor.economics.battery.BATTERY_UNITS`), ``None`` without one
+    battery_runtime_h: float | None = None
+    battery_units_per_charge: float | None = None
+    battery_charging_share: float | None = None
+    mpl_units_per_paid_hour: float | None = None
+
+    @property
+    def has_battery(self) -> bool:
+        return self.battery_charging_share is not None
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        """Every field; the battery's only for a robot that has one (a task without reads as before)."""
+        return {k: v for k, v in asdict(self).items() if not (k in battery.BATTERY_UNITS and v is None)}
 
 
 #: field -> unit, for every numeric field of :class:`TaskPrice`.
@@ -122,13 +141,18 @@ PRICE_UNITS: dict[str, str] = {
 
 def price_task(economics: TaskEconomics, mpl_units_per_hour: float, error_rate: float,
                energy_kwh_per_hour: float, policy: PricingPolicy = PricingPolicy()) -> TaskPrice:
-    """Price a robot that delivers ``MP_r`` units/h at error rate ``e_r`` using ``E_r`` kWh/h."""
+    """Price a robot that delivers ``MP_r`` units/h at error rate ``e_r`` using ``E_r`` kWh/h (per working
+    hour); a task with a battery is priced per paid hour, working or charging (module docstring)."""
     for name, value in (("mpl_units_per_hour", mpl_units_per_hour), ("error_rate", error_rate),
                         ("energy_kwh_per_hour", energy_kwh_per_hour)):
         if not math.isfinite(value) or value < 0:
             raise ConfigError("<robot metrics>", name, f"must be finite and >= 0, got {value}")
-    mpl, econ = mpl_units_per_hour, economics
-    cost_per_hour = labour.robot_cost_per_hour(econ, energy_kwh_per_hour)
+    econ = economics
+    # per paid robot-hour: the measured MP_r and E_r, less the share of hours a battery spends charging
+    cycle = battery.duty_cycle(econ, mpl_units_per_hour, energy_kwh_per_hour)
+    mpl, kwh_per_hour = (mpl_units_per_hour, energy_kwh_per_hour) if cycle is None else (
+        cycle.mpl_units_per_paid_hour, cycle.kwh_per_paid_hour)
+    cost_per_hour = labour.robot_cost_per_hour(econ, kwh_per_hour)
     operating = cost_per_hour - econ.robot_capex_usd / econ.robot_lifetime_h
     unit_cost = labour.robot_unit_cost(cost_per_hour, mpl)
     human_cost = labour.human_unit_cost(econ)
@@ -142,7 +166,7 @@ def price_task(economics: TaskEconomics, mpl_units_per_hour: float, error_rate: 
     human_damage = econ.damage_cost_usd_per_error * econ.error_rate_human
     saving_after_damage = (human_cost + human_damage - price - damage) * mpl if math.isfinite(price) else saving
     return TaskPrice(
-        mpl_units_per_hour=mpl,
+        mpl_units_per_hour=mpl_units_per_hour,
         error_rate=error_rate,
         energy_kwh_per_hour=energy_kwh_per_hour,
         human_unit_cost_usd=human_cost,
@@ -159,8 +183,9 @@ def price_task(economics: TaskEconomics, mpl_units_per_hour: float, error_rate: 
         customer_saving_after_damage_usd_per_hour=saving_after_damage,
         break_even_hours=econ.robot_capex_usd / margin if math.isfinite(margin) and margin > 0
         else (0.0 if econ.robot_capex_usd == 0 else math.inf),
-        energy_productivity_units_per_kwh=labour.energy_productivity(mpl, energy_kwh_per_hour),
+        energy_productivity_units_per_kwh=labour.energy_productivity(mpl_units_per_hour, energy_kwh_per_hour),
         competitive=spread > 0,
+        **(cycle.figures() if cycle is not None else {}),
     )
 
 
@@ -218,8 +243,9 @@ class PricingSummary:
     policy: PricingPolicy
 
     def to_dict(self) -> dict[str, Any]:
+        units = {**PRICE_UNITS, **(battery.BATTERY_UNITS if self.aggregate.has_battery else {})}
         return {"spread_share": self.policy.spread_share, "aggregate": self.aggregate.to_dict(),
-                "distributions": self.distributions, "units": dict(PRICE_UNITS)}
+                "distributions": self.distributions, "units": units}
 
 
 def price_evaluation(economics: TaskEconomics, econ_metrics: Mapping[str, Any],
@@ -227,7 +253,8 @@ def price_evaluation(economics: TaskEconomics, econ_metrics: Mapping[str, Any],
                      policy: PricingPolicy = PricingPolicy()) -> PricingSummary:
     """Price the aggregate econ metrics and every episode summary of one evaluation."""
     episodes = tuple(price_from_metrics(economics, ep, policy) for ep in episode_summaries)
-    numeric = [f.name for f in fields(TaskPrice) if f.name in PRICE_UNITS]
+    numeric = [f.name for f in fields(TaskPrice)
+               if f.name in PRICE_UNITS or (economics.has_battery and f.name in battery.BATTERY_UNITS)]
     dists = {name: distribution([getattr(p, name) for p in episodes]) for name in numeric} if episodes else {}
     return PricingSummary(price_from_metrics(economics, econ_metrics, policy), episodes, dists, policy)
 

@@ -67,6 +67,13 @@ BOOTSTRAP_FIELDS: dict[str, str] = {
     "price_usd_per_unit": "high",
     "price_usd_per_robot_hour": "high",
 }
+#: The battery's figures (a task whose robot has one), with the end unfavourable to the buyer.
+BATTERY_BOOTSTRAP_FIELDS: dict[str, str] = {
+    "battery_runtime_h": "low",
+    "battery_units_per_charge": "low",
+    "battery_charging_share": "high",
+    "mpl_units_per_paid_hour": "low",
+}
 
 
 def clopper_pearson(errors: float, attempted: float, confidence: float = CONFIDENCE) -> tuple[float, float]:
@@ -236,7 +243,8 @@ def assess(economics: TaskEconomics, episodes: Sequence[Mapping[str, Any]], poin
     else:
         err_lo, err_hi = error_rate_sequence(total[3], total[2], CONFIDENCE, sequence_rate)
         intervals["error_rate"] = Interval(point.error_rate, err_lo, err_hi, ERROR_SEQUENCE_METHOD, CONFIDENCE)
-    samples: dict[str, np.ndarray] = {name: np.zeros(0) for name in BOOTSTRAP_FIELDS}
+    boot_fields = {**BOOTSTRAP_FIELDS, **(BATTERY_BOOTSTRAP_FIELDS if point.has_battery else {})}
+    samples: dict[str, np.ndarray] = {name: np.zeros(0) for name in boot_fields}
     if len(episodes):
         rng = np.random.default_rng(seed)
         picks = rng.integers(0, len(episodes), size=(resamples, len(episodes)))
@@ -246,10 +254,10 @@ def assess(economics: TaskEconomics, episodes: Sequence[Mapping[str, Any]], poin
         # give a few distinct pools among the resamples, and the prices are the same
         distinct, which = np.unique(pools, axis=0, return_inverse=True)
         prices = [price_task(economics, *_pooled(pool), policy) for pool in distinct]
-        for name in BOOTSTRAP_FIELDS:
+        for name in boot_fields:
             samples[name] = np.asarray([getattr(p, name) for p in prices], dtype=np.float64)[which.reshape(-1)]
     method = f"bootstrap over {len(episodes)} episodes, {resamples} resamples, seed {seed}"
-    for name in BOOTSTRAP_FIELDS:
+    for name in boot_fields:
         values = samples[name]
         value = getattr(point, name)
         if values.size == 0:

@@ -43,6 +43,15 @@ PRICE_ROWS = (
                                                   "human's expected damage avoided, minus the robot's"),
     ("break_even_hours", "break-even hours of capex at the point-estimate price"),
 )
+#: (field, label) of a battery-powered robot's rows (economics/battery.py), after the energy rows; a
+#: task without a battery has none of them.
+BATTERY_ROWS = (
+    ("battery_runtime_h", "runtime per charge (battery capacity / robot energy per hour)"),
+    ("battery_units_per_charge", "units per charge (battery capacity / energy per unit)"),
+    ("battery_charging_share", "share of paid robot-hours lost charging (charge / (runtime + charge))"),
+    ("mpl_units_per_paid_hour", "robot throughput per paid robot-hour (MPL x (1 - share lost charging)); "
+                                "the costs, wage and prices per hour below are per paid hour"),
+)
 STAT_COLUMNS = ("aggregate", "mean", "p10", "p50", "p90")
 INTERVAL_COLUMN = "90% interval"
 
@@ -70,12 +79,21 @@ def interval_text(doc: Mapping[str, Any], key: str) -> str:
     return f"{fmt(iv['low'])} - {fmt(iv['high'])}"
 
 
+def price_rows(aggregate: Mapping[str, Any]) -> tuple[tuple[str, str], ...]:
+    """The pricing table's (field, label) rows: :data:`PRICE_ROWS`, with :data:`BATTERY_ROWS` after the
+    energy rows when the robot runs on a battery."""
+    if "battery_charging_share" not in aggregate:
+        return PRICE_ROWS
+    at = [key for key, _ in PRICE_ROWS].index("energy_productivity_units_per_kwh") + 1
+    return PRICE_ROWS[:at] + BATTERY_ROWS + PRICE_ROWS[at:]
+
+
 def table_rows(doc: Mapping[str, Any]) -> list[tuple[str, ...]]:
     """Rows ``(label, aggregate, 90% interval, mean, p10, p50, p90, unit)`` of the pricing table."""
     pricing = doc["pricing"]
     agg, dists, units = pricing["aggregate"], pricing.get("distributions") or {}, pricing["units"]
     rows = []
-    for key, label in PRICE_ROWS:
+    for key, label in price_rows(agg):
         dist = dists.get(key, {})
         rows.append((label, fmt(agg.get(key)), interval_text(doc, key),
                      *(fmt(dist.get(s)) for s in STAT_COLUMNS[1:]), units[key]))

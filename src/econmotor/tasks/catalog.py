@@ -12,6 +12,9 @@ order; a user file may add tasks or replace a shipped one whole. File schema::
         economics:                          # every number: value + source (unit is fixed per key)
           wage_human_usd_per_hour: {value: 18.0, source: "..."}
           ...
+          battery_capacity_wh: {value: 421.2, source: "..."}   # optional: a robot on a battery (Wh),
+          battery_recharge_h: {value: 1.5, source: "..."}      # hours on the charger per charge, and/or
+          battery_swap_h: {value: 0.1, source: "..."}          # a pack swap's hours (used when given)
         backends:                           # backend name -> that backend's own settings
           dishwashing: {econ_preset: toy}
         acceptance:                         # optional: what evaluation must show before a price
