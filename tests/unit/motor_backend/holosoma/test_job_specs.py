@@ -13,7 +13,6 @@ from econmotor.motor_backend.holosoma.job_specs import (
     EvaluateJob,
     Overlay,
     ProbeJob,
-    Sim2SimJob,
     TrainJob,
     parse_job,
 )
@@ -25,30 +24,27 @@ TRAIN = TrainJob(run_dir="/runs/r", run_name="t-seed0", plan=PLAN, seed=0, motio
                  overlay=Overlay(weights={"mpl": 0.5}, params={"progress_mode": "velocity", "meter": {"a": 1.0}}),
                  overrides={"randomization": {}, "curriculum": {}, "terrain": None, "motion_file": None,
                             "evaluation": {}})
-SIM2SIM = Sim2SimJob(run_dir="/runs/e", policy="holosoma:g1_29dof/ppo", num_episodes=4, episode_s=10.0, seed=3,
-                     course={"leg_m": 5.0, "dwell_s": 2.0, "speed_m_per_s": 0.5, "legs": 2},
-                     meter={"idle_power_w": 1.0}, overrides={"randomization": {}}, task_id="humanoid_locomotion_g1",
-                     start_joint_noise_rad=0.05,
-                     task_experiments=["g1_29dof"])
+EVALUATE = EvaluateJob(run_dir="/r", checkpoint="/r/model_1.pt", num_steps=100, episode_length_s=4.0, seed=1,
+                       simulator="mujoco")
 
 
-@pytest.mark.parametrize("job", [ProbeJob(), TRAIN, SIM2SIM, replace(SIM2SIM, worker=1, episode_indices=[1, 3]),
-                                 EvaluateJob(run_dir="/r", checkpoint="/r/model_1.pt", num_steps=100,
-                                             episode_length_s=4.0, seed=1, simulator="mujoco")])
+@pytest.mark.parametrize("job", [ProbeJob(), TRAIN, replace(TRAIN, seed=7, motion_task=True), EVALUATE])
 def test_a_job_round_trips_through_its_json(job) -> None:
     text = job.to_json()
     assert json.loads(text)["action"] == job.action
     assert parse_job(text, "job.json") == job
 
 
-def test_the_json_layout_is_the_runners_and_each_worker_has_its_log() -> None:
+def test_the_json_layout_is_the_runners_and_each_job_names_its_log() -> None:
     values = json.loads(TRAIN.to_json())
     assert values["overlay"]["params"]["meter"] == {"a": 1.0} and values["plan"]["num_envs"] == 1
-    assert replace(SIM2SIM, worker=2).log_name == "sim2sim_2" and TRAIN.log_name == "train"
+    assert (ProbeJob().log_name, TRAIN.log_name, EVALUATE.log_name) == ("probe", "train", "evaluate")
 
 
 @pytest.mark.parametrize(("change", "key", "words"), [
     (lambda v: v.update(action="dance"), "action", "unknown job action 'dance'"),
+    # the sim-to-sim evaluation runs in the main interpreter now (couriers/walker_eval.py), not as a job
+    (lambda v: v.update(action="sim2sim"), "action", r"unknown job action 'sim2sim'.*evaluate, probe, train"),
     (lambda v: v.pop("seed"), "seed", "missing"),
     (lambda v: v.update(colour="red"), "colour", "not a field of a TrainJob"),
     (lambda v: v["plan"].update(num_envs="4"), "plan.num_envs", "must be a JSON int"),

@@ -4,22 +4,20 @@
   ``model_options``, as MJX runs it, the solver run to convergence; the T1's under the stress
   datapack, its draws applied to both) is copied into the MJX env,
   both apply the same action through Holosoma's PD loop, and the step's physics, metering (the
-  sim-to-sim evaluator's ``step_reading`` and the shared ``meter_step`` on the C side) and next
-  observation (the evaluator's ``ObservationBuilder`` with its ``CourseController``) are
-  compared. Float32 MJX vs float64 C: stated tolerances in the test.
+  sim-to-sim evaluator's meter, ``WalkerBatch._meter``, on the C side's physics steps) and next
+  observation (the evaluator's ``WalkerBatch.observe`` on the C state: its course command, gait
+  clock and observation) are compared. Float32 MJX vs float64 C: stated tolerances in the test.
 - Holosoma's shipped G1 PPO walker (its ONNX, run by onnxruntime) driven by the MJX G1 env, on
   the catalog's model options (the ones training runs), walks: no fall over a short episode, and
-  its speed is within 15% of what the sim-to-sim evaluator (run in .venv-holosoma) measures on
-  the same course.
+  its speed is within 15% of what the sim-to-sim evaluator (the batched MuJoCo walker env,
+  ``couriers.walker_eval``, in this interpreter) measures on the same course.
 
 One jitted env per robot and model options for the whole module (compiling a humanoid's step
-takes minutes of CPU); its episode is short (:data:`EPISODE_S`) so the walker's episode ends by time.
+takes minutes of CPU); its episode is short (:data:`EPISODE_S`) so the walker's episode ends at its step limit.
 """
 
 from __future__ import annotations
 
-import json
-import subprocess
 from pathlib import Path
 
 import jax
@@ -28,8 +26,12 @@ import mujoco
 import numpy as np
 import pytest
 
-from econmotor.economics import courier_formulas as cf
-from econmotor.motor_backend.holosoma import sim2sim as s2s
+from econmotor.couriers.policy_import import resolve_contract
+from econmotor.couriers.stress import Stress
+from econmotor.couriers.walker_env import WalkerBatch, WalkerModel
+from econmotor.couriers.walker_eval import WalkerEvaluation, evaluate
+from econmotor.couriers.walker_task import MeterSettings
+from econmotor.economics.termination import TerminationReason
 from econmotor.motor_backend.mjx.assets import apply_model_options
 from econmotor.robots.model import joint_indices, load_model
 
@@ -103,6 +105,26 @@ def state_from_c(state, data):
     return state._replace(data=d, episode=episode)
 
 
+def evaluator(env) -> WalkerBatch:
+    """The sim-to-sim evaluator's env of the MJX env's robot, one slot: its course, command ranges and meter
+    constants (the MJX env's). Only its course, gait clock, observation and meter are used, on the C states."""
+    s, card = env.settings, env.card
+    meter = MeterSettings(s.leg_distance_m, s.drivetrain_efficiency, s.idle_power_w, s.tilt_margin_rad,
+                          card.fall_tilt_rad)
+    batch = WalkerBatch(WalkerModel.build(card), env.course, meter, Stress(), EPISODE_S, 1, card.command_ranges)
+    batch.start(0, 0, 0)
+    return batch
+
+
+def evaluator_state(batch: WalkerBatch, data: mujoco.MjData) -> np.ndarray:
+    """The C data's pose and velocities as a full physics state of the evaluator's model (the same joints)."""
+    scratch = mujoco.MjData(batch.walker.model)
+    scratch.qpos[:], scratch.qvel[:] = data.qpos, data.qvel
+    out = np.zeros(batch.walker.nstate)
+    mujoco.mj_getState(batch.walker.model, scratch, out, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    return out
+
+
 #: robot -> whether its parity runs under the stress datapack. The G1 runs nominal: under the payload
 #: and a low floor friction its steps part from MuJoCo C's by up to ~9e-3 rad of knee and ankle in one
 #: control step even with the solver converged (measured; float32 against float64 where a foot
@@ -128,16 +150,14 @@ def test_mjx_humanoid_steps_meter_and_observe_as_mujoco_c(robot: str) -> None:
         assert lo <= float(state.robot["next_push_s"][0]) <= hi
         assert np.all((0.9 <= draws["kp_scale"]) & (draws["kp_scale"] <= 1.1)) and np.ptp(draws["kd_scale"]) > 0
     model, data, qadr, dadr, act = c_robot(env, draws)
-    s = env.settings
-    meter = s2s.MeterSettings(s.leg_distance_m, s.drivetrain_efficiency, s.idle_power_w, s.tilt_margin_rad,
-                              card.fall_tilt_rad)
-    constants = s2s.meter_constants(meter, card.physics_dt_s)
     kp, kd = card.array("kp") * draws["kp_scale"], card.array("kd") * draws["kd_scale"]
     limit = card.array("effort_limits")
-    builder = s2s.ObservationBuilder(card)  # the evaluator's observation builder, on the robot's card
-    controller = s2s.CourseController(env.course, card.control_dt_s, card.command_ranges)
-    vx, yaw_rate = controller.command(float(data.qpos[0]), float(data.qpos[1]), s2s._yaw(data.qpos[3:7]))
-    builder.advance_phase(np.array([vx, 0.0]), yaw_rate)
+    # the evaluator (the batched walker env) on the C states: the same joints, read in the card's order
+    batch, slot = evaluator(env), np.array([0])
+    assert (batch.nq, batch.nv) == (model.nq, model.nv) and np.array_equal(batch.walker.qpos_adr, qadr)
+    assert np.array_equal(batch.walker.dof_adr, dadr)
+    batch.state[0] = evaluator_state(batch, data)
+    batch.observe(slot)  # the first control step's course command and gait clock, as the env's reset
     worst = {"qpos": 0.0, "energy_rel": 0.0, "obs": 0.0}
     steps = 30
     for t in range(steps):
@@ -146,16 +166,19 @@ def test_mjx_humanoid_steps_meter_and_observe_as_mujoco_c(robot: str) -> None:
         # converged MJX and MuJoCo C part by ~1e-2 rad in a step (measured with +-0.6 under the payload)
         action = (0.3 * np.sin(0.3 * t + np.arange(card.num_dofs))).astype(np.float32)
         target = card.array("default_dof_angles") + card.action_scale * action.astype(np.float64)
-        sums = cf.MeterSums(best_x=float(data.qpos[0]))
-        fell = False
+        # the evaluator's sums from this step alone (the MJX episode's were zeroed from the C state)
+        for name in ("steps", "units", "errors", "energy_wh", "risk_sum"):
+            getattr(batch.sums, name)[0] = 0.0
+        batch.sums.best_x[0] = data.qpos[0]
+        states, frc = [], []
         for _ in range(card.decimation):
             data.ctrl[act] = np.clip(kp * (target - data.qpos[qadr]) - kd * data.qvel[dadr], -limit, limit)
             mujoco.mj_step(model, data)
-            reading = s2s.step_reading(data.qpos, data.qfrc_actuator[dadr], data.qvel[dadr], card.fall_tilt_rad,
-                                       card.min_base_z_m)
-            if not fell:
-                cf.meter_step(sums, reading, constants, cf.PY)
-            fell = fell or bool(reading.fell)
+            states.append(evaluator_state(batch, data))
+            frc.append(data.qfrc_actuator[dadr].copy())
+        # the evaluator's meter on the C physics steps (a fall's later steps unmetered)
+        fell = bool(batch._meter(slot, np.stack(states)[None], np.stack(frc)[None])[0])
+        sums = {name: float(getattr(batch.sums, name)[0]) for name in ("steps", "units", "energy_wh", "risk_sum")}
         state = jitted.step(state, jnp.asarray(action)[None])
         f = {k: float(np.asarray(v)[0]) for k, v in state.finished.items()}
         assert bool(f["fell"]) == fell, f"step {t}: fall differs"
@@ -165,17 +188,15 @@ def test_mjx_humanoid_steps_meter_and_observe_as_mujoco_c(robot: str) -> None:
         # stated tolerances (measured worst cases over the 30 steps, G1 nominal / T1 stressed: qpos
         # 6.2e-5 / 2.9e-5 rad or m, energy 1.8e-4 / 1.2e-4 relative, observation 6.6e-4 / 3.1e-4)
         np.testing.assert_allclose(qpos_j, data.qpos, atol=2e-3, err_msg=f"step {t}")
-        assert f["units_completed"] == pytest.approx(sums.units, abs=2e-4), t
-        assert f["energy_wh"] == pytest.approx(sums.energy_wh, rel=2e-3), t
-        assert f["risk_score"] == pytest.approx(sums.risk_sum / sums.steps, abs=1e-3), t
+        assert sums["steps"] == card.decimation and sums["energy_wh"] > 0.0, t  # every physics step metered
+        assert f["units_completed"] == pytest.approx(sums["units"], abs=2e-4), t
+        assert f["energy_wh"] == pytest.approx(sums["energy_wh"], rel=2e-3), t
+        assert f["risk_score"] == pytest.approx(sums["risk_sum"] / sums["steps"], abs=1e-3), t
         worst["qpos"] = max(worst["qpos"], float(np.max(np.abs(qpos_j - data.qpos))))
-        worst["energy_rel"] = max(worst["energy_rel"], abs(f["energy_wh"] / sums.energy_wh - 1.0))
-        # the next observation: the evaluator's course and observation builder on the C state
-        vx, yaw_rate = controller.command(float(data.qpos[0]), float(data.qpos[1]), s2s._yaw(data.qpos[3:7]))
-        builder.advance_phase(np.array([vx, 0.0]), yaw_rate)
-        builder.last_action = action
-        row = builder.build(quat_wxyz=data.qpos[3:7], ang_vel_body=data.qvel[3:6], q=data.qpos[qadr],
-                            qd=data.qvel[dadr], lin_vel_cmd=np.array([vx, 0.0]), ang_vel_cmd=yaw_rate)[0]
+        worst["energy_rel"] = max(worst["energy_rel"], abs(f["energy_wh"] / sums["energy_wh"] - 1.0))
+        # the next observation: the evaluator's course command, gait clock and observation on the C state
+        batch.state[0], batch.last_action[0] = states[-1], action
+        row = batch.observe(slot)[0]
         obs_j = np.asarray(state.obs)[0]
         np.testing.assert_allclose(obs_j, row, atol=5e-3, rtol=1e-3, err_msg=f"step {t}")
         worst["obs"] = max(worst["obs"], float(np.max(np.abs(obs_j - row))))
@@ -183,42 +204,22 @@ def test_mjx_humanoid_steps_meter_and_observe_as_mujoco_c(robot: str) -> None:
     print(robot, worst)
 
 
-# Runs in .venv-holosoma: the shipped G1 PPO walker through the sim-to-sim evaluator on the course.
-SIM2SIM = r"""
-import json, sys
-from econmotor.motor_backend.holosoma import sim2sim as s
-from econmotor.couriers.policy_import import resolve_contract
-c = resolve_contract("holosoma:g1_29dof/ppo")
-course = s.CourseSettings(**json.loads(sys.argv[1]))
-meter = s.MeterSettings(**json.loads(sys.argv[2]))
-ep = s.run_episode(s.build_robot(c), c, s.onnx_policy(c), course, meter, s.Stress(initial_joint_noise_rad=0.05),
-                   float(sys.argv[3]), 3)
-print("@@sim2sim " + json.dumps({"episode": ep, "onnx": c.onnx_path}))
-"""
-
-
-@pytest.mark.holosoma
 def test_holosomas_shipped_g1_walker_walks_in_the_mjx_env() -> None:
     import onnxruntime as ort
-
-    from econmotor.motor_backend.holosoma.backend import find_holosoma_python
-    from econmotor.motor_backend.holosoma.jobs import job_environment
 
     jitted = humanoid("g1_29dof")
     env = jitted.env
     st = env.settings
-    course = {f: getattr(env.course, f) for f in ("leg_m", "dwell_s", "speed_m_per_s", "legs")}
-    meter = {"leg_distance_m": st.leg_distance_m, "drivetrain_efficiency": st.drivetrain_efficiency,
-             "idle_power_w": st.idle_power_w, "tilt_margin_rad": st.tilt_margin_rad, "fall_tilt_rad": st.fall_tilt_rad}
-    proc = subprocess.run([str(find_holosoma_python(REPO / ".venv-holosoma")), "-c", SIM2SIM, json.dumps(course),
-                           json.dumps(meter), str(EPISODE_S)], capture_output=True, text=True, timeout=600,
-                          env={**job_environment(), "PYTHONPATH": str(REPO / "src")})
-    line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("@@sim2sim ")), None)
-    assert line is not None, proc.stdout[-2000:] + proc.stderr[-4000:]
-    out = json.loads(line[len("@@sim2sim "):])
-    reference = out["episode"]
-    assert reference["termination_reason"] == "time_out"
-    session = ort.InferenceSession(out["onnx"], providers=["CPUExecutionProvider"])
+    meter = MeterSettings(st.leg_distance_m, st.drivetrain_efficiency, st.idle_power_w, st.tilt_margin_rad,
+                          st.fall_tilt_rad)
+    # the sim-to-sim evaluator on the same course, in this interpreter: seed 3, one episode, one process
+    walker = WalkerEvaluation(policy="holosoma:g1_29dof/ppo", course=env.course, meter=meter,
+                              stress=Stress(initial_joint_noise_rad=0.05), episode_s=EPISODE_S, seed=3)
+    [reference], _ = evaluate(walker, 1, workers=1)
+    assert reference["termination_reason"] == TerminationReason.MAX_STEPS
+    assert reference["episode_length_s"] == pytest.approx(EPISODE_S, rel=1e-6)
+    contract = resolve_contract(walker.policy)
+    session = ort.InferenceSession(contract.onnx_path, providers=["CPUExecutionProvider"])
     name = session.get_inputs()[0].name
     state = jitted.reset(jax.random.PRNGKey(3), 1)
     for _ in range(env.max_episode_steps):
@@ -227,7 +228,7 @@ def test_holosomas_shipped_g1_walker_walks_in_the_mjx_env() -> None:
         if float(state.done[0]) > 0:
             break
     row = env.finished_to_dicts(jax.device_get(state.finished))[0]
-    assert row["termination_reason"] == "time_out" and row["errors"] == 0.0
+    assert row["termination_reason"] == TerminationReason.MAX_STEPS and row["errors"] == 0.0
     assert row["episode_length_s"] == pytest.approx(EPISODE_S, rel=1e-6)
     speed, expected = row["achieved_speed_m_per_s"], reference["achieved_speed_m_per_s"]
     print(f"G1 PPO walker: MJX {speed:.3f} m/s, sim-to-sim {expected:.3f} m/s")
