@@ -1,6 +1,9 @@
-"""A Ray sweep of 3 presets x 2 datapacks x 2 seeds on the dishwashing backend, then `solve` on it."""
+"""A Ray sweep of 3 presets x 2 datapacks x 2 seeds on the dishwashing backend, then `solve` on it. The sweep starts
+its own local Ray, in a process of its own: this one, where JAX or torch threads may run (an earlier test in the
+same worker), never forks."""
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -22,16 +25,18 @@ DATAPACKS = {
     "dw_fragile": "domain_randomization:\n  p_min_range: [0.03, 0.06]\n  k_err_range: [0.2, 0.4]\n",
 }
 
+#: the pids of this process's forks in Python (os.fork, a subprocess with preexec_fn, multiprocessing's fork):
+#: after JAX has started its threads each one warns "os.fork() was called ... will likely lead to a deadlock"
+FORKS: list[int] = []
+os.register_at_fork(before=lambda: FORKS.append(os.getpid()))
+
 
 @pytest.fixture()
-def local_ray(monkeypatch):
-    ray = pytest.importorskip("ray", reason="Ray is the optional extra `econmotor[ray]`")
+def ray_env(monkeypatch):
+    pytest.importorskip("ray", reason="Ray is the optional extra `econmotor[ray]`")
     for key, value in {"RAY_USAGE_STATS_ENABLED": "0", "RAY_DEDUP_LOGS": "0", "OMP_NUM_THREADS": "1",
                        "RAY_enable_metrics_collection": "0"}.items():
         monkeypatch.setenv(key, value)
-    ray.init(num_cpus=2, include_dashboard=False, configure_logging=False, log_to_driver=False)
-    yield ray
-    ray.shutdown()
 
 
 def sweep_args(tmp_path: Path, db_url: str) -> list[str]:
@@ -47,9 +52,11 @@ def sweep_args(tmp_path: Path, db_url: str) -> list[str]:
 
 
 @pytest.mark.slow
-def test_ray_sweep_then_solve(tmp_path, local_ray):
+def test_ray_sweep_then_solve(tmp_path, ray_env):
     db_url = f"sqlite:///{tmp_path / 'registry.sqlite'}"
-    assert main([*sweep_args(tmp_path, db_url), "--ray", "--cpus-per-cell", "1"]) == 0
+    forks = len(FORKS)
+    assert main([*sweep_args(tmp_path, db_url), "--ray", "--ray-num-cpus", "2", "--cpus-per-cell", "1"]) == 0
+    assert len(FORKS) == forks, "the sweep forked this process to start Ray"
 
     registry = Registry(db_url, create=False)
     runs = registry.runs(task_id="dishwashing", backend="dishwashing", kind="train")
