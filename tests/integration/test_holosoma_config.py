@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from econmotor.couriers import policy_import
 from econmotor.couriers.datapack_mapping import map_datapacks, validate_motion_npz
 from econmotor.couriers.walker_task import meter_settings
 from econmotor.economics import courier_formulas as cf
@@ -200,6 +201,6 @@ def test_protocol_lines_and_holosoma_error_text() -> None:
 def test_missing_holosoma_environment_says_how_to_build_it(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
     monkeypatch.delenv(holosoma_backend.VENV_ENV, raising=False)
-    monkeypatch.setattr(holosoma_backend, "_REPO_ROOT", tmp_path)
+    monkeypatch.setattr(policy_import, "_REPO_ROOT", tmp_path)
     with pytest.raises(BackendError, match="make holosoma"):
         holosoma_backend.find_holosoma_python(tmp_path / "nowhere")

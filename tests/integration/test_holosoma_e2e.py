@@ -145,7 +145,7 @@ def test_econmotor_core_runs_on_holosomas_numpy_1(holosoma_venv: Path) -> None:
         "import numpy, econmotor.config, econmotor.objectives, econmotor.valuation, econmotor.motor_backend\n"
         "from econmotor.economics import EconomicMeter\n"
         "from econmotor.tasks import load_catalog\n"
-        "from econmotor.motor_backend.base import summarize_episodes\n"
+        "from econmotor.motor_backend.results import summarize_episodes\n"
         "catalog = load_catalog()\n"
         "econ = catalog.get('humanoid_locomotion_g1').economics\n"
         "raw, metrics, eps = summarize_episodes([{'units_completed': 2.0, 'errors': 1.0, 'episode_length_s': 60.0,"

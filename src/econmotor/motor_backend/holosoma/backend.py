@@ -117,6 +117,16 @@ def attach_econmotor_metadata(onnx_path: str | Path, metadata: dict[str, Any]) -
     tmp.replace(onnx_path)
 
 
+def _stress_notes(stress: Stress, nominal: bool) -> list[str]:
+    """What a sim-to-sim evaluation says of its conditions: terms it does not apply, or that it is nominal."""
+    notes = ["not applied in the sim-to-sim evaluation: " + "; ".join(stress.ignored)] if stress.ignored else []
+    if nominal:
+        notes.append("nominal conditions (no datapack randomization): episodes differ by seed only in their "
+                     f"start pose (joints within +-{stress.initial_joint_noise_rad:g} rad of the default); a "
+                     "datapack such as configs/datapacks/humanoid_stress.yaml adds stress")
+    return notes
+
+
 class HolosomaBackend(MotorBackendBase):
     """Holosoma through its own interpreter (module docstring).
 
@@ -359,20 +369,14 @@ class HolosomaBackend(MotorBackendBase):
         noise = float(settings["sim2sim_start_joint_noise_rad"])
         stress = Stress.from_overrides(overrides.randomization, overrides.evaluation,
                                        {"push_randomizer_state": dict(contract.card.push_preset)}, noise)
-        notes = list(overrides.messages)
-        if stress.ignored:
-            notes.append("not applied in the sim-to-sim evaluation: " + "; ".join(stress.ignored))
-        if not overrides.randomization and not overrides.evaluation:
-            notes.append("nominal conditions (no datapack randomization): episodes differ by seed only in their "
-                         f"start pose (joints within +-{noise:g} rad of the default); a datapack such as "
-                         "configs/datapacks/humanoid_stress.yaml adds stress")
         workers = max(1, min(self.eval_workers, int(num_episodes)))
-        notes.append(f"sim-to-sim: {contract.policy} ({contract.inference_preset} observations, "
-                     f"{contract.control_rate_hz:g} Hz policy, {1 / contract.physics_dt_s:g} Hz PD in MuJoCo "
-                     f"{mujoco.__version__}'s actuators) on {workers} process(es), "
-                     f"{'up to ' if stop is not None else ''}{num_episodes} episode(s) of "
-                     f"{course.legs or 'unlimited'} {course.leg_m:g} m leg(s) with a {course.dwell_s:g} s dwell "
-                     f"each (at most {episode_s:g} s) at {course.speed_m_per_s:g} m/s commanded")
+        notes = [*overrides.messages, *_stress_notes(stress, not overrides.randomization and not overrides.evaluation),
+                 f"sim-to-sim: {contract.policy} ({contract.inference_preset} observations, "
+                 f"{contract.control_rate_hz:g} Hz policy, {1 / contract.physics_dt_s:g} Hz PD in MuJoCo "
+                 f"{mujoco.__version__}'s actuators) on {workers} process(es), "
+                 f"{'up to ' if stop is not None else ''}{num_episodes} episode(s) of "
+                 f"{course.legs or 'unlimited'} {course.leg_m:g} m leg(s) with a {course.dwell_s:g} s dwell "
+                 f"each (at most {episode_s:g} s) at {course.speed_m_per_s:g} m/s commanded"]
         for text in notes:
             progress(f"holosoma: {text}", 1.0, 1.0)
         ev = WalkerEvaluation(policy=contract.onnx_path, course=course, meter=MeterSettings(**meter), stress=stress,
@@ -392,7 +396,8 @@ class HolosomaBackend(MotorBackendBase):
                 power_w, meter["drivetrain_efficiency"], meter["idle_power_w"]))
         config = {
             "seed": int(seed), "policy": policy_id, "episode_length_s": episode_s, "course": asdict(course),
-            "meter": meter, "datapacks": list(bundle.datapack_ids), "stress": asdict(stress),
+            "meter": meter, "datapacks": list(bundle.datapack_ids),
+            "stress": json.loads(json.dumps(asdict(stress))),  # as evaluation.json holds it (lists)
             "contract": contract_dict, "wall_s": wall_s, "workers": workers, "mujoco": mujoco.__version__,
             "messages": notes}
         return evaluation_result(self.name, policy_id, task_id, episodes, spec.economics, config, output_dir=run_dir,
