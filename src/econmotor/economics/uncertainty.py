@@ -224,12 +224,12 @@ class Uncertainty:
 def assess(economics: TaskEconomics, episodes: Sequence[Mapping[str, Any]], point: TaskPrice,
            policy: PricingPolicy = PricingPolicy(), confidence: float = CONFIDENCE,
            resamples: int = BOOTSTRAP_RESAMPLES, seed: int = BOOTSTRAP_SEED,
-           sequence_rate: float | None = None) -> Uncertainty:
+           sequence_rate: float | None = None, sequence_confidence: float = CONFIDENCE) -> Uncertainty:
     """Intervals for ``point`` (the pooled price of ``episodes``) from the episodes themselves.
 
     ``sequence_rate``: a sequential evaluation's look; the error rate's bounds are then its confidence
-    sequence (:func:`error_rate_sequence` at :data:`CONFIDENCE`, tuned to test ``sequence_rate``), the
-    others at ``confidence``."""
+    sequence (:func:`error_rate_sequence` at ``sequence_confidence``, the plan's confidence, tuned to test
+    ``sequence_rate``), the others at ``confidence``."""
     cols = _columns(episodes)
     total = cols.sum(axis=0)
     evidence = Evidence(episodes=len(episodes), units_attempted=float(total[2]), units_completed=float(total[1]),
@@ -241,8 +241,9 @@ def assess(economics: TaskEconomics, episodes: Sequence[Mapping[str, Any]], poin
         err_lo, err_hi = clopper_pearson(total[3], total[2], confidence)
         intervals["error_rate"] = Interval(point.error_rate, err_lo, err_hi, "Clopper-Pearson exact binomial")
     else:
-        err_lo, err_hi = error_rate_sequence(total[3], total[2], CONFIDENCE, sequence_rate)
-        intervals["error_rate"] = Interval(point.error_rate, err_lo, err_hi, ERROR_SEQUENCE_METHOD, CONFIDENCE)
+        err_lo, err_hi = error_rate_sequence(total[3], total[2], sequence_confidence, sequence_rate)
+        intervals["error_rate"] = Interval(point.error_rate, err_lo, err_hi, ERROR_SEQUENCE_METHOD,
+                                           sequence_confidence)
     boot_fields = {**BOOTSTRAP_FIELDS, **(BATTERY_BOOTSTRAP_FIELDS if point.has_battery else {})}
     samples: dict[str, np.ndarray] = {name: np.zeros(0) for name in boot_fields}
     if len(episodes):
@@ -311,13 +312,16 @@ def counted(count: int, name: str) -> str:
 
 def judge(economics: TaskEconomics, acceptance: Acceptance, unit: str, episodes: Sequence[Mapping[str, Any]],
           point: TaskPrice, policy: PricingPolicy = PricingPolicy(),
-          confidence: float = CONFIDENCE, sequential: bool = False) -> tuple[Uncertainty, Verdict]:
+          confidence: float = CONFIDENCE, sequential: bool = False,
+          sequence_confidence: float = CONFIDENCE) -> tuple[Uncertainty, Verdict]:
     """The intervals of evaluation episodes (:func:`assess`) and the verdict on them (:func:`decide`):
     the one judgement a report prints and evaluation-driven training selects checkpoints by.
-    ``confidence``: of each bound; ``sequential``: a sequential evaluation's look (judged at its
-    ``look_confidence``, the error rate by its confidence sequence)."""
+    ``confidence``: of each bound; ``sequential``: a sequential evaluation's look (judged at its plan's
+    ``look_confidence``, the error rate by its confidence sequence at ``sequence_confidence``: the plan's
+    ``confidence``, :class:`SequentialPlan`)."""
     uncertainty = assess(economics, episodes, point, policy, confidence,
-                         sequence_rate=acceptance.max_error_rate if sequential else None)
+                         sequence_rate=acceptance.max_error_rate if sequential else None,
+                         sequence_confidence=sequence_confidence)
     return uncertainty, decide(acceptance, uncertainty, economics.error_rate_human, unit)
 
 

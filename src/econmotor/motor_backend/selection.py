@@ -162,8 +162,10 @@ class Selection:
     def judge(self, raw_episodes: Sequence[Mapping[str, Any]], confidence: float = CONFIDENCE,
               sequential: bool = False) -> tuple[Any, Any, float]:
         """``(Uncertainty, Verdict, mean J)`` of raw episodes: the report's judgement (every bound at
-        ``confidence``; ``sequential``: a sequential look's) and the objective's J."""
-        return self._scored(judge_raw(self.task, raw_episodes, confidence, sequential))
+        ``confidence``; ``sequential``: a look of a held-out evaluation, its error rate by the confidence
+        sequence at the plan's confidence) and the objective's J."""
+        return self._scored(judge_raw(self.task, raw_episodes, confidence, sequential,
+                                      sequence_confidence=self.config.plan.confidence))
 
     def _scored(self, judged: Judged) -> tuple[Any, Any, float]:
         """``(Uncertainty, Verdict, mean J)`` of a judgement made already."""

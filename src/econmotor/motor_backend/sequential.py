@@ -57,15 +57,16 @@ class Judged:
 
 
 def judge_raw(task: Any, raw_episodes: Sequence[Mapping[str, Any]], confidence: float = CONFIDENCE,
-              sequential: bool = False) -> Judged:
+              sequential: bool = False, sequence_confidence: float = CONFIDENCE) -> Judged:
     """The report's judgement (:func:`econmotor.economics.uncertainty.judge`) of raw-metric episodes
     (``base.py``'s keys) under ``task``'s economics and acceptance rule, every bound at ``confidence``
-    (``sequential``: a look of a sequential evaluation, the error rate by its confidence sequence)."""
+    (``sequential``: a look of a sequential evaluation, the error rate by its confidence sequence at
+    ``sequence_confidence``, the plan's confidence)."""
     economics = task.economics
     _, econ, summaries = summarize_episodes(raw_episodes, economics)
     pricing = price_evaluation(economics, econ, summaries)
     uncertainty, verdict = judge(economics, task.acceptance, task.unit, summaries, pricing.aggregate,
-                                 pricing.policy, confidence, sequential)
+                                 pricing.policy, confidence, sequential, sequence_confidence)
     return Judged(summaries, pricing, uncertainty, verdict)
 
 
@@ -83,8 +84,7 @@ class SequentialEvaluation:
     judged: Judged | None = None
 
     def _look(self, rows: Sequence[Mapping[str, Any]], n: int) -> str:
-        conf = self.plan.look_confidence
-        judged = judge_raw(self.task, rows[:n], conf, sequential=True)
+        judged = self._judge(rows[:n])
         outcome, why = look_outcome(self.task.acceptance, judged.uncertainty, judged.verdict)
         if outcome == CONTINUE and n < self.plan.max_episodes and self.hopeless(rows[:n]):
             outcome, why = FAIL, (f"cannot pass within {self.plan.max_episodes} episodes even if every episode "
@@ -109,8 +109,13 @@ class SequentialEvaluation:
         if left <= 0 or not rows:
             return False
         best = max(rows, key=lambda r: (float(r.get("errors", 0.0)) == 0.0, float(r.get("units_completed", 0.0))))
-        return not judge_raw(self.task, rows + [best] * left, self.plan.look_confidence,
-                             sequential=True).verdict.deployable
+        return not self._judge(rows + [best] * left).verdict.deployable
+
+    def _judge(self, rows: Sequence[Mapping[str, Any]]) -> Judged:
+        """A look's judgement: the bootstrap bounds at the plan's look confidence, the error rate by its
+        confidence sequence at the plan's confidence."""
+        return judge_raw(self.task, rows, self.plan.look_confidence, sequential=True,
+                         sequence_confidence=self.plan.confidence)
 
     def stop(self, rows: Sequence[Mapping[str, Any]]) -> bool:
         """Judge every look the first ``len(rows)`` episodes reach; True once decided (a backend's ``stop``)."""

@@ -51,7 +51,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from econmotor.economics.pricing import PricingSummary, pricing_inputs
-from econmotor.economics.uncertainty import Uncertainty, Verdict, judge
+from econmotor.economics.uncertainty import CONFIDENCE, Uncertainty, Verdict, judge
 from econmotor.objectives import compile_economic_overlay
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.objectives.loader import objective_weights_vector
@@ -204,8 +204,10 @@ def assess_context(ctx: ReportContext) -> tuple[Uncertainty, Verdict]:
             ctx.pricing.policy)
     uncertainty, verdict = judge(*args)
     facts = evaluation_facts(ctx.eval_run or ctx.train_run, len(ctx.episodes))
-    if facts["rule"] == "sequential":
-        verdict = judge(*args, confidence=float(facts["confidence"]), sequential=True)[1]
+    if facts["rule"] == "sequential":  # the look's bootstrap confidence, the plan's for the error rate's sequence
+        plan_confidence = (facts.get("plan") or {}).get("confidence", CONFIDENCE)
+        verdict = judge(*args, confidence=float(facts["confidence"]), sequential=True,
+                        sequence_confidence=float(plan_confidence))[1]
     return uncertainty, verdict
 
 
