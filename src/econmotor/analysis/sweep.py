@@ -68,7 +68,8 @@ class SweepCell:
         return hashlib.sha256(text.encode()).hexdigest()[:20]
 
     def objective_spec(self) -> EconomicObjectiveSpec:
-        return objective_from_vector(ObjectiveVector.from_list(list(self.objective.weights)), self.objective.name)
+        vector = ObjectiveVector.from_list(list(self.objective.weights), energy_term=self.objective.energy_term)
+        return objective_from_vector(vector, self.objective.name)
 
     def run_config(self) -> dict[str, Any]:
         """What the registry stores in the run's config."""

@@ -8,7 +8,8 @@ training's seeds, from the post-training evaluation's ``seed + 10,000`` and from
 
 - judges them with the report's own judgement (:func:`econmotor.economics.uncertainty.judge`:
   the task's acceptance rule, ``decide``, on the same intervals), and scores them by the
-  objective's J (the mean of :func:`econmotor.valuation.episode_j` over the episodes);
+  objective's own J, its energy term included (the mean of the report's
+  :func:`econmotor.objectives.loader.objective_j` over the episodes);
 - says whether the policy is the best so far: an acceptable policy beats any that is not,
   then the higher J wins; the trainer then saves it as the run's policy;
 - with ``until_deployable``, asks the trainer to stop at the first acceptable evaluation.
@@ -49,8 +50,7 @@ from econmotor.errors import ConfigError
 from econmotor.motor_backend.run_dir import SELECTION_SEED_OFFSET
 from econmotor.motor_backend.sequential import FAIL, Judged, SequentialEvaluation, judge_raw
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
-from econmotor.objectives.loader import objective_weights_vector
-from econmotor.valuation.reward_builder import episode_j
+from econmotor.objectives.loader import objective_j
 
 #: the defaults: a held-out evaluation at most every 25k env steps (a courier's PPO improves over
 #: ~10^5 steps); at most 160 episodes each (a sequential evaluation's cap: 0 falls in ~136 legs pass a
@@ -169,8 +169,7 @@ class Selection:
 
     def _scored(self, judged: Judged) -> tuple[Any, Any, float]:
         """``(Uncertainty, Verdict, mean J)`` of a judgement made already."""
-        vector = objective_weights_vector(self.objective)
-        js = [episode_j(ep, vector, self.task.economics) for ep in judged.summaries]
+        js = [objective_j(self.objective, ep, self.task.economics) for ep in judged.summaries]
         return judged.uncertainty, judged.verdict, (sum(js) / len(js) if js else -math.inf)
 
     def consider(self, env_steps: int, evaluate: EvaluateFn) -> tuple[HeldOutResult, bool]:

@@ -21,6 +21,7 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
+from econmotor.config.objective_profile import check_energy_term
 from econmotor.errors import ConfigError
 
 OVERLAY_KEYS: tuple[str, ...] = ("mpl_per_hour", "energy_kwh", "error_rate", "novelty_score", "risk_score")
@@ -38,6 +39,9 @@ class EconomicObjectiveSpec:
         risk_weight: weight on the risk score; always a penalty.
         extra_weights: further metric keys and their signed scales.
         name: a label recorded with runs and reports.
+        energy_term: how J counts energy (not a weight): ``"wh"``, ``r_energy = -Wh`` (the default), or
+            ``"usd"``, the task's electricity bill (:mod:`econmotor.config.objective_profile`); the J a
+            report prints and held-out selection keeps a checkpoint by (``objectives.loader.objective_j``).
     """
 
     mpl_weight: float = 1.0
@@ -47,8 +51,10 @@ class EconomicObjectiveSpec:
     risk_weight: float = 0.0
     extra_weights: Mapping[str, float] = field(default_factory=dict)
     name: str = "objective"
+    energy_term: str = "wh"
 
     def __post_init__(self) -> None:
+        check_energy_term(self.energy_term, "<objective>")
         for key in ("mpl_weight", "energy_weight", "error_weight", "novelty_weight", "risk_weight"):
             value = getattr(self, key)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
@@ -63,7 +69,7 @@ class EconomicObjectiveSpec:
 
     def __hash__(self) -> int:
         return hash((self.mpl_weight, self.energy_weight, self.error_weight, self.novelty_weight,
-                     self.risk_weight, tuple(sorted(self.extra_weights.items())), self.name))
+                     self.risk_weight, tuple(sorted(self.extra_weights.items())), self.name, self.energy_term))
 
     def to_dict(self) -> dict:
         return {
@@ -74,6 +80,7 @@ class EconomicObjectiveSpec:
             "novelty_weight": self.novelty_weight,
             "risk_weight": self.risk_weight,
             "extra_weights": dict(self.extra_weights),
+            "energy_term": self.energy_term,
         }
 
 

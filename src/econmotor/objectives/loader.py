@@ -21,7 +21,8 @@
 Forms 2 and 3 map the vector onto the spec as mpl_weight=w_mpl,
 error_weight=w_error, energy_weight=w_energy, risk_weight=w_safety,
 novelty_weight=w_novelty. An optional ``name`` labels the objective in every form,
-and ``extra_weights`` may accompany any form.
+``extra_weights`` may accompany any form, and so may ``energy_term`` (``wh``, the default, or
+``usd``: how J counts energy, :mod:`econmotor.config.objective_profile`).
 """
 
 from __future__ import annotations
@@ -30,17 +31,19 @@ from pathlib import Path
 from typing import Any
 
 from econmotor.config.loading import as_float, as_str, check_keys, path_name, read_yaml_mapping, require_mapping
-from econmotor.config.objective_profile import OBJECTIVE_PRESETS, ObjectiveVector
+from econmotor.config.objective_profile import ENERGY_TERMS, OBJECTIVE_PRESETS, ObjectiveVector
 from econmotor.errors import ConfigError
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
+from econmotor.valuation.reward_builder import episode_j
 
 _FLAT_KEYS = ("mpl_weight", "energy_weight", "error_weight", "novelty_weight", "risk_weight")
-_ALL_KEYS = (*_FLAT_KEYS, "extra_weights", "objective_vector", "objective_preset", "name")
+_ALL_KEYS = (*_FLAT_KEYS, "extra_weights", "objective_vector", "objective_preset", "name", "energy_term")
 
 
 def objective_from_vector(vector: ObjectiveVector, name: str = "objective",
                           extra_weights: dict[str, float] | None = None) -> EconomicObjectiveSpec:
-    """Map ``[mpl, error, energy, safety, novelty]`` weights onto an EconomicObjectiveSpec."""
+    """Map ``[mpl, error, energy, safety, novelty]`` weights (and the vector's energy term) onto an
+    EconomicObjectiveSpec."""
     return EconomicObjectiveSpec(
         mpl_weight=vector.w_mpl,
         error_weight=vector.w_error,
@@ -49,6 +52,7 @@ def objective_from_vector(vector: ObjectiveVector, name: str = "objective",
         novelty_weight=vector.w_novelty,
         extra_weights=extra_weights or {},
         name=name,
+        energy_term=vector.energy_term,
     )
 
 
@@ -61,6 +65,13 @@ def objective_weights_vector(spec: EconomicObjectiveSpec) -> list[float]:
     """
     return [spec.mpl_weight, abs(spec.error_weight), abs(spec.energy_weight), abs(spec.risk_weight),
             spec.novelty_weight]
+
+
+def objective_j(spec: EconomicObjectiveSpec, summary: Any, economics: Any) -> float:
+    """An episode's J under ``spec``: :func:`econmotor.valuation.episode_j` of its weights
+    (:func:`objective_weights_vector`) with its own energy term (``spec.energy_term``; ``"usd"`` reads
+    ``economics``' electricity price). The J a report prints and held-out selection keeps a checkpoint by."""
+    return episode_j(summary, objective_weights_vector(spec), economics, spec.energy_term)
 
 
 def parse_objective_spec(data: Any, source: str | Path = "<objective>") -> EconomicObjectiveSpec:
@@ -80,13 +91,14 @@ def parse_objective_spec(data: Any, source: str | Path = "<objective>") -> Econo
     for k in extras:
         if k in ("mpl_per_hour", "energy_kwh", "error_rate", "novelty_score", "risk_score"):
             raise ConfigError(source, f"extra_weights.{k}", "this metric has its own *_weight key")
+    energy_term = as_str(data.get("energy_term", "wh"), source, "energy_term", ENERGY_TERMS)
     if "objective_vector" in data:
-        vector = ObjectiveVector.from_list(data["objective_vector"], str(source))
+        vector = ObjectiveVector.from_list(data["objective_vector"], str(source), energy_term)
         return objective_from_vector(vector, name, extras)
     if "objective_preset" in data:
         preset = as_str(data["objective_preset"], source, "objective_preset", OBJECTIVE_PRESETS)
-        return objective_from_vector(ObjectiveVector.from_preset(preset), name if "name" in data else preset,
-                                     extras)
+        return objective_from_vector(ObjectiveVector.from_preset(preset, energy_term),
+                                     name if "name" in data else preset, extras)
     if not forms:
         raise ConfigError(source, None, "no objective given",
                           "flat *_weight keys | objective_vector | objective_preset")
@@ -94,7 +106,7 @@ def parse_objective_spec(data: Any, source: str | Path = "<objective>") -> Econo
     if not any(weights.values()) and not any(extras.values()) and "mpl_weight" in weights:
         raise ConfigError(source, None, "every weight is zero: the objective values nothing",
                           "at least one non-zero *_weight")
-    return EconomicObjectiveSpec(**weights, extra_weights=extras, name=name)
+    return EconomicObjectiveSpec(**weights, extra_weights=extras, name=name, energy_term=energy_term)
 
 
 def load_objective_spec(path: str | Path) -> EconomicObjectiveSpec:

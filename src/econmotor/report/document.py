@@ -38,9 +38,11 @@ JSON has no infinity: non-finite numbers are written as ``null`` (a robot that
 completed nothing has no finite unit cost); ``json_ready`` does that conversion.
 
 ``objective.J``: the RewardBuilder J of each priced episode under the run's objective
-(weights ``[mpl, error, energy, safety, novelty]``, energy in Wh), computed by
-``econmotor.valuation.episode_j`` — the same J shadow mode logs and ``econmotor solve``
-ranks runs by. Datapack objective hints are shown as written (a preset name or free text).
+(weights ``[mpl, error, energy, safety, novelty]``, energy in Wh or, with the objective's
+``energy_term: usd``, in USD), computed by ``econmotor.objectives.loader.objective_j`` (``episode_j``
+with the objective's energy term) — the same J shadow mode logs and ``econmotor solve`` ranks runs by,
+and held-out selection keeps a checkpoint by. Datapack objective hints are shown as written (a preset
+name or free text).
 """
 
 from __future__ import annotations
@@ -54,8 +56,7 @@ from econmotor.economics.pricing import PricingSummary, pricing_inputs
 from econmotor.economics.uncertainty import CONFIDENCE, Uncertainty, Verdict, judge
 from econmotor.objectives import compile_economic_overlay
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
-from econmotor.objectives.loader import objective_weights_vector
-from econmotor.valuation.reward_builder import episode_j
+from econmotor.objectives.loader import objective_j, objective_weights_vector
 
 REPORT_SCHEMA = "econmotor.task_pricing_report"
 # 2: TaskPrice gained damage_usd_per_unit, customer_saving_after_damage_usd_per_hour
@@ -217,7 +218,7 @@ def build_document(ctx: ReportContext, generated_at: dt.datetime | None = None) 
 
     priced = ctx.eval_run or ctx.train_run
     vector = objective_weights_vector(ctx.objective)
-    js = [episode_j(ep, vector, ctx.task.economics) for ep in ctx.episodes]
+    js = [objective_j(ctx.objective, ep, ctx.task.economics) for ep in ctx.episodes]
     unc, verdict = assess_context(ctx)
     source = (f"measured: {priced.kind} run #{priced.id} of the registry, {len(ctx.episodes)} episodes"
               if priced is not None else f"measured: {len(ctx.episodes)} evaluation episodes")
@@ -230,7 +231,8 @@ def build_document(ctx: ReportContext, generated_at: dt.datetime | None = None) 
                  "error_definition": ctx.task.error_definition},
         "backend": ctx.backend,
         "objective": {**ctx.objective.to_dict(), "overlay": compile_economic_overlay(ctx.objective).to_dict(),
-                      "J": {"vector": vector, "energy_term": "wh", "mean": sum(js) / len(js) if js else None}},
+                      "J": {"vector": vector, "energy_term": ctx.objective.energy_term,
+                            "mean": sum(js) / len(js) if js else None}},
         "datapacks": list(ctx.datapack_ids),
         "datapack_objective_hints": _objective_hints(ctx.train_run or ctx.eval_run),
         "notes": ctx.notes,

@@ -64,3 +64,13 @@ def test_failed_cells_are_recorded_and_retried_completed_cells_skipped(tmp_path)
     again = run_sweep(registry, cells, tmp_path / "policies")
     assert [o.status for o in again] == ["skipped", "failed"]
     assert len(registry.runs()) == 3  # the failed cell was tried again, the completed one was not
+
+
+def test_a_cells_objective_keeps_its_energy_term():
+    """The cell trains, records and selects under the objective it states, a priced energy term included."""
+    from dataclasses import replace
+
+    priced = replace(preset_objectives(["energy_saver"])[0], energy_term="usd")
+    cell = plan_sweep("dishwashing", "dishwashing", [priced], [()], [0])[0]
+    spec = cell.objective_spec()
+    assert spec.energy_term == "usd" and spec.to_dict()["energy_term"] == "usd"

@@ -381,3 +381,23 @@ def test_why_is_given_for_every_verdict_but_a_pass_and_a_full_evaluation_is_not_
 def test_an_evaluation_shorter_than_its_first_look_is_an_error_not_a_verdict():
     with pytest.raises(ValueError, match=r"returned 0 episodes, fewer than its first look \(16\)"):
         selection().consider(1000, lambda n, seed, stop: SAFE[:10])
+
+
+def test_selection_keeps_the_checkpoint_the_objectives_own_j_prefers_with_a_priced_energy_term():
+    """``energy_term: usd``: J counts energy as its bill (0.12 USD/kWh on the hopper), not as Wh. A checkpoint that
+    covers more legs on 2 Wh an episode beats one that saves 1.95 Wh for fewer legs; counted in Wh it loses."""
+    from econmotor.config.objective_profile import ObjectiveVector
+    from econmotor.objectives import objective_from_vector
+    from econmotor.valuation.reward_builder import episode_j
+
+    priced = objective_from_vector(ObjectiveVector.from_preset("energy_saver", energy_term="usd"), "priced")
+    sel = Selection(TASK, priced, SelectionConfig(every_steps=1000, episodes=160))
+    far = [episode(1.2, False, energy_wh=2.0) for _ in range(160)]  # 540 legs/h, 2 Wh an episode
+    frugal = [episode(1.19, False, energy_wh=0.05) for _ in range(160)]  # 535.5 legs/h, 0.05 Wh
+    first, _ = sel.consider(1000, evaluation(far))
+    second, better = sel.consider(2000, evaluation(frugal))
+    assert first.deployable and second.deployable and not better and sel.best.env_steps == 1000
+    summaries = judge_raw(TASK, far[:first.episodes]).summaries
+    usd = [episode_j(s, [1, 1, 3, 1, 0], TASK.economics, "usd") for s in summaries]
+    wh = [episode_j(s, [1, 1, 3, 1, 0], TASK.economics, "wh") for s in summaries]
+    assert first.j_mean == pytest.approx(sum(usd) / len(usd)) and first.j_mean != pytest.approx(sum(wh) / len(wh))

@@ -91,3 +91,17 @@ def test_unknown_preset_name_in_vector_api():
 
     with pytest.raises(UnknownNameError, match="balanced"):
         ObjectiveVector.from_preset("nope")
+
+
+@pytest.mark.parametrize("form", ["objective_preset: energy_saver", "objective_vector: [1, 1, 3, 1, 0]",
+                                  "mpl_weight: 1.0\nenergy_weight: 3.0"])
+def test_an_objective_states_its_energy_term_in_every_form(tmp_path, form):
+    path = tmp_path / "priced.yaml"
+    path.write_text(f"{form}\nenergy_term: usd\n")
+    assert load_objective_spec(path).energy_term == "usd"
+    path.write_text(f"{form}\n")
+    assert load_objective_spec(path).energy_term == "wh"  # the default: r_energy = -Wh
+    path.write_text(f"{form}\nenergy_term: kwh\n")
+    with pytest.raises(ConfigError) as info:
+        load_objective_spec(path)
+    assert info.value.key == "energy_term" and str(path) in str(info.value)

@@ -47,3 +47,18 @@ def test_report_carries_episode_j_and_free_text_hints():
     markdown = render_markdown(doc)
     assert f"upstream (objective hint: {HINT})" in markdown and "plain" in markdown
     assert "objective J" in markdown
+
+
+def test_the_reports_j_is_the_objectives_own_with_a_priced_energy_term():
+    task = get_task("dishwashing")  # 0.12 USD/kWh
+    raw = [{"units_completed": 60, "units_attempted": 64, "errors": 4, "episode_length_s": 3600.0, "energy_wh": 12.0,
+            "termination_reason": "max_steps"}]
+    raw_metrics, econ, episodes = summarize_episodes(raw, task.economics)
+    objective = objective_from_vector(ObjectiveVector.from_preset("energy_saver", energy_term="usd"), "priced")
+    ctx = ReportContext(task=task, backend="dishwashing", objective=objective, datapack_ids=(),
+                        pricing=price_evaluation(task.economics, econ, episodes, PricingPolicy()),
+                        raw_metrics=raw_metrics, econ_metrics=econ, episodes=episodes)
+    doc = build_document(ctx)
+    hand = 60 - 4 / 64 - 3 * (0.12 * 12.0 / 1000)  # energy_saver [1, 1, 3, 1, 0], 12 Wh at 0.12 USD/kWh
+    assert doc["episodes"][0]["J"] == pytest.approx(hand)
+    assert doc["objective"]["J"]["energy_term"] == "usd" and doc["objective"]["energy_term"] == "usd"
