@@ -186,10 +186,14 @@ def comparison_figure(ranked: list[dict[str, Any]], fall_rate_limit: float | Non
                     top = max(bar.get_height(), row["price_high"] or 0.0)
                     ax.annotate("refused", (bar.get_x() + bar.get_width() / 2, top), ha="center", va="bottom",
                                 fontsize=7, color="dimgray", xytext=(0, 4), textcoords="offset points")
+        if key == "price_usd_per_unit" and not all(r["deployable"] for r in ranked):
+            ax.set_ylim(top=ax.get_ylim()[1] * 1.12)  # room for the "refused" labels
         if key == "fall_rate_bound" and fall_rate_limit is not None:
-            ax.axhline(fall_rate_limit, color="tab:red", linestyle="--", linewidth=1,
-                       label=f"acceptance limit {fmt(fall_rate_limit)}")
-            ax.legend(fontsize=7)
+            text = f"acceptance limit {fmt(fall_rate_limit)}"
+            ax.axhline(fall_rate_limit, color="tab:red", linestyle="--", linewidth=1, label=text)
+            ax.annotate(text, (1.0, fall_rate_limit), xycoords=("axes fraction", "data"), ha="right", va="bottom",
+                        fontsize=7, color="tab:red", xytext=(-2, 2), textcoords="offset points",
+                        bbox={"facecolor": "white", "edgecolor": "none", "pad": 1})
         ax.set_title(label, fontsize=9)
         ax.tick_params(axis="x", labelrotation=45, labelsize=7)
     fig.tight_layout()
