@@ -161,8 +161,11 @@ class WalkerBatch:
                                            card.physics_dt_s, meter.tilt_margin_rad, meter.fall_tilt_rad)
         m = walker.model
         self.models = [copy.copy(m) for _ in range(self.n)]
-        self.datas = [mujoco.MjData(m) for _ in range(max(1, self.nthread))]
-        self._scratch = mujoco.MjData(m)
+        # nthread 1: each slot steps its own MjData in this thread (the solver's warm start carries over, as
+        # in a plain mj_step loop); more: mujoco.rollout's C threads from the recorded state
+        self.datas = [mujoco.MjData(m) for _ in range(max(1, self.nthread) if self.nthread > 1 else self.n)]
+        decimation = card.decimation
+        self._record = (np.zeros((self.n, decimation, walker.nstate)), np.zeros((self.n, decimation, m.nsensordata)))
         self.nq, self.nv = m.nq, m.nv
         self.state = np.zeros((self.n, walker.nstate))
         self.episodes: list[Episode | None] = [None] * self.n
@@ -187,7 +190,7 @@ class WalkerBatch:
         """Start episode ``index`` (seeded ``seed``) in ``slot``: its draws, its model, its start state."""
         rng = np.random.default_rng(seed)
         card, st, w, m = self.card, self.stress, self.walker, self.models[slot]
-        d = self._scratch
+        d = self.datas[slot] if self._pool is None else mujoco.MjData(m)
         mujoco.mj_resetData(m, d)
         d.qpos[0:3], d.qpos[3:7] = card.init_pos, (1.0, 0.0, 0.0, 0.0)
         noise = st.initial_joint_noise_rad
@@ -225,6 +228,12 @@ class WalkerBatch:
         for name in _SUMS:
             getattr(self.sums, name)[slot] = 0.0
         self.sums.best_x[slot] = d.qpos[0]
+
+    def load_state(self, slots: np.ndarray) -> None:
+        """Make the ``state`` rows of ``slots`` (written by the caller) their robots' physics state."""
+        if self._pool is None:
+            for s in slots:
+                mujoco.mj_setState(self.models[s], self.datas[s], self.state[s], _FULL)
 
     def active(self) -> np.ndarray:
         """The slots running an episode."""
@@ -271,6 +280,8 @@ class WalkerBatch:
         lo, hi = st.max_push_vel_m_per_s  # type: ignore[misc]
         qvel = self._qvel(self.state[slot])
         qvel[0:2] += ep.rng.uniform(-1.0, 1.0, 2) * np.array([lo, hi])
+        if self._pool is None:
+            self.datas[slot].qvel[0:2] = qvel[0:2]
         self.next_push_s[slot] = self.steps[slot] * self.card.control_dt_s + float(ep.rng.uniform(*st.push_interval_s))
         ep.pushes += 1
 
@@ -307,10 +318,27 @@ class WalkerBatch:
         ctrl = np.zeros((len(slots), 1, w.model.nu))
         ctrl[:, 0, w.actuators] = targets
         models = [self.models[s] for s in slots]
+        if self._pool is None:
+            return self._step_each(slots, targets)
         kwargs = {"nstep": self.card.decimation, "initial_warmstart": np.zeros((len(slots), w.model.nv))}
-        if self._pool is not None:
-            return self._pool.rollout(models, self.datas, self.state[slots], ctrl, **kwargs)
-        return rollout.rollout(models, self.datas[0], self.state[slots], ctrl, **kwargs)
+        return self._pool.rollout(models, self.datas, self.state[slots], ctrl, **kwargs)
+
+    def _step_each(self, slots: np.ndarray, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The rollout in this thread: each slot's MjData stepped ``decimation`` times, its qpos, qvel and
+        sensordata recorded after each step (the rollout's state layout: time, qpos, qvel, ...)."""
+        states, sensors = self._record
+        qpos_at, qvel_at, end = 1, 1 + self.nq, 1 + self.nq + self.nv
+        step, act = mujoco.mj_step, self.walker.actuators
+        for row, s in enumerate(slots):
+            m, d = self.models[s], self.datas[s]
+            d.ctrl[act] = targets[row]
+            state, sensor = states[s], sensors[s]
+            for k in range(self.card.decimation):
+                step(m, d)
+                state[k, qpos_at:qvel_at] = d.qpos
+                state[k, qvel_at:end] = d.qvel
+                sensor[k] = d.sensordata
+        return states[slots], sensors[slots]
 
     def _meter(self, slots: np.ndarray, states: np.ndarray, frc: np.ndarray) -> np.ndarray:
         """Meter the physics steps ``[B, decimation]`` of ``slots`` up to and including a fall (later steps

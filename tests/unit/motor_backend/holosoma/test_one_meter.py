@@ -179,6 +179,7 @@ def test_the_evaluators_meter_is_the_shared_formula_step_by_step_on_recorded_ste
     qvel[2, 0] = -1.0  # 2: shoved backward (nothing gained until it is past its start again)
     qpos[3, 3:7], qvel[3, 3] = _tilted(c.fall_tilt_rad - 0.015), 2.0  # 3: tipping over, falls inside a control step
     qvel[4, 0] = 1.5 * batch.runaway  # 4: a blow-up: runs away at its first physics step
+    batch.load_state(np.arange(batch.n))
     reference = [StepwiseMeter(batch, float(batch.sums.best_x[s])) for s in range(batch.n)]
     rng = np.random.default_rng(0)
     slots, fell_in = np.arange(batch.n), {}
