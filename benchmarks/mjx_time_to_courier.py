@@ -29,7 +29,7 @@ import jax  # noqa: E402
 from econmotor.motor_backend.mjx import ppo  # noqa: E402
 from econmotor.motor_backend.mjx.backend import MjxBackend, device_description  # noqa: E402
 from econmotor.motor_backend.mjx.training import evaluate_episodes  # noqa: E402
-from econmotor.motor_backend.results import summarize_episodes
+from econmotor.motor_backend.results import summarize_episodes  # noqa: E402
 from econmotor.objectives import EconomicObjectiveSpec  # noqa: E402
 
 #: the smallest run (tests/integration/test_benchmarks.py): the hopper (compiles in a fraction of the

@@ -198,8 +198,9 @@ def main() -> None:
         print(f"{name:>14}: {rate:8.0f} control steps/s  {rate * 0.02:6.1f} x real time")
     print(f"env_processes start-up: {startup_s:.2f} s (spawn, imports, model, ONNX session); "
           f"wall with it {wall:.2f} s")
-    print(f"env_1 / raw_1: {rates['env_1'] / rates['raw_1']:.3f}; one_robot / raw_1: "
-          f"{rates['one_robot'] / rates['raw_1']:.3f}; env_threads / raw_2: {rates['env_threads'] / rates['raw_2']:.3f}")
+    ratio = {name: rates[name] / rates["raw_1" if name in ("env_1", "one_robot") else "raw_2"] for name in rates}
+    print(f"env_1 / raw_1: {ratio['env_1']:.3f}; one_robot / raw_1: {ratio['one_robot']:.3f}; "
+          f"env_threads / raw_2: {ratio['env_threads']:.3f}")
     print(f"env_processes / raw_2: {rates['env_processes'] / rates['raw_2']:.3f}")
 
 
