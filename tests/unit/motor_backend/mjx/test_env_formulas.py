@@ -12,7 +12,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from econmotor.couriers import overlay, physics, robots
+from econmotor.couriers import overlay, physics
+from econmotor.robots import gym_couriers as robots
 from econmotor.couriers.walker_task import meter_settings, task_settings
 from econmotor.economics import courier_formulas as cf
 from econmotor.errors import ConfigError
