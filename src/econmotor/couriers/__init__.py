@@ -1,7 +1,17 @@
-"""What the MuJoCo and MJX couriers share; imports no gymnasium, torch or jax.
+"""What every backend's couriers share, owned by none of them; imports no gymnasium, torch or jax.
 
-- ``robots.py``: one :class:`~econmotor.robots.gym_couriers.CourierRobot` record per
-  robot (Gymnasium v5 defaults, healthy rule, observation parts, reward and reset facts),
+The walkers (the card robots, :mod:`econmotor.robots`):
+
+- ``course.py``: the delivery course, one implementation for NumPy and JAX callers,
+- ``stress.py``: a datapack's per-episode conditions; ``datapack_mapping.py``: datapacks in
+  Holosoma's randomization terms,
+- ``walker_task.py``: a walker task's settings, meter and course from the task catalog,
+- ``policy_import.py``: a Holosoma-format ONNX walker's contract with its robot card,
+- ``walker_env.py``: N robots per process stepped by MuJoCo C, metered; ``walker_eval.py``: seeded
+  episodes of it on worker processes (the sim-to-sim evaluator).
+
+The Gymnasium couriers (their robot facts: :mod:`econmotor.robots.gym_couriers`):
+
 - ``physics.py``: what metering reads from any MuJoCo model (actuated dofs, root tilt),
 - ``settings.py``: the metering settings of a catalog entry, validated once,
 - ``overlay.py``: the overlay's terms, checks and human-baseline references,

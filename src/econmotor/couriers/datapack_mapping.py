@@ -20,10 +20,10 @@ datapack key               Holosoma parameter
                            angle plus a uniform draw in ``[-v, v]`` (not a training term)
 =========================  ==============================================================
 
-The sim-to-sim evaluation (:mod:`.sim2sim`) applies ``friction_range`` (floor friction per
+The walker env (:mod:`.walker_env`, :mod:`.stress`) applies ``friction_range`` (floor friction per
 episode), ``added_base_mass_kg`` (a payload on the torso), ``pushes`` / ``push_interval_s`` /
-``max_push_vel_m_per_s`` (base velocity kicks) and ``initial_joint_noise_rad``, and says which
-others it does not apply.
+``max_push_vel_m_per_s`` (base velocity kicks), ``kp_range`` / ``kd_range`` (PD gains),
+``ctrl_delay_steps`` and ``initial_joint_noise_rad``, and says which others it does not apply.
 
 ``curriculum`` keys map onto Holosoma's ``PenaltyCurriculum`` (which scales the
 penalty-tagged reward terms): ``initial_difficulty`` -> ``initial_scale``,

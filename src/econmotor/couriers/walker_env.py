@@ -21,9 +21,10 @@ the couriers' shared formulas (:func:`econmotor.economics.courier_formulas.meter
   same readings the meter takes from ``qfrc_actuator`` and ``qvel``. A fall ends the episode at
   its physics step; nothing after it is metered.
 - **seeds**: episode ``i`` draws everything from ``numpy.random.default_rng(seed_i)`` in a fixed
-  order, the rollout starts every control step from the recorded state with a zero solver warm
-  start, and the policy runs on at least two rows (onnxruntime's one-row kernel rounds
-  differently): an episode's outcome depends on its seed only, not on its slot, batch or process.
+  order and starts from a reset MjData of its slot (on C threads, every control step starts
+  from the recorded state with a zero solver warm start), and the policy runs on at least two
+  rows (onnxruntime's one-row kernel rounds differently): an episode's outcome depends on its
+  seed only, not on its slot, batch or process.
 
 The fall rule: the card's (tilt past ``fall_tilt_rad`` or the base below ``min_base_z_m``), plus a
 runaway rule (a non-finite state, or the base faster than ``runaway_speed_m_per_s``): a blow-up

@@ -4,8 +4,8 @@ A card is a frozen value: the robot's MJCF (a file inside an installed package, 
 its joints in the policy's order, default pose, PD gains, action scale and clip, effort limits,
 torso, feet, the fall rule, the collision filter its maker's simulator applies, and the
 observation convention of its maker's inference stack (:class:`ObservationConvention`). The
-trainer (``motor_backend/mjx``), the policy importer and the sim-to-sim evaluator
-(``motor_backend/holosoma``) and the meter read these fields; none of them branches on a
+trainer (``motor_backend/mjx``), the policy importer and the walker env that prices them
+(``couriers/``) and the meter read these fields; none of them branches on a
 robot's name. Building the MuJoCo model from a card is :mod:`econmotor.robots.model`, the
 observation :mod:`econmotor.robots.observation`.
 

@@ -1,13 +1,13 @@
 """Holosoma backend internals.
 
-Two interpreters meet here. The main environment (numpy 2) imports
-:mod:`.plan`, :mod:`.datapack_mapping`, :mod:`.econ_formulas`, :mod:`.recording_metrics`
+Two interpreters meet here. The main environment (numpy 2) imports the host side,
+:mod:`.backend`, :mod:`.plan`, :mod:`.econ_formulas`, :mod:`.recording_metrics`
 and :mod:`.jobs` (the subprocess client), which hands the runner a :mod:`.job_specs` dataclass as JSON;
 none of them imports Holosoma or torch.
-The isolated ``.venv-holosoma`` (numpy 1.x, Holosoma, torch) runs :mod:`.runner`
-(``python -m econmotor.motor_backend.holosoma.venv.runner JOB.json``) and :mod:`.recording`
-(an eval callback), and imports the reward terms in
-:mod:`.reward_terms`. Everything shared between the
+The isolated ``.venv-holosoma`` (numpy 1.x, Holosoma, torch) runs the venv side, :mod:`.venv`:
+its runner (``python -m econmotor.motor_backend.holosoma.venv.runner JOB.json``), its recording
+(an eval callback) and its reward terms. Locomotion policies are priced in the main interpreter by
+the walker env (:mod:`econmotor.couriers.walker_eval`). Everything shared between the
 two sides is a typed job (:mod:`.job_specs`, parsed once by the runner), plain JSON or
 array-agnostic arithmetic (:mod:`.econ_formulas`), so it runs unchanged on numpy 1.x, numpy 2
 and torch.

@@ -17,8 +17,9 @@ overrides it): ``humanoid_locomotion_g1`` -> ``g1_29dof`` / ``g1_29dof_fast_sac`
   environment steps and is adapted to the simulator (:mod:`.holosoma.plan`, every change
   announced as a ``holosoma: ...`` progress label and kept in ``config["messages"]``).
   Then ``eval_episodes`` episodes are evaluated.
-- **evaluate_policy**: locomotion tasks, the sim-to-sim evaluator (:mod:`.holosoma.sim2sim`: the
-  policy's ONNX walking a delivery course in plain MuJoCo, metered by the couriers' formulas), for a
+- **evaluate_policy**: locomotion tasks, the sim-to-sim evaluator (:mod:`econmotor.couriers.walker_eval`:
+  the policy's ONNX walking a delivery course in plain MuJoCo in this interpreter, metered by the
+  couriers' formulas), for a
   run trained here and for an imported policy alike; whole-body tracking, Holosoma's ``eval_agent``
   with its recording callback (extended), raw metrics per episode from the recording
   (:mod:`.holosoma.recording_metrics`).
@@ -321,8 +322,8 @@ class HolosomaBackend(MotorBackendBase):
         ``holosoma:<robot>/<algo>``); episode ``i`` is seeded ``seed + i``; ``stop`` as the contract's
         (sim-to-sim: every :meth:`evaluation_batch` episodes finished in order).
 
-        Locomotion tasks: the sim-to-sim evaluator (:mod:`.sim2sim`) on the policy's ONNX, the same for a
-        policy trained here and one trained elsewhere. Whole-body tracking (a motion clip): Holosoma's
+        Locomotion tasks: the sim-to-sim evaluator (:mod:`econmotor.couriers.walker_eval`) on the
+        policy's ONNX, the same for a policy trained here and one trained elsewhere. Whole-body tracking (a motion clip): Holosoma's
         eval_agent with recording, for run directories trained here.
         """
         if num_episodes < 1:

@@ -1,7 +1,7 @@
 """Per-step economic quantities of a legged robot in Holosoma: the couriers' meter, read from Holosoma's tensors.
 
 One meter per robot: a G1 trained here (Holosoma's reward terms, torch) and a G1 priced here (the
-sim-to-sim evaluator, :mod:`.sim2sim`) are metered by the same formulas,
+sim-to-sim evaluator, :mod:`econmotor.couriers.walker_env`) are metered by the same formulas,
 :mod:`econmotor.economics.courier_formulas`, with the same constants (the task catalog's
 ``backends.holosoma`` entry, ``walker_task.meter_settings``):
 
