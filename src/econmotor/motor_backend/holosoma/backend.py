@@ -323,8 +323,8 @@ class HolosomaBackend(MotorBackendBase):
         (sim-to-sim: every :meth:`evaluation_batch` episodes finished in order).
 
         Locomotion tasks: the sim-to-sim evaluator (:mod:`econmotor.couriers.walker_eval`) on the
-        policy's ONNX, the same for a policy trained here and one trained elsewhere. Whole-body tracking (a motion clip): Holosoma's
-        eval_agent with recording, for run directories trained here.
+        policy's ONNX, the same for a policy trained here and one trained elsewhere. Whole-body tracking
+        (a motion clip): Holosoma's eval_agent with recording, for run directories trained here.
         """
         if num_episodes < 1:
             raise ConfigError("<evaluate>", "num_episodes", f"must be >= 1, got {num_episodes}")
