@@ -26,9 +26,10 @@ the couriers' shared formulas (:func:`econmotor.economics.courier_formulas.meter
   rows (onnxruntime's one-row kernel rounds differently): an episode's outcome depends on its
   seed only, not on its slot, batch or process.
 
-The fall rule: the card's (tilt past ``fall_tilt_rad`` or the base below ``min_base_z_m``), plus a
-runaway rule (a non-finite state, or the base faster than ``runaway_speed_m_per_s``): a blow-up
-with the base upright ends the episode as a fall instead of being scored.
+The fall rule: the card's (:func:`econmotor.couriers.physics.has_fallen`: tilt past ``fall_tilt_rad``,
+the base below ``min_base_z_m``, or the runaway rule: a non-finite state or the base faster than
+the card's ``runaway_speed_m_per_s``): a blow-up with the base upright ends the episode as a fall
+instead of being scored.
 
 Imports NumPy and MuJoCo only (and onnxruntime for a policy file): worker processes start fast.
 """
@@ -46,7 +47,7 @@ import numpy as np
 from mujoco import rollout
 
 from econmotor.couriers import course as crs
-from econmotor.couriers.physics import root_tilt_rad
+from econmotor.couriers.physics import has_fallen, root_tilt_rad
 from econmotor.couriers.stress import Stress
 from econmotor.couriers.walker_task import MeterSettings
 from econmotor.economics import courier_formulas as cf
@@ -55,9 +56,6 @@ from econmotor.robots import RobotCard
 from econmotor.robots import observation as robot_obs
 from econmotor.robots.model import FLOOR, joint_indices, model_spec
 
-#: the base's speed (m/s) past which a state counts as a blow-up (a walker moves at ~1 m/s; a push
-#: adds at most a few)
-RUNAWAY_SPEED_M_PER_S = 20.0
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 #: the meter's running sums a walker keeps (no novelty or pose tracking on the course)
 _SUMS = ("steps", "units", "best_x", "errors", "energy_wh", "risk_sum")
@@ -149,10 +147,11 @@ class WalkerBatch:
 
     def __init__(self, walker: WalkerModel, course: crs.CourseSettings, meter: MeterSettings, stress: Stress,
                  episode_s: float, num_slots: int, command_ranges: dict[str, Any] | None = None,
-                 nthread: int = 1, runaway_speed_m_per_s: float = RUNAWAY_SPEED_M_PER_S) -> None:
+                 nthread: int = 1, runaway_speed_m_per_s: float | None = None) -> None:
         card = walker.card
         self.walker, self.card, self.course, self.meter, self.stress = walker, card, course, meter, stress
-        self.n, self.nthread, self.runaway = int(num_slots), int(nthread), float(runaway_speed_m_per_s)
+        self.n, self.nthread = int(num_slots), int(nthread)
+        self.runaway = float(runaway_speed_m_per_s or card.runaway_speed_m_per_s)
         self.control_steps = round(episode_s / card.control_dt_s)
         ranges = dict(command_ranges or card.command_ranges)
         self.vx_max = float(ranges.get("lin_vel_x", (-1.0, 1.0))[1])
@@ -352,8 +351,7 @@ class WalkerBatch:
         w, card, c, s = self.walker, self.card, self.constants, self.sums
         qpos, qvel = self._qpos(states), self._qvel(states)
         tilt = root_tilt_rad(np.moveaxis(qpos[..., :7], -1, 0), True, np)
-        runaway = ~np.isfinite(states).all(axis=-1) | (np.linalg.norm(qvel[..., 0:3], axis=-1) > self.runaway)
-        fell_at = (tilt > card.fall_tilt_rad) | (qpos[..., 2] < card.min_base_z_m) | runaway
+        fell_at = has_fallen(card, qpos, qvel, np, self.runaway)
         # live: the steps up to the first fall (a robot that fell is metered no further)
         live = np.cumsum(np.cumsum(fell_at, axis=1), axis=1) <= 1
         fell = fell_at.any(axis=1)

@@ -91,7 +91,10 @@ class RobotCard:
       payload is carried; ``foot_bodies`` / ``foot_geoms``: the feet and their colliders (the
       geoms MJX lets touch the floor); ``foot_contact_bodies``: the points under the soles whose
       height the gait reward tracks (Holosoma's ``key_bodies``).
-    - fall rule: tilt past ``fall_tilt_rad`` or the root below ``fall_height_fraction * init_pos[2]``.
+    - fall rule: tilt past ``fall_tilt_rad`` or the root below ``fall_height_fraction * init_pos[2]``;
+      the runaway rule: a non-finite state or the root faster than ``runaway_speed_m_per_s`` (a
+      blow-up with the base upright is a fall, not a score:
+      :func:`econmotor.couriers.physics.has_fallen`, in training and pricing alike).
     - collision filter: ``self_collisions`` False as in Holosoma's MuJoCo simulator (robot
       geoms collide with the floor only).
     - ``push_preset``: Holosoma's locomotion push term (``push_randomizer_state``: ``push_interval_s``
@@ -126,6 +129,8 @@ class RobotCard:
     holosoma_experiment: str
     inference_preset: str
     sources: Mapping[str, str] = field(default_factory=dict)
+    #: m/s: a walker moves at ~1 m/s and a push adds a few; past this the state has blown up
+    runaway_speed_m_per_s: float = 20.0
 
     def __post_init__(self) -> None:
         n = len(self.dof_names)

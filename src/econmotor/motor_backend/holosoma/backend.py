@@ -148,7 +148,7 @@ class HolosomaBackend(MotorBackendBase):
             ``course_speed_m_per_s``; the contract's keyword of ``capabilities.course_speed``).
         job_timeout_s: kill a job running longer than this.
         eval_workers: processes a sim-to-sim evaluation runs its episodes in (None: the CPUs this
-            process may use, at most 2); episode i is seeded ``seed + i`` whichever runs it.
+            process may use: one worker per core); episode i is seeded ``seed + i`` whichever runs it.
     """
 
     name = "holosoma"
@@ -188,8 +188,8 @@ class HolosomaBackend(MotorBackendBase):
         self.job_timeout_s = job_timeout_s
         if eval_workers is not None and eval_workers < 1:
             raise ConfigError("<holosoma backend>", "eval_workers", f"must be >= 1, got {eval_workers}")
-        self.eval_workers = int(eval_workers or min(2, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
-                                                    else (os.cpu_count() or 1)))
+        self.eval_workers = int(eval_workers or (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                                                 else (os.cpu_count() or 1)))
         self._caps: Capabilities | None = None
 
     @classmethod

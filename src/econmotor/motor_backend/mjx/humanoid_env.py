@@ -54,7 +54,7 @@ from econmotor.couriers.course import (
 )
 from econmotor.couriers.datapack_mapping import map_datapacks
 from econmotor.couriers.overlay import human_baseline_references, overlay_term_factors
-from econmotor.couriers.physics import root_tilt_rad
+from econmotor.couriers.physics import has_fallen, root_tilt_rad
 from econmotor.couriers.stress import Stress
 from econmotor.economics import courier_formulas as cf
 from econmotor.economics.termination import TerminationReason
@@ -222,11 +222,9 @@ class MjxHumanoidCourierEnv:
         self._limit = jnp.asarray(c.effort_limits, jnp.float32)
 
     # ------------------------------------------------------------------ physics readouts
-    def has_fallen(self, qpos: jax.Array) -> jax.Array:
-        """The card's fall rule: tilt past ``fall_tilt_rad``, the root below its fall height, or a non-finite state."""
-        z = qpos[2]
-        tilt = root_tilt_rad(qpos, True, jnp)
-        return (tilt > self.card.fall_tilt_rad) | (z < self.card.min_base_z_m) | ~jnp.isfinite(z)
+    def has_fallen(self, qpos: jax.Array, qvel: jax.Array) -> jax.Array:
+        """The card's fall rule with its runaway rule (:func:`econmotor.couriers.physics.has_fallen`)."""
+        return has_fallen(self.card, qpos, qvel, jnp)
 
     def _randomized_model(self, dr: Mapping[str, jax.Array]) -> Any:
         m = self.model
@@ -306,7 +304,7 @@ class MjxHumanoidCourierEnv:
             q, qd = d.qpos[self._qadr], d.qvel[self._dadr]
             tau = jnp.clip(kp * (target - q) - kd * qd, -self._limit, self._limit)
             d = mjx.step(m, d.replace(ctrl=d.ctrl.at[self._act].set(tau)))
-            fell = self.has_fallen(d.qpos)
+            fell = self.has_fallen(d.qpos, d.qvel)
             if self.economics:  # the evaluator's meter, frozen once the robot is down
                 reading = cf.StepReading(x_m=d.qpos[0], mechanical_w=cf.mechanical_power_w(
                     d.qfrc_actuator[self._dadr], d.qvel[self._dadr], jnp),
