@@ -92,7 +92,7 @@ def parse_policy_name(name: str, flag: str = "--policy") -> tuple[str, str]:
     match = _NAME.match(name)
     if not match or match.group(2) not in ALGO_FILE_PREFIX:
         raise ConfigError(flag, name, "a shipped policy is named holosoma:<robot>/<algo>",
-                          [f"holosoma:{r}/{a}" for r in ("g1_29dof", "t1_29dof") for a in ("ppo", "fastsac")])
+                          [f"holosoma:{r}/{a}" for r in CARDS for a in ("ppo", "fastsac")])
     return match.group(1), match.group(2)
 
 

@@ -2,8 +2,8 @@
 
 Read alike by every backend that trains or prices the card robots (the ``holosoma`` backend's
 training terms, the ``mjx`` humanoid couriers, the batched MuJoCo walker env): the built-in
-presets (:data:`HOLOSOMA_TASK_PRESETS`, Holosoma's experiment names per algorithm and the overlay's
-physical parameters) overridden by the task's ``backends.holosoma`` catalog entry
+the task's ``backends.holosoma`` catalog entry (its robot card, Holosoma's experiment names per
+algorithm, the overlay's physical parameters over :data:`OVERLAY_DEFAULTS`)
 (:func:`task_settings`); the meter's constants (:func:`meter_settings`, :class:`MeterSettings`);
 the delivery course (:func:`course_settings`).
 """
@@ -17,6 +17,7 @@ from typing import Any
 from econmotor.config.loading import as_float
 from econmotor.couriers.course import CourseSettings
 from econmotor.errors import ConfigError
+from econmotor.robots import CARDS
 from econmotor.robots import card as robot_card
 
 
@@ -32,9 +33,9 @@ class MeterSettings:
     fall_tilt_rad: float
 
 
-#: task id -> Holosoma presets and the physical parameters of the econ overlay.
-#: A task's ``backends.holosoma`` entry in the catalog overrides any of these keys.
-_OVERLAY_PHYSICS: dict[str, Any] = {
+#: the econ overlay's physical parameters where a task's ``backends.holosoma`` catalog entry leaves them out
+#: (the entry names its robot card and Holosoma's experiment presets: the catalog is their one place)
+OVERLAY_DEFAULTS: dict[str, Any] = {
     "progress_mode": "velocity",   # progress = base velocity along the command / unit_length_m
     "unit_length_m": 10.0,         # metres of commanded travel per unit of work
     "unit_duration_s": 10.0,       # seconds per unit in "time" mode (tracking a clip)
@@ -42,15 +43,6 @@ _OVERLAY_PHYSICS: dict[str, Any] = {
     "novelty_rate": 0.01,          # running-statistics rate of the joint-space novelty
     "overlay_gain": 0.05,          # reward units per metric unit (keeps the overlay near the task terms)
     "uses_motion_clip": False,
-}
-HOLOSOMA_TASK_PRESETS: dict[str, dict[str, Any]] = {
-    "humanoid_locomotion_g1": {**_OVERLAY_PHYSICS, "robot": "g1_29dof",
-                               "experiment": {"ppo": "g1_29dof", "fast_sac": "g1_29dof_fast_sac"}},
-    "humanoid_locomotion_t1": {**_OVERLAY_PHYSICS, "robot": "t1_29dof",
-                               "experiment": {"ppo": "t1_29dof", "fast_sac": "t1_29dof_fast_sac"}},
-    "humanoid_wbt_g1": {**_OVERLAY_PHYSICS, "robot": "g1_29dof", "progress_mode": "time", "unit_duration_s": 6.5,
-                        "uses_motion_clip": True,
-                        "experiment": {"ppo": "g1_29dof_wbt", "fast_sac": "g1_29dof_wbt_fast_sac"}},
 }
 #: the courier meter's settings, read alike by the training terms and the sim-to-sim evaluator (:func:`meter_settings`;
 #: idle power and the tilt margin have no default: each is sourced in the task catalog; the fall tilt is the
@@ -65,15 +57,16 @@ _SETTING_KEYS = ("robot", "experiment", "progress_mode", "unit_length_m", "unit_
 
 
 def task_settings(task_id: str, entry: Mapping[str, Any], source: str) -> dict[str, Any]:
-    """The task's Holosoma settings: built-in preset overridden by the catalog entry."""
+    """The task's Holosoma settings: the catalog entry over :data:`OVERLAY_DEFAULTS`."""
     unknown = [k for k in entry if k not in _SETTING_KEYS]
     if unknown:
         raise ConfigError(source, f"tasks.{task_id}.backends.holosoma.{unknown[0]}", "unknown key", _SETTING_KEYS)
-    base = HOLOSOMA_TASK_PRESETS.get(task_id)
-    if base is None and "experiment" not in entry:
-        raise ConfigError(source, f"tasks.{task_id}.backends.holosoma.experiment",
-                          "no built-in Holosoma preset for this task: name one", sorted(HOLOSOMA_TASK_PRESETS))
-    settings = {**(base or HOLOSOMA_TASK_PRESETS["humanoid_locomotion_g1"]), **dict(entry)}
+    for key, allowed in (("experiment", None), ("robot", sorted(CARDS))):
+        if key not in entry:
+            raise ConfigError(source, f"tasks.{task_id}.backends.holosoma.{key}",
+                              "missing: name one (the task's robot card; Holosoma's experiment preset per "
+                              "algorithm, e.g. {ppo: g1_29dof, fast_sac: g1_29dof_fast_sac})", allowed)
+    settings = {**OVERLAY_DEFAULTS, **dict(entry)}
     if isinstance(settings["experiment"], str):
         settings["experiment"] = {"ppo": settings["experiment"]}
     if settings["progress_mode"] not in ("velocity", "time"):

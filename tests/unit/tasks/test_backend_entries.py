@@ -46,11 +46,12 @@ def task_file(tmp_path, entry: str):
      "expected a number"),
     ("mujoco: {leg_distance_m: 3}", "tasks.my_task.backends.mujoco.env_id", "missing required key"),
     ("holosoma: {progress_mode: fast}", "tasks.my_task.backends.holosoma.experiment", "name one"),
-    ("holosoma: {experiment: x, drivetrain_efficiency: abc}", "tasks.my_task.backends.holosoma.drivetrain_efficiency",
-     "expected a number"),
+    ("holosoma: {experiment: x, progress_mode: time}", "tasks.my_task.backends.holosoma.robot", "name one"),
+    ("holosoma: {experiment: x, robot: g1_29dof, drivetrain_efficiency: abc}",
+     "tasks.my_task.backends.holosoma.drivetrain_efficiency", "expected a number"),
 ], ids=["unknown-backend", "unknown-key", "unknown-preset", "override-type", "override-negative",
         "override-name", "normalization-type", "mujoco-type", "mujoco-missing", "holosoma-no-preset",
-        "holosoma-efficiency-type"])
+        "holosoma-no-robot", "holosoma-efficiency-type"])
 def test_bad_entry_is_refused_at_load(tmp_path, entry, key, message):
     path = task_file(tmp_path, entry)
     assert "my_task" in load_catalog([path])  # parsing alone accepts it

@@ -5,10 +5,9 @@ Holosoma pins numpy<2, so it lives in its own interpreter (``make holosoma`` bui
 only plans and launches jobs there (:mod:`.holosoma.jobs`); it imports neither Holosoma
 nor torch, so it works in the main environment without Holosoma installed.
 
-Task map (:data:`HOLOSOMA_TASK_PRESETS`; a task's ``backends.holosoma`` catalog entry
-overrides it): ``humanoid_locomotion_g1`` -> ``g1_29dof`` / ``g1_29dof_fast_sac``,
-``humanoid_locomotion_t1`` -> ``t1_29dof`` / ``t1_29dof_fast_sac``, ``humanoid_wbt_g1``
--> ``g1_29dof_wbt`` / ``g1_29dof_wbt_fast_sac``.
+Task map: a task's ``backends.holosoma`` catalog entry names its robot card and Holosoma's experiment
+preset per algorithm (``humanoid_locomotion_g1`` -> ``g1_29dof`` / ``g1_29dof_fast_sac``, ...;
+:func:`econmotor.couriers.walker_task.task_settings`).
 
 - **train_policy**: the objective compiles to overlay scales; each overlay key with a
   simulator term becomes a Holosoma reward term weighted ``overlay_gain * scale``
@@ -58,7 +57,6 @@ from econmotor.couriers.stress import Stress
 from econmotor.couriers.walker_eval import WalkerEvaluation
 from econmotor.couriers.walker_eval import evaluate as evaluate_walkers
 from econmotor.couriers.walker_task import (
-    HOLOSOMA_TASK_PRESETS,
     SIM2SIM_KEYS,
     MeterSettings,
     course_settings,
@@ -94,7 +92,7 @@ from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, read_run_config, wr
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
 from econmotor.tasks.catalog import TaskCatalog
 
-__all__ = ["HOLOSOMA_TASK_PRESETS", "HolosomaBackend", "find_holosoma_python"]
+__all__ = ["HolosomaBackend", "find_holosoma_python"]
 
 SIMULATOR_ENV = "ECONMOTOR_HOLOSOMA_SIMULATOR"
 ALGO_ENV = "ECONMOTOR_HOLOSOMA_ALGO"
