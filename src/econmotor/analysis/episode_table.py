@@ -19,8 +19,11 @@ JSONL export format (``econmotor solve --export-jsonl``), one episode per line::
      "catastrophic": false,                    # episode ended in a catastrophe
      "termination_reason": "max_steps",
      "novelty_score": 0.0, "risk_score": 0.0,
-     "energy_price_usd_per_kwh": 0.12}         # USD/kWh, null = unknown; read only by
+     "energy_price_usd_per_kwh": 0.12,         # USD/kWh, null = unknown; read only by
                                                # objectives that price energy (energy_term: usd)
+     "commanded_speed_m_per_s": 0.8,           # the course's commanded speed, m/s; null = none
+     "hours": 0.0333, "units_completed": 1.6,  # the counts pooled figures (ratios of sums) need,
+     "units_attempted": 1.6, "errors": 0.0}    # h and units; null = unknown (optional)
 
 Lines are self-contained (run fields repeat), so files concatenate. Reading
 also accepts the summary names of ``econmotor.motor_backend.results.episode_summary``
@@ -52,6 +55,9 @@ METRIC_COLUMNS: tuple[str, ...] = (
     "mpl_units_per_hour", "error_rate", "energy_wh", "energy_wh_per_unit", "wage_parity",
     "novelty_score", "risk_score",
 )
+#: optional count columns (float64, NaN where a record lacks them): the episode's hours and units, which
+#: pooled figures (ratios of sums, as a report pools them: :mod:`econmotor.analysis.operating_point`) need.
+COUNT_COLUMNS: tuple[str, ...] = ("hours", "units_completed", "units_attempted", "errors")
 
 
 @dataclass(frozen=True)
@@ -65,11 +71,12 @@ class RunInfo:
     datapacks: tuple[str, ...] = ()
     seed: int | None = None
     cell_key: str | None = None
+    commanded_speed_m_per_s: float | None = None  # the course's commanded speed, m/s (walkers)
 
     def to_dict(self) -> dict[str, Any]:
         return {"run_id": self.run_id, "task_id": self.task_id, "backend": self.backend,
                 "objective": self.objective, "datapacks": list(self.datapacks), "seed": self.seed,
-                "cell_key": self.cell_key}
+                "cell_key": self.cell_key, "commanded_speed_m_per_s": self.commanded_speed_m_per_s}
 
 
 @dataclass(frozen=True)
@@ -82,6 +89,8 @@ class EpisodeTable:
         columns: name -> float64 (N,) for every name in :data:`METRIC_COLUMNS`.
         catastrophic: bool (N,).
         energy_price_usd_per_kwh: float64 (N,); NaN where unknown.
+        counts: name -> float64 (N,) for every name in :data:`COUNT_COLUMNS`; NaN where unknown
+            (a name left out is unknown in every episode).
     """
 
     runs: tuple[RunInfo, ...]
@@ -89,6 +98,7 @@ class EpisodeTable:
     columns: Mapping[str, np.ndarray]
     catastrophic: np.ndarray
     energy_price_usd_per_kwh: np.ndarray
+    counts: Mapping[str, np.ndarray] = field(default_factory=dict)
     run_starts: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -96,6 +106,11 @@ class EpisodeTable:
         for name in METRIC_COLUMNS:
             if name not in self.columns or self.columns[name].shape != (n,):
                 raise ConfigError("<episodes>", name, f"column missing or not of length {n}")
+        counts = {name: np.asarray(self.counts.get(name, np.full(n, np.nan)), dtype=np.float64)
+                  for name in COUNT_COLUMNS}
+        if any(c.shape != (n,) for c in counts.values()):
+            raise ConfigError("<episodes>", "counts", f"count column not of length {n}", COUNT_COLUMNS)
+        object.__setattr__(self, "counts", counts)
         if self.catastrophic.shape != (n,) or self.energy_price_usd_per_kwh.shape != (n,):
             raise ConfigError("<episodes>", "catastrophic", f"column not of length {n}")
         if n and (np.any(np.diff(self.run_index) < 0) or self.run_index[0] != 0):
@@ -132,11 +147,14 @@ class EpisodeTable:
                     catastrophic: np.ndarray | None = None,
                     energy_price_usd_per_kwh: np.ndarray | float | None = None,
                     **columns: np.ndarray) -> EpisodeTable:
-        """Build from arrays (sorted into run order here); missing novelty/risk columns are 0."""
+        """Build from arrays (sorted into run order here); missing novelty/risk columns are 0, missing
+        count columns (:data:`COUNT_COLUMNS`) unknown."""
         run_index = np.asarray(run_index, dtype=np.int64)
         n = len(run_index)
         order = np.argsort(run_index, kind="stable")
         used, run_index = np.unique(run_index[order], return_inverse=True)
+        counts = {name: np.asarray(columns.pop(name), dtype=np.float64).reshape(n)[order]
+                  for name in COUNT_COLUMNS if name in columns}
         cols = {}
         for name in METRIC_COLUMNS:
             default = np.zeros(n) if name in ("novelty_score", "risk_score") else None
@@ -149,7 +167,7 @@ class EpisodeTable:
         cat = np.zeros(n, bool) if catastrophic is None else np.asarray(catastrophic, bool)[order]
         price = np.full(n, np.nan) if energy_price_usd_per_kwh is None else \
             np.broadcast_to(np.asarray(energy_price_usd_per_kwh, dtype=np.float64), (n,))[order]
-        return cls(tuple(runs[i] for i in used), run_index.astype(np.int64), cols, cat, np.array(price))
+        return cls(tuple(runs[i] for i in used), run_index.astype(np.int64), cols, cat, np.array(price), counts)
 
     @classmethod
     def from_records(cls, records: Iterable[Mapping[str, Any]], source: str = "<episodes>",
@@ -162,7 +180,7 @@ class EpisodeTable:
         runs: dict[str, RunInfo] = {}
         positions: dict[str, int] = {}
         index: list[int] = []
-        values: dict[str, list[float]] = {name: [] for name in METRIC_COLUMNS}
+        values: dict[str, list[float]] = {name: [] for name in (*METRIC_COLUMNS, *COUNT_COLUMNS)}
         cat: list[bool] = []
         price: list[float] = []
         for line, rec in enumerate(records, 1):
@@ -181,7 +199,7 @@ class EpisodeTable:
                 runs[run_id] = _run_info(rec, where)
                 positions[run_id] = len(positions)
             index.append(positions[run_id])
-            for name, value in _episode_values(rec, where).items():
+            for name, value in {**_episode_values(rec, where), **_episode_counts(rec, where)}.items():
                 values[name].append(value)
             cat.append(is_catastrophic(rec))
             p = rec.get("energy_price_usd_per_kwh", default_price_usd_per_kwh)
@@ -202,6 +220,8 @@ class EpisodeTable:
                                    "episode_index": int(episode_in_run[i])}
             for name in METRIC_COLUMNS:
                 rec[name] = finite_or_none(self.columns[name][i])
+            for name in COUNT_COLUMNS:
+                rec[name] = finite_or_none(self.counts[name][i])
             rec["catastrophic"] = bool(self.catastrophic[i])
             rec["energy_price_usd_per_kwh"] = finite_or_none(self.energy_price_usd_per_kwh[i])
             out.append(rec)
@@ -235,11 +255,15 @@ def _run_info(rec: Mapping[str, Any], where: str) -> RunInfo:
         packs = [p for p in packs.replace(",", " ").split() if p]
     if not isinstance(packs, (list, tuple)):
         raise ConfigError(where, "datapacks", f"expected a list of datapack ids, got {packs!r}")
-    seed = rec.get("seed")
+    seed, speed = rec.get("seed"), rec.get("commanded_speed_m_per_s")
+    try:
+        speed = None if speed is None else float(speed)
+    except (TypeError, ValueError):
+        raise ConfigError(where, "commanded_speed_m_per_s", f"expected a speed in m/s, got {speed!r}") from None
     return RunInfo(run_id=str(rec["run_id"]), task_id=str(rec.get("task_id") or ""),
                    backend=str(rec.get("backend") or ""), objective=str(rec.get("objective") or ""),
                    datapacks=tuple(str(p) for p in packs), seed=None if seed is None else int(seed),
-                   cell_key=rec.get("cell_key"))
+                   cell_key=rec.get("cell_key"), commanded_speed_m_per_s=speed)
 
 
 def _episode_values(rec: Mapping[str, Any], where: str) -> dict[str, float]:
@@ -264,6 +288,26 @@ def _episode_values(rec: Mapping[str, Any], where: str) -> dict[str, float]:
     except (TypeError, ValueError) as exc:
         raise ConfigError(where, None, f"episode metrics must be numbers: {exc}") from exc
     return out
+
+
+def _episode_counts(rec: Mapping[str, Any], where: str) -> dict[str, float]:
+    """The count columns of a record (NaN where absent): ``hours`` (else ``episode_length_s`` / 3600),
+    ``units_attempted`` (else ``units_completed + errors``), as :func:`econmotor.economics.uncertainty.assess`
+    reads an episode."""
+    def read(name: str) -> float:
+        value = rec.get(name)
+        try:
+            return math.nan if value is None else float(value)
+        except (TypeError, ValueError):
+            raise ConfigError(where, name, f"expected a number, got {value!r}") from None
+
+    hours = read("hours")
+    if math.isnan(hours):
+        hours = read("episode_length_s") / 3600.0
+    units, errors = read("units_completed"), read("errors")
+    attempted = read("units_attempted")
+    return {"hours": hours, "units_completed": units, "errors": errors,
+            "units_attempted": units + errors if math.isnan(attempted) else attempted}
 
 
 def _decoded_lines(fh: Any, path: Path) -> Iterable[tuple[int, str]]:

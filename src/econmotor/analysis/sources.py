@@ -2,9 +2,10 @@
 
 ``episodes_from_registry`` reads the per-episode summaries of completed runs
 (filters: task, backend, datapacks, objective name, run kind) and adds what the
-solver needs from the run: datapacks, seed, the sweep cell key stored in the run's
-config, and the task's electricity price from the task catalog (read only by
-objectives that price energy, ``energy_term: usd``; ``r_energy`` is ``-Wh`` otherwise).
+solver needs from the run: datapacks, seed, the sweep cell key and commanded speed stored
+in the run's config (else the speed the episodes walked at, where they record one), and
+the task's electricity price from the task catalog (read only by objectives that price
+energy, ``energy_term: usd``; ``r_energy`` is ``-Wh`` otherwise).
 """
 
 from __future__ import annotations
@@ -53,10 +54,11 @@ def episodes_from_registry(registry: Any, *, task_id: str | None = None, backend
     prices = task_energy_prices(sorted({ep.task_id for ep in episodes}), task_files)
     records = []
     for ep in episodes:
-        run = runs.get(ep.run_id)
+        config = runs[ep.run_id].config if ep.run_id in runs else {}
         records.append({**ep.summary, "run_id": str(ep.run_id), "task_id": ep.task_id, "backend": ep.backend,
                         "objective": ep.objective_name, "datapacks": list(ep.datapack_ids), "seed": ep.seed,
-                        "cell_key": run.config.get("cell_key") if run is not None else None,
-                        "termination_reason": ep.termination_reason,
+                        "cell_key": config.get("cell_key"), "termination_reason": ep.termination_reason,
+                        "commanded_speed_m_per_s": config.get("commanded_speed_m_per_s",
+                                                              ep.summary.get("commanded_speed_m_per_s")),
                         "energy_price_usd_per_kwh": prices[ep.task_id]})
     return EpisodeTable.from_records(records, registry.display_url)

@@ -3,7 +3,10 @@
 The JSON document (``format: econmotor-objective-surface/1``) holds the runs with their
 mean metrics and per-set validity, one cell per (objective, constraint set) and the
 Pareto front. A cell whose set no run meets says so in ``note`` and names the
-run of highest penalised utility under ``fallback_run_id``.
+run of highest penalised utility under ``fallback_run_id``. ``choices`` gives each named
+objective's choice with its mean J and margin over the runner-up (90% intervals) and, where
+the runs walk a commanded speed, ``operating_points`` each run's pooled figures with intervals
+(:mod:`econmotor.analysis.operating_point`).
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import numpy as np
 
 from econmotor.analysis.episode_table import finite_or_none
 from econmotor.analysis.objective_surface import ObjectiveSurface
+from econmotor.analysis.operating_point import Choice, OperatingPoint
 from econmotor.analysis.pareto import PARETO_CRITERIA, ParetoFront, pareto_front
 
 SURFACE_FORMAT = "econmotor-objective-surface/1"
@@ -76,7 +80,8 @@ def front_values(surface: ObjectiveSurface) -> np.ndarray:
 
 
 def surface_document(surface: ObjectiveSurface, front: ParetoFront | None = None,
-                     inputs: dict[str, Any] | None = None) -> dict[str, Any]:
+                     inputs: dict[str, Any] | None = None, chosen: list[Choice] | None = None,
+                     points: list[OperatingPoint] | None = None) -> dict[str, Any]:
     """The JSON document (see module docstring); non-finite numbers become null."""
     front = front or pareto_front(front_values(surface))
     runs = []
@@ -102,7 +107,18 @@ def surface_document(surface: ObjectiveSurface, front: ParetoFront | None = None
         "cells": [cell.to_dict() for cell in surface_cells(surface)],
         "pareto_front": {**front.to_dict(), "run_ids": [surface.table.runs[i].run_id for i in front.indices]},
         "runs": runs,
+        "choices": _finite([c.to_dict() for c in chosen or []]),
+        "operating_points": _finite([p.to_dict() for p in points or []]),
     }
+
+
+def _finite(value: Any) -> Any:
+    """``value`` with every non-finite float made null (JSON has no inf/NaN)."""
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_finite(v) for v in value]
+    return finite_or_none(value) if isinstance(value, float) else value
 
 
 def _fmt(value: float | None, spec: str = ".3g") -> str:
@@ -135,7 +151,44 @@ def surface_markdown(document: dict[str, Any]) -> str:
         run, m = by_id[run_id], by_id[run_id]["metrics"]
         lines.append(f"| {run_id} | {', '.join(run['datapacks'])} | {_fmt(m['mpl_units_per_hour'])} | "
                      f"{_fmt(m['energy_wh_per_unit'])} | {_fmt(m['error_rate'])} | {_fmt(m['risk_score'])} |")
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines + _choice_lines(document) + _operating_lines(document)) + "\n"
+
+
+def interval_text(iv: dict[str, Any] | None, spec: str = ".3g") -> str:
+    """``point [low, high]`` of an interval's dict (``—`` for a missing number)."""
+    if iv is None:
+        return "—"
+    return f"{_fmt(iv['point'], spec)} [{_fmt(iv['low'], spec)}, {_fmt(iv['high'], spec)}]"
+
+
+def _choice_lines(document: dict[str, Any]) -> list[str]:
+    if not document["choices"]:
+        return []
+    lines = ["", "## Choices (mean J and margin over the runner-up, 90% intervals)", "",
+             "| objective | constraint set | run | speed m/s | J | runner-up | margin | separated |",
+             "|---|---|---|---|---|---|---|---|"]
+    for c in document["choices"]:
+        lines.append(f"| {c['objective']} | {c['constraint_set']} | {c['run_id']} | "
+                     f"{_fmt(c['commanded_speed_m_per_s'], 'g')} | {interval_text(c['utility'], '.4g')} | "
+                     f"{c['runner_up_run_id'] or '—'} | {interval_text(c['margin'], '.3g')} | "
+                     f"{'yes' if c['separated'] else 'no'} |")
+    return lines
+
+
+def _operating_lines(document: dict[str, Any]) -> list[str]:
+    if not document["operating_points"]:
+        return []
+    lines = ["", "## Operating points (pooled over each run's episodes, 90% intervals)", "",
+             "| run | speed m/s | episodes | units/h | Wh/unit | units/charge | errors / attempted | "
+             "error-rate bound | price USD/unit | damage USD/unit |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for p in document["operating_points"]:
+        f, ev = p["figures"], p["evidence"]
+        lines.append(f"| {p['run_id']} | {_fmt(p['commanded_speed_m_per_s'], 'g')} | {ev['episodes']} | "
+                     f"{interval_text(f['mpl_units_per_hour'])} | {interval_text(f['energy_wh_per_unit'])} | "
+                     f"{interval_text(f.get('battery_units_per_charge'))} | {_fmt(ev['errors'], 'g')} / "
+                     f"{_fmt(ev['units_attempted'], '.3g')} | {_fmt(f['error_rate']['high'], '.3g')} | "
+                     f"{interval_text(f['price_usd_per_unit'])} | {interval_text(f['damage_usd_per_unit'])} |")
+    return lines
 
 
 def plot_front(surface: ObjectiveSurface, front: ParetoFront, path: str | Path) -> Path:
@@ -183,12 +236,14 @@ def plot_front(surface: ObjectiveSurface, front: ParetoFront, path: str | Path) 
 
 def write_surface_outputs(surface: ObjectiveSurface, output_dir: str | Path,
                           reference_point: dict[str, float] | None = None,
-                          inputs: dict[str, Any] | None = None) -> dict[str, Path]:
-    """Write ``objective_surface.json``, ``objective_surface.md`` and ``pareto_front.png`` atomically."""
+                          inputs: dict[str, Any] | None = None, chosen: list[Choice] | None = None,
+                          points: list[OperatingPoint] | None = None) -> dict[str, Path]:
+    """Write ``objective_surface.json``, ``objective_surface.md`` and ``pareto_front.png`` atomically;
+    ``chosen`` and ``points`` (:mod:`econmotor.analysis.operating_point`) go into both documents."""
     out = Path(output_dir)
     out.mkdir(parents=True, exist_ok=True)
     front = pareto_front(front_values(surface), reference_point)
-    document = surface_document(surface, front, inputs)
+    document = surface_document(surface, front, inputs, chosen, points)
     files = {"json": out / "objective_surface.json", "markdown": out / "objective_surface.md"}
     for key, text in (("json", json.dumps(document, indent=2, allow_nan=False)),
                       ("markdown", surface_markdown(document))):

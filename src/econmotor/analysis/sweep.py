@@ -1,12 +1,16 @@
-"""Training sweeps: a grid of objective x datapacks x seed, every cell recorded in the registry.
+"""Sweeps: a grid of cells, every cell recorded in the registry.
 
-A *cell* trains one policy with ``backend.train_policy`` (which also evaluates it) and
-is recorded as a ``train`` run with its evaluation episodes. Each cell has a
+A training *cell* (:class:`SweepCell`, a grid of objective x datapacks x seed) trains one policy
+with ``backend.train_policy`` (which also evaluates it) and is recorded as a ``train`` run with
+its evaluation episodes; an evaluation cell (:class:`econmotor.analysis.eval_sweep.EvalCell`, a
+grid of commanded speed x datapacks x seed) evaluates a policy that exists and is recorded as an
+``eval`` run. The runner takes any cell with the interface of :class:`Cell`. Each cell has a
 deterministic key::
 
     cell_key = sha256(canonical JSON of {task_id, backend, objective weights, datapack ids and
                       their validated YAML content, seed, num_envs, max_steps, eval_episodes})[:20]
 
+(an evaluation cell's: its policy and commanded speed in place of the objective and run size),
 stored in the run's config (``config["cell_key"]``). A sweep first reads the keys of
 completed runs of the task and backend and skips those cells, so an interrupted sweep
 resumes where it stopped; a failed cell is recorded ``failed`` and retried next time.
@@ -29,7 +33,7 @@ from collections.abc import Iterator, Mapping, Sequence
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar, Protocol
 
 from econmotor.analysis.objective_surface import Objective
 from econmotor.config.objective_profile import ObjectiveVector
@@ -41,9 +45,30 @@ from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.objectives.loader import objective_from_vector
 
 
+class Cell(Protocol):
+    """What the runner needs of a cell: its identity, how it is recorded and what it runs."""
+
+    run_kind: ClassVar[str]  # the registry's run kind: "train" or "eval"
+    task_id: str
+    backend: str
+    datapacks: tuple[DatapackConfig, ...]
+    seed: int
+
+    @property
+    def key(self) -> str: ...
+
+    def start_fields(self) -> dict[str, Any]: ...
+
+    def execute(self, output_dir: str, progress: ProgressFn, backend_options: Mapping[str, Any]) -> Any: ...
+
+    def mean_j(self, episodes: Sequence[Any]) -> float | None: ...
+
+
 @dataclass(frozen=True)
 class SweepCell:
     """One training job of the grid."""
+
+    run_kind: ClassVar[str] = "train"
 
     task_id: str
     backend: str
@@ -76,6 +101,20 @@ class SweepCell:
         return {"cell_key": self.key, "sweep": True, "objective_weights": list(self.objective.weights),
                 "objective_kind": self.objective.kind, "eval_episodes": self.eval_episodes}
 
+    def start_fields(self) -> dict[str, Any]:
+        """``registry.start_run``'s keywords for this cell."""
+        return {"objective": self.objective_spec(), "datapack_ids": self.datapack_ids, "config": self.run_config(),
+                "seed": self.seed, "num_envs": self.num_envs, "max_steps": self.max_steps,
+                "notes": "econmotor sweep"}
+
+    def execute(self, output_dir: str, progress: ProgressFn, backend_options: Mapping[str, Any]) -> MotorTrainingResult:
+        """Train and evaluate into ``<output_dir>/<cell key>`` (:func:`train_cell`)."""
+        return train_cell(self, output_dir, progress=progress, backend_options=backend_options)
+
+    def mean_j(self, episodes: Sequence[Any]) -> float | None:
+        """:func:`cell_mean_j` of the cell's evaluation episodes."""
+        return cell_mean_j(self, episodes)
+
 
 def plan_sweep(task_id: str, backend: str, objectives: Sequence[Objective],
                datapack_groups: Sequence[Sequence[DatapackConfig]], seeds: Sequence[int], *,
@@ -98,9 +137,9 @@ def plan_sweep(task_id: str, backend: str, objectives: Sequence[Objective],
     return cells
 
 
-def train_cell(cell: SweepCell, output_dir: str, cpu_threads: int = 1, progress: ProgressFn = no_progress,
-               backend_options: Mapping[str, Any] | None = None) -> MotorTrainingResult:
-    """Train and evaluate one cell (runs in this process or as a Ray task) into ``<output_dir>/<cell key>``;
+def run_cell(cell: Cell, output_dir: str, cpu_threads: int = 1, progress: ProgressFn = no_progress,
+             backend_options: Mapping[str, Any] | None = None) -> Any:
+    """Run one cell (in this process or as a Ray task) on ``cpu_threads`` threads: ``cell.execute``;
     ``backend_options``: constructor keywords the edge read for the backend (its ``environment_options``)."""
     os.environ.setdefault("OMP_NUM_THREADS", str(cpu_threads))
     try:
@@ -109,6 +148,13 @@ def train_cell(cell: SweepCell, output_dir: str, cpu_threads: int = 1, progress:
         torch.set_num_threads(max(1, cpu_threads))
     except ImportError:
         pass
+    return cell.execute(output_dir, progress, dict(backend_options or {}))
+
+
+def train_cell(cell: SweepCell, output_dir: str, progress: ProgressFn = no_progress,
+               backend_options: Mapping[str, Any] | None = None) -> MotorTrainingResult:
+    """Train and evaluate one cell into ``<output_dir>/<cell key>``; ``backend_options``: the backend's
+    constructor keywords."""
     from econmotor.motor_backend.factory import make_motor_backend
 
     backend = make_motor_backend(cell.backend, **dict(backend_options or {}))
@@ -122,15 +168,18 @@ def train_cell(cell: SweepCell, output_dir: str, cpu_threads: int = 1, progress:
 class CellOutcome:
     """What happened to one cell: ``completed``, ``skipped`` (done before) or ``failed``.
 
-    ``mean_j``: the mean J of a completed cell's evaluation episodes under the cell's objective,
-    ``econmotor.valuation.episode_j`` — the J ``econmotor solve`` ranks the recorded run by.
+    ``mean_j``: the mean J of a completed training cell's evaluation episodes under the cell's objective,
+    ``econmotor.valuation.episode_j`` — the J ``econmotor solve`` ranks the recorded run by (None for an
+    evaluation cell, which has no objective). ``econ_metrics``: a completed cell's evaluation, pooled
+    (the documented econ-metric keys).
     """
 
-    cell: SweepCell
+    cell: Cell
     status: str
     run_id: int | None = None
     error: str | None = None
     mean_j: float | None = None
+    econ_metrics: Mapping[str, float] | None = None
 
 
 def cell_mean_j(cell: SweepCell, episodes: Sequence[Any]) -> float | None:
@@ -165,15 +214,15 @@ class RaySettings:
 
 
 def completed_cell_keys(registry: Any, task_id: str, backend: str) -> set[str]:
-    """Cell keys of this task and backend's completed train runs."""
-    runs = registry.runs(task_id=task_id, backend=backend, kind="train", status="completed")
+    """Cell keys of this task and backend's completed runs (training and evaluation cells)."""
+    runs = registry.runs(task_id=task_id, backend=backend, status="completed")
     return {r.config["cell_key"] for r in runs if r.config.get("cell_key")}
 
 
-def run_sweep(registry: Any, cells: Sequence[SweepCell], output_dir: str | Path, *,
+def run_sweep(registry: Any, cells: Sequence[Cell], output_dir: str | Path, *,
               ray: RaySettings | None = None, progress: ProgressFn = no_progress,
               backend_options: Mapping[str, Any] | None = None) -> list[CellOutcome]:
-    """Train every cell not completed before and record it (run + episodes) in ``registry``.
+    """Run every cell not completed before and record it (run + episodes) in ``registry``.
 
     Each pending cell is recorded ``running`` before it starts; a cell that raises is
     recorded ``failed`` with its error and the sweep goes on; Ctrl-C marks the cells in
@@ -182,7 +231,7 @@ def run_sweep(registry: Any, cells: Sequence[SweepCell], output_dir: str | Path,
     output_dir = str(Path(output_dir).resolve())
     done_before: dict[tuple[str, str], set[str]] = {}
     outcomes: dict[str, CellOutcome] = {}
-    pending: list[SweepCell] = []
+    pending: list[Cell] = []
     for cell in cells:
         keys = done_before.setdefault((cell.task_id, cell.backend),
                                       completed_cell_keys(registry, cell.task_id, cell.backend))
@@ -202,29 +251,28 @@ def run_sweep(registry: Any, cells: Sequence[SweepCell], output_dir: str | Path,
     return [outcomes[c.key] for c in cells]
 
 
-def _start(registry: Any, cell: SweepCell) -> int:
-    return registry.start_run("train", cell.task_id, cell.backend, objective=cell.objective_spec(),
-                              datapack_ids=cell.datapack_ids, config=cell.run_config(), seed=cell.seed,
-                              num_envs=cell.num_envs, max_steps=cell.max_steps, notes="econmotor sweep")
+def _start(registry: Any, cell: Cell) -> int:
+    return registry.start_run(cell.run_kind, cell.task_id, cell.backend, **cell.start_fields())
 
 
-def _finish(registry: Any, cell: SweepCell, run_id: int, result: Any, error: BaseException | None,
+def _finish(registry: Any, cell: Cell, run_id: int, result: Any, error: BaseException | None,
             outcomes: dict[str, CellOutcome]) -> None:
     if error is None:
         registry.finish_run(run_id, result)
-        outcomes[cell.key] = CellOutcome(cell, "completed", run_id, mean_j=cell_mean_j(cell, result.episodes))
+        outcomes[cell.key] = CellOutcome(cell, "completed", run_id, mean_j=cell.mean_j(result.episodes),
+                                         econ_metrics=dict(result.econ_metrics))
     else:
         text = f"{type(error).__name__}: {error}"
         registry.mark_run(run_id, "failed", text)
         outcomes[cell.key] = CellOutcome(cell, "failed", run_id, text)
 
 
-def _run_here(registry: Any, cells: Sequence[SweepCell], output_dir: str, outcomes: dict[str, CellOutcome],
+def _run_here(registry: Any, cells: Sequence[Cell], output_dir: str, outcomes: dict[str, CellOutcome],
               tick: Any, progress: ProgressFn, backend_options: Mapping[str, Any] | None) -> None:
     for cell in cells:
         run_id = _start(registry, cell)
         try:
-            result = train_cell(cell, output_dir, progress=progress, backend_options=backend_options)
+            result = run_cell(cell, output_dir, progress=progress, backend_options=backend_options)
         except (KeyboardInterrupt, SystemExit) as exc:
             registry.mark_run(run_id, "interrupted", f"{type(exc).__name__}: {exc}")
             raise
@@ -251,7 +299,7 @@ def _callers_sigterm_kept() -> Iterator[None]:
             signal.signal(signal.SIGTERM, before)
 
 
-def _run_on_ray(registry: Any, cells: Sequence[SweepCell], output_dir: str, outcomes: dict[str, CellOutcome],
+def _run_on_ray(registry: Any, cells: Sequence[Cell], output_dir: str, outcomes: dict[str, CellOutcome],
                 tick: Any, settings: RaySettings, backend_options: Mapping[str, Any] | None) -> None:
     try:
         import ray
@@ -280,13 +328,13 @@ def _connect(ray: Any, settings: RaySettings, stack: ExitStack) -> None:
     stack.callback(ray.shutdown)
 
 
-def _run_cells_on_ray(ray: Any, registry: Any, cells: Sequence[SweepCell], output_dir: str,
+def _run_cells_on_ray(ray: Any, registry: Any, cells: Sequence[Cell], output_dir: str,
                       outcomes: dict[str, CellOutcome], tick: Any, settings: RaySettings,
                       backend_options: Mapping[str, Any] | None) -> None:
     threads = max(1, int(settings.cpus_per_cell))
     remote = ray.remote(num_cpus=settings.cpus_per_cell, num_gpus=settings.gpus_per_cell,
-                        max_retries=0)(train_cell)
-    in_flight: dict[Any, tuple[SweepCell, int]] = {}
+                        max_retries=0)(run_cell)
+    in_flight: dict[Any, tuple[Cell, int]] = {}
     try:
         for cell in cells:
             in_flight[remote.remote(cell, output_dir, threads, no_progress, backend_options)] = \

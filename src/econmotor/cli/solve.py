@@ -3,6 +3,10 @@
 Reads episodes from the registry (filters: task, backend, datapacks, objective) or
 from JSONL exports, scores every run under every objective and constraint set, and
 writes ``objective_surface.json``, ``objective_surface.md`` and ``pareto_front.png``.
+Each named objective's choice comes with its mean J and its margin over the runner-up
+(90% intervals); where the runs walk a commanded speed (``econmotor sweep --policy ...
+--command-speed``), the table shows each candidate's speed and a second table each run's
+operating point (units/h, Wh/unit, units per charge, errors, price, with intervals).
 """
 
 from __future__ import annotations
@@ -16,7 +20,8 @@ from rich.table import Table
 
 from econmotor.analysis.episode_table import EpisodeTable, read_episodes_jsonl, write_episodes_jsonl
 from econmotor.analysis.objective_surface import objectives_from_options, solve_objective_surface
-from econmotor.analysis.surface_report import surface_cells, write_surface_outputs
+from econmotor.analysis.operating_point import choices, operating_points, task_economics
+from econmotor.analysis.surface_report import interval_text, surface_cells, write_surface_outputs
 from econmotor.cli._app import app, console, err_console
 from econmotor.cli.options import open_registry, split_ids
 from econmotor.cli.validation import (
@@ -126,28 +131,69 @@ def solve_command(
     if export_jsonl:
         err_console.print(f"episodes written to {write_episodes_jsonl(table, export_jsonl)}")
     surface = solve_objective_surface(table, objectives, sets)
+    speeds = any(run.commanded_speed_m_per_s is not None for run in table.runs)
+    points = operating_points(table, task_economics(sorted({r.task_id for r in table.runs}))) if speeds else []
     files = write_surface_outputs(surface, output_dir, reference,
-                                  {**source, "constraints": str(constraints) if constraints else None})
+                                  {**source, "constraints": str(constraints) if constraints else None},
+                                  choices(surface), points)
     _print_summary(surface, files)
 
 
+def _choice_table(surface, document: dict[str, Any], shown: list[str]) -> Table:
+    """One row per (objective, constraint set): the best valid run, its speed (where runs have one), its J and
+    its margin over the runner-up, with 90% intervals."""
+    speeds = {r["run_id"]: r["commanded_speed_m_per_s"] for r in document["runs"]}
+    with_speed = any(v is not None for v in speeds.values())
+    chosen = {(c["objective"], c["constraint_set"]): c for c in document["choices"]}
+    table = Table(title=f"best valid run (utility J, 90% intervals): "
+                        f"{counted(surface.table.num_episodes, 'episode')}, {counted(surface.table.num_runs, 'run')}")
+    columns = ["objective", "constraint set", "best valid run", *(["speed m/s"] if with_speed else []), "J",
+               "margin over runner-up"]
+    for col in columns:
+        table.add_column(col, overflow="fold")
+    for cell in surface_cells(surface):
+        if cell.objective not in shown:
+            continue
+        if not cell.valid:
+            table.add_row(cell.objective, cell.constraint_set, "[red]none[/]", *([""] if with_speed else []), "", "")
+            continue
+        c = chosen[(cell.objective, cell.constraint_set)]
+        margin = "-" if c["margin"] is None else \
+            f"{interval_text(c['margin'])} vs {c['runner_up_run_id']}" + ("" if c["separated"] else " (not separated)")
+        speed = speeds[cell.best_run_id]
+        table.add_row(cell.objective, cell.constraint_set, cell.best_run_id,
+                      *([f"{speed:g}" if speed is not None else "-"] if with_speed else []),
+                      interval_text(c["utility"], ".4g"), margin)
+    return table
+
+
+def _operating_table(points: list[dict[str, Any]]) -> Table:
+    """Each run's operating point (pooled, 90% intervals), in speed order."""
+    table = Table(title="operating points (pooled over each run's episodes, 90% intervals)")
+    for col in ("speed m/s", "run", "episodes", "units/h", "Wh/unit", "units/charge", "errors (bound)",
+                "price USD/unit", "damage USD/unit"):
+        table.add_column(col, overflow="fold")
+    for p in sorted(points, key=lambda p: (p["commanded_speed_m_per_s"] is None, p["commanded_speed_m_per_s"] or 0)):
+        f, ev = p["figures"], p["evidence"]
+        speed = p["commanded_speed_m_per_s"]
+        table.add_row("-" if speed is None else f"{speed:g}", p["run_id"], str(ev["episodes"]),
+                      interval_text(f["mpl_units_per_hour"]), interval_text(f["energy_wh_per_unit"]),
+                      interval_text(f.get("battery_units_per_charge")),
+                      f"{ev['errors']:g} in {ev['units_attempted']:.3g} ({f['error_rate']['high']:.3g})",
+                      interval_text(f["price_usd_per_unit"]), interval_text(f["damage_usd_per_unit"]))
+    return table
+
+
 def _print_summary(surface, files) -> None:
-    """Objectives x constraint sets, each cell 'best valid run (J)'; grid objectives only in the files."""
+    """The choice table (grid objectives only in the files), the operating points where the runs walk a
+    commanded speed, the unmet sets, the Pareto front and the files."""
     import json
 
     document = json.loads(files["json"].read_text())
     shown = [o.name for o in surface.objectives if o.kind != "grid"][:12]
-    # one row per (objective, constraint set): three columns fit 80 columns however many sets there are
-    table = Table(title=f"best valid run (utility J): {counted(surface.table.num_episodes, 'episode')}, "
-                        f"{counted(surface.table.num_runs, 'run')}")
-    table.add_column("objective", overflow="fold")
-    table.add_column("constraint set", overflow="fold")
-    table.add_column("best valid run (J)", overflow="fold")
-    for cell in surface_cells(surface):
-        if cell.objective in shown:
-            table.add_row(cell.objective, cell.constraint_set,
-                          f"{cell.best_run_id} ({cell.utility:.4g})" if cell.valid else "[red]none[/]")
-    console.print(table)
+    console.print(_choice_table(surface, document, shown))
+    if document["operating_points"]:
+        console.print(_operating_table(document["operating_points"]))
     hidden = len(surface.objectives) - len(shown)
     if hidden:
         console.print(f"{counted(hidden, 'more objective')} (grid vectors, or past the first 12): see "

@@ -91,6 +91,7 @@ FLAG_RULES: dict[str, Rule] = {
     "--run-id": Rule("int", 1, 2**31 - 1),
     "--grid": Rule("int", 0, 10_000),
     "--spread-share": Rule("float", 0.0, 1.0),
+    "--command-speed": Rule("float", 0.05, 10.0),  # m/s
     "--lagrange-lr": Rule("float", 0.0, 1e6, low_open=True),
     "--ray-num-cpus": Rule("int", 1, 4096),
     "--cpus-per-cell": Rule("float", 0.0, 1024.0, low_open=True),
