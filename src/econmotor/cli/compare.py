@@ -39,7 +39,7 @@ from econmotor.cli.validation import check_db_url, check_flags, check_output_dir
 from econmotor.economics.pricing import PricingPolicy
 from econmotor.economics.uncertainty import SequentialPlan
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.factory import load_checked_catalog
+from econmotor.motor_backend.factory import backend_class, load_checked_catalog
 from econmotor.motor_backend.results import PROVENANCE_KEY
 from econmotor.motor_backend.run_dir import REPORT_EVAL_SEED_OFFSET
 from econmotor.report.render import fmt
@@ -272,15 +272,17 @@ def compare_command(
     check_flags(eval_episodes=eval_episodes, seed=seed, spread_share=spread_share,
                 eval_max_episodes=eval_max_episodes, eval_max_seconds=eval_max_seconds)
     check_policies(policies)
-    check_imports_policies(motor_backend, "--motor-backend")
-    speed = course_speed_options(motor_backend, command_speed)  # the contract's keyword, where declared
+    cls = backend_class(motor_backend)  # resolved once; the checks below ask it
+    check_imports_policies(cls, "--motor-backend")
+    speed = course_speed_options(cls, command_speed)  # the contract's keyword, where declared
     url = check_db_url(db_url, create=True)
     catalog = load_checked_catalog(tasks_file)
     task = catalog.get(task_id)
     task.backend_entry(motor_backend)
     packs = resolve_datapacks(split_datapack_values(datapacks), url)
     out_dir = check_output_dir("--output-dir", output_dir or Path("reports") / task_id / "compare")
-    inputs = ReportInputs(task, catalog, url, resolve_objective(None), packs, out_dir, PricingPolicy(spread_share))
+    inputs = ReportInputs(task, catalog, url, resolve_objective(None), packs, out_dir, PricingPolicy(spread_share),
+                          backend_cls=cls)
     set_cpu_threads()
     backend = make_backend(motor_backend, tasks_file, catalog=catalog, **speed)
     plan = evaluation_plan(backend, task_id, eval_episodes, eval_max_episodes, eval_max_seconds)

@@ -19,6 +19,7 @@ import typer
 from econmotor.cli.validation import check_flags, check_input_files
 from econmotor.config.objective_profile import OBJECTIVE_PRESETS, ObjectiveVector
 from econmotor.errors import ConfigError, did_you_mean
+from econmotor.motor_backend.base import MotorBackendBase
 from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_configs
 from econmotor.motor_backend.factory import backend_class, known_backends
 from econmotor.objectives import load_objective_spec, objective_from_vector
@@ -117,30 +118,32 @@ def _backends_with(capability: str) -> list[str]:
     return [b for b in known_backends() if getattr(backend_class(b).capabilities, capability)]
 
 
-def check_imports_policies(backend_name: str, flag: str) -> None:
-    """``backend_name`` must evaluate policies trained elsewhere (its ``capabilities.imported_policies``)."""
-    if not backend_class(backend_name).capabilities.imported_policies:
-        raise ConfigError(flag, backend_name, "this backend evaluates its own run directories only, not imported "
+def check_imports_policies(backend: type[MotorBackendBase], flag: str) -> None:
+    """``backend`` (the class the command resolved) must evaluate policies trained elsewhere (its
+    ``capabilities.imported_policies``)."""
+    if not backend.capabilities.imported_policies:
+        raise ConfigError(flag, backend.name, "this backend evaluates its own run directories only, not imported "
                           "policies", _backends_with("imported_policies"))
 
 
-def course_speed_options(backend: str, speed_m_per_s: float | None) -> dict[str, Any]:
+def course_speed_options(backend: type[MotorBackendBase], speed_m_per_s: float | None) -> dict[str, Any]:
     """The backend option of ``--command-speed`` (the contract's ``course_speed_m_per_s``); an error for a
     backend that walks no commanded course (no ``capabilities.course_speed``)."""
     if speed_m_per_s is None:
         return {}
-    if not backend_class(backend).capabilities.course_speed:
-        raise ConfigError("--command-speed", None, f"backend '{backend}' walks no course at a commanded speed: "
+    if not backend.capabilities.course_speed:
+        raise ConfigError("--command-speed", None, f"backend '{backend.name}' walks no course at a commanded speed: "
                           "leave --command-speed out", _backends_with("course_speed"))
     return {"course_speed_m_per_s": speed_m_per_s}
 
 
-def init_policy_options(backend: str, init_policy: str | None, resume: bool = False) -> dict[str, Any]:
+def init_policy_options(backend: type[MotorBackendBase], init_policy: str | None,
+                        resume: bool = False) -> dict[str, Any]:
     """The backend option of ``--init-policy``; an error for a backend that cannot start from one."""
     if init_policy is None:
         return {}
-    if not backend_class(backend).capabilities.init_policies:
-        raise ConfigError("--init-policy", init_policy, f"backend '{backend}' cannot start from a policy trained "
+    if not backend.capabilities.init_policies:
+        raise ConfigError("--init-policy", init_policy, f"backend '{backend.name}' cannot start from a policy trained "
                           "elsewhere", _backends_with("init_policies"))
     if resume:
         raise ConfigError("--init-policy", init_policy, "starts a new run; --resume continues one from its "
@@ -148,7 +151,7 @@ def init_policy_options(backend: str, init_policy: str | None, resume: bool = Fa
     return {"init_policy": init_policy}
 
 
-def selection_options(backend: str, until_deployable: bool, select_every: int | None,
+def selection_options(backend: type[MotorBackendBase], until_deployable: bool, select_every: int | None,
                       select_episodes: int | None) -> dict[str, Any]:
     """The backend options of evaluation-driven training; an error for a backend without it."""
     check_flags(select_every=select_every, select_episodes=select_episodes)
@@ -161,9 +164,9 @@ def selection_options(backend: str, until_deployable: bool, select_every: int | 
         options["select_episodes"] = select_episodes
     if until_deployable and select_every == 0:
         raise ConfigError("<command line>", "--until-deployable", "needs held-out evaluations: drop --select-every 0")
-    if options and not backend_class(backend).capabilities.evaluation_driven:
+    if options and not backend.capabilities.evaluation_driven:
         raise ConfigError("<command line>", "--until-deployable/--select-every/--select-episodes",
-                          f"backend '{backend}' does not select checkpoints by held-out evaluation",
+                          f"backend '{backend.name}' does not select checkpoints by held-out evaluation",
                           _backends_with("evaluation_driven"))
     return options
 

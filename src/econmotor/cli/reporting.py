@@ -40,7 +40,6 @@ from econmotor.cli.validation import (
     check_db_url,
     check_flags,
     check_name,
-    check_num_envs,
     check_output_dir,
     check_output_file,
     check_task_backend,
@@ -51,7 +50,7 @@ from econmotor.economics.pricing import PricingPolicy
 from econmotor.economics.uncertainty import SequentialPlan
 from econmotor.errors import ConfigError, UnknownNameError
 from econmotor.motor_backend.datapacks import DatapackConfig
-from econmotor.motor_backend.factory import DEFAULT_BACKEND, known_backends, load_checked_catalog
+from econmotor.motor_backend.factory import DEFAULT_BACKEND, backend_class, known_backends, load_checked_catalog
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.report.pipeline import (
     ReportOutcome,
@@ -124,6 +123,7 @@ class ReportInputs:
     out_dir: Path
     pricing: PricingPolicy
     backend_options: dict[str, Any] = field(default_factory=dict)
+    backend_cls: Any = None  # the backend's class, resolved once (None: --motor-backend none)
 
 
 def run_report(a: ReportArgs) -> None:
@@ -134,7 +134,7 @@ def run_report(a: ReportArgs) -> None:
         return
     set_cpu_threads()
     if a.imported_policy is not None:
-        check_imports_policies(a.motor_backend, "--motor-backend")
+        check_imports_policies(inputs.backend_cls, "--motor-backend")
     backend = make_backend(a.motor_backend, a.tasks_file, catalog=inputs.catalog)
     plan = evaluation_plan(backend, a.task_id, a.eval_episodes, a.eval_max_episodes, a.eval_max_seconds)
     if a.imported_policy is not None:
@@ -157,22 +157,22 @@ def check_report_args(a: ReportArgs) -> ReportInputs:
     backends = [*known_backends(), NO_BACKEND]
     if a.motor_backend not in backends:
         raise UnknownNameError("motor backend", a.motor_backend, backends)
-    if a.trains:
+    cls = backend_class(a.motor_backend) if a.trains else None  # resolved once; every check below asks it
+    if cls is not None:
         check_task_backend(task, a.motor_backend)
-        check_num_envs(a.motor_backend, a.num_envs)
+        cls.check_num_envs(a.num_envs, "--num-envs")
     if a.run_id and a.trains:
         raise ConfigError("--run-id", None, "--run-id reports a recorded run: use it with --motor-backend none")
-    options = selection_options(a.motor_backend, a.until_deployable, a.select_every, a.select_episodes) \
-        if a.trains else {}
+    options = selection_options(cls, a.until_deployable, a.select_every, a.select_episodes) if cls else {}
     if a.init_policy is not None and (a.imported_policy is not None or not a.trains):
         raise ConfigError("--init-policy", a.init_policy, "starts a training run from a policy; --policy and "
                           "--motor-backend none price without training")
-    if a.trains:
-        options.update(init_policy_options(a.motor_backend, a.init_policy))
+    if cls is not None:
+        options.update(init_policy_options(cls, a.init_policy))
     objective = resolve_objective(a.objective_config, name=a.objective_name)
     packs = resolve_datapacks(split_datapack_values(list(a.datapacks)), url)
     out_dir = check_output_dir("--output-dir", a.output_dir or Path("reports") / a.task_id)
-    return ReportInputs(task, catalog, url, objective, packs, out_dir, pricing, options)
+    return ReportInputs(task, catalog, url, objective, packs, out_dir, pricing, options, cls)
 
 
 def _ignored_by_recorded(a: ReportArgs) -> list[str]:

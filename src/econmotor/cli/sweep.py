@@ -19,7 +19,6 @@ from econmotor.cli.validation import (
     MAX_SWEEP_CELLS,
     check_db_url,
     check_flags,
-    check_num_envs,
     check_output_dir,
     check_size,
     check_task_backend,
@@ -29,6 +28,7 @@ from econmotor.cli.validation import (
 )
 from econmotor.couriers.policy_import import is_imported_policy
 from econmotor.errors import ConfigError
+from econmotor.motor_backend.base import MotorBackendBase
 from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_configs
 from econmotor.motor_backend.factory import backend_class, environment_options
 from econmotor.tasks import load_catalog
@@ -103,14 +103,15 @@ def sweep_command(
     check_output_dir("--output-dir", output_dir)
     url = check_db_url(db_url)
     check_task_backend(load_catalog().get(task_id), motor_backend)
-    speeds = parse_command_speeds(command_speed, motor_backend, policy)
+    cls = backend_class(motor_backend)  # resolved once; the checks below ask it
+    speeds = parse_command_speeds(command_speed, cls, policy)
     if policy is None:
         check_size("--grid", "objectives (sweep cells before seeds and datapacks)", simplex_size(grid),
                    MAX_SWEEP_CELLS)
-        check_num_envs(motor_backend, num_envs)
+        cls.check_num_envs(num_envs, "--num-envs")
         grid_axis: list = objectives_from_options(preset, vector, grid)
     else:
-        check_evaluation_flags(motor_backend, policy, preset, vector, grid, num_envs, max_steps, eval_episodes)
+        check_evaluation_flags(cls, policy, preset, vector, grid, num_envs, max_steps, eval_episodes)
         grid_axis = speeds
     check_size("--seeds", "sweep cells (objectives or speeds x seeds)", len(grid_axis) * len(seed_list),
                MAX_SWEEP_CELLS)
@@ -123,11 +124,11 @@ def sweep_command(
         groups = datapack_groups(datapacks, registry)
         check_size("--datapacks", "sweep cells (objectives or speeds x datapacks x seeds)",
                    len(grid_axis) * len(groups) * len(seed_list), MAX_SWEEP_CELLS)
-        size = backend_class(motor_backend).defaults.filled(num_envs, max_steps)
+        size = cls.defaults.filled(num_envs, max_steps)
         cells = plan_sweep(task_id, motor_backend, grid_axis, groups, seed_list, num_envs=size.num_envs,
                            max_steps=size.max_steps, eval_episodes=eval_episodes) if policy is None else \
             plan_eval_sweep(task_id, motor_backend, policy, grid_axis, groups, seed_list, eval_episodes=eval_episodes)
-        ray = ray_settings(motor_backend, use_ray, ray_address, ray_num_cpus, cpus_per_cell, gpus_per_cell)
+        ray = ray_settings(cls, use_ray, ray_address, ray_num_cpus, cpus_per_cell, gpus_per_cell)
         console.print(f"sweep: {len(cells)} {'evaluation ' if policy else ''}cells on {motor_backend} "
                       f"({'Ray' if ray else 'sequential'}); registry {registry.display_url}")
         outcomes = run_cells(registry, cells, output_dir, ray, kept)
@@ -141,7 +142,7 @@ def sweep_command(
         raise typer.Exit(1)
 
 
-def parse_command_speeds(text: str | None, backend: str, policy: str | None) -> list[float | None]:
+def parse_command_speeds(text: str | None, backend: type[MotorBackendBase], policy: str | None) -> list[float | None]:
     """``"0.4,0.6,0.8,1.0"`` -> speeds in m/s, each a valid ``--command-speed`` (``[None]`` when not given: the
     task catalog's); refused without ``--policy`` and for a backend that walks no course at a commanded speed."""
     if text is None:
@@ -164,8 +165,8 @@ def parse_command_speeds(text: str | None, backend: str, policy: str | None) -> 
     return list(speeds)
 
 
-def check_evaluation_flags(backend: str, policy: str, preset: list[str], vector: list[str], grid: int,
-                           num_envs: int | None, max_steps: int | None, eval_episodes: int) -> None:
+def check_evaluation_flags(backend: type[MotorBackendBase], policy: str, preset: list[str], vector: list[str],
+                           grid: int, num_envs: int | None, max_steps: int | None, eval_episodes: int) -> None:
     """An evaluation sweep (``--policy``) trains nothing and has no objective axis; its policy must exist and be
     one the backend evaluates (a file or shipped name only on a backend that imports policies)."""
     given = [flag for flag, value in (("--preset", preset), ("--vector", vector), ("--grid", grid),
@@ -182,16 +183,16 @@ def check_evaluation_flags(backend: str, policy: str, preset: list[str], vector:
     elif not Path(policy).is_dir():
         raise ConfigError("--policy", policy, "no such run directory",
                           "a shipped name (holosoma:<robot>/<algo>), an ONNX file or a run directory")
-    make_backend(backend).check_policy(policy)
+    make_backend(backend.name).check_policy(policy)
 
 
-def ray_settings(backend: str, use_ray: bool, address: str | None, num_cpus: int | None,
+def ray_settings(backend: type[MotorBackendBase], use_ray: bool, address: str | None, num_cpus: int | None,
                  cpus_per_cell: float | None, gpus_per_cell: float | None) -> RaySettings | None:
     """Ray's settings of a sweep (None: cells run one after another here); a cell declares what the
     backend says it needs unless the flags say otherwise."""
     if not (use_ray or address):
         return None
-    needs = backend_class(backend).sweep_resources()
+    needs = backend.sweep_resources()
     return RaySettings(address, num_cpus, needs["num_cpus"] if cpus_per_cell is None else cpus_per_cell,
                        needs["num_gpus"] if gpus_per_cell is None else gpus_per_cell)
 

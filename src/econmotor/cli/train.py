@@ -34,12 +34,12 @@ from econmotor.cli.validation import (
     check_choice,
     check_db_url,
     check_flags,
-    check_num_envs,
     check_output_dir,
     check_output_file,
     check_task_backend,
 )
 from econmotor.errors import ConfigError
+from econmotor.motor_backend.base import MotorBackendBase
 from econmotor.motor_backend.datapacks import load_datapack_configs
 from econmotor.motor_backend.factory import DEFAULT_BACKEND, backend_class, known_backends
 from econmotor.report.pipeline import TrainRequest
@@ -125,16 +125,17 @@ def selection_note(run_config: dict[str, Any]) -> str | None:
     return f"policy kept: {selection['why']}. {when}{spent}".rstrip()
 
 
-def check_backend_choices(backend: str, algorithm: str | None, vec_env: str | None, resume: bool) -> None:
-    """``--algorithm``, ``--vec-env`` and ``--resume`` against what the backend declares it offers."""
-    capabilities = backend_class(backend).capabilities
+def check_backend_choices(backend: type[MotorBackendBase], algorithm: str | None, vec_env: str | None,
+                          resume: bool) -> None:
+    """``--algorithm``, ``--vec-env`` and ``--resume`` against what the backend (its class) declares it offers."""
+    capabilities = backend.capabilities
     for flag, value, allowed in (("--algorithm", algorithm, capabilities.algorithms),
                                  ("--vec-env", vec_env, capabilities.vec_env_kinds)):
         if value is not None and not allowed:
-            raise ConfigError("<command line>", flag, f"backend '{backend}' offers no choice here: leave it out")
+            raise ConfigError("<command line>", flag, f"backend '{backend.name}' offers no choice here: leave it out")
         check_choice(flag, value, allowed)
     if resume and not capabilities.resume:
-        raise ConfigError("<command line>", "--resume", f"backend '{backend}' cannot resume a run",
+        raise ConfigError("<command line>", "--resume", f"backend '{backend.name}' cannot resume a run",
                           [b for b in known_backends() if backend_class(b).capabilities.resume])
 
 
@@ -194,8 +195,9 @@ def train_command(
     """Train a motor policy for an economic objective, record it in the registry, print its economics."""
     eval_episodes = training_eval_episodes(eval_episodes, until_deployable, select_episodes)
     check_flags(num_envs=num_envs, max_steps=max_steps, seed=seed, eval_episodes=eval_episodes)
-    check_num_envs(backend, num_envs)
-    check_backend_choices(backend, algorithm, vec_env, resume)
+    cls = backend_class(backend)  # resolved once; the checks below ask it
+    cls.check_num_envs(num_envs, "--num-envs")
+    check_backend_choices(cls, algorithm, vec_env, resume)
     check_output_dir("--output-dir", output_dir)
     check_output_file("--json", json_out)
     objective = resolve_objective(objective_config, objective_preset)
@@ -203,8 +205,8 @@ def train_command(
     spec = load_catalog().get(task)
     check_task_backend(spec, backend)
     set_cpu_threads()
-    extra: dict[str, Any] = {**selection_options(backend, until_deployable, select_every, select_episodes),
-                             **init_policy_options(backend, init_policy, resume),
+    extra: dict[str, Any] = {**selection_options(cls, until_deployable, select_every, select_episodes),
+                             **init_policy_options(cls, init_policy, resume),
                              **({"resume": True} if resume else {}), **({"algorithm": algorithm} if algorithm else {})}
     if resume and nothing_to_resume(backend, output_dir):
         return

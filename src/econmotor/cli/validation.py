@@ -133,13 +133,6 @@ def evaluation_plan(backend: Any, task_id: str, eval_episodes: int | None, max_e
                           max_wall_s=max_seconds or DEFAULT_MAX_WALL_S)
 
 
-def check_num_envs(backend: str, num_envs: int | None, flag: str = "--num-envs") -> None:
-    """``num_envs`` within what backend ``backend`` declares it can run (its ``max_num_envs``)."""
-    from econmotor.motor_backend.factory import backend_class
-
-    backend_class(backend).check_num_envs(num_envs, flag)
-
-
 def check_task_backend(task: Any, backend: str, flag: str = "--motor-backend") -> None:
     """The task (a catalog ``TaskSpec``) has an entry for ``backend``: the error names the flag and
     the backends that can run the task, not the catalog file the user never wrote."""

@@ -87,13 +87,15 @@ def test_report_args_defaults_are_the_report_flags_defaults():
 def test_command_speed_is_refused_for_a_backend_without_a_course(backend: str):
     from econmotor.cli.options import course_speed_options
     from econmotor.errors import ConfigError
+    from econmotor.motor_backend.factory import backend_class
 
-    assert course_speed_options(backend, None) == {}
+    assert course_speed_options(backend_class(backend), None) == {}
     with pytest.raises(ConfigError, match="--command-speed.*walks no course.*holosoma"):
-        course_speed_options(backend, 0.8)
+        course_speed_options(backend_class(backend), 0.8)
 
 
 def test_command_speed_goes_through_the_contract_keyword():
     from econmotor.cli.options import course_speed_options
+    from econmotor.motor_backend.factory import backend_class
 
-    assert course_speed_options("holosoma", 0.8) == {"course_speed_m_per_s": 0.8}
+    assert course_speed_options(backend_class("holosoma"), 0.8) == {"course_speed_m_per_s": 0.8}

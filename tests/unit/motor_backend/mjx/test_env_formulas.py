@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 from econmotor.couriers import overlay, physics
-from econmotor.robots import gym_couriers as robots
 from econmotor.couriers.walker_task import meter_settings, task_settings
 from econmotor.economics import courier_formulas as cf
 from econmotor.errors import ConfigError
@@ -23,6 +22,7 @@ from econmotor.motor_backend.mjx.settings import HOLOSOMA_COURSE, INHERITED_KEYS
 from econmotor.motor_backend.mujoco import metering
 from econmotor.motor_backend.mujoco.settings import parse_mujoco_settings
 from econmotor.robots import card
+from econmotor.robots import gym_couriers as robots
 from econmotor.tasks import load_catalog
 
 FORMULAS = ("meter_step", "mechanical_power_w", "novelty_bonus", "novelty_cell", "running_metrics",
