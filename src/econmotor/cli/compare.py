@@ -36,6 +36,7 @@ from econmotor.cli.options import (
 )
 from econmotor.cli.reporting import ReportInputs, price_imported
 from econmotor.cli.validation import check_db_url, check_flags, check_output_dir, evaluation_plan
+from econmotor.config.acceptance import ERROR_RATE_CHECK
 from econmotor.economics.pricing import PricingPolicy
 from econmotor.economics.uncertainty import SequentialPlan
 from econmotor.errors import ConfigError
@@ -51,6 +52,15 @@ COLUMNS = ("policy", "price USD/unit", "90% interval", "units/h", "Wh/unit", "fa
            "speed m/s", "mech / elec W", "verdict")
 
 
+def fall_rate_bound(doc: dict[str, Any]) -> float | None:
+    """The upper bound of the error (fall) rate the report's verdict judged (a sequential evaluation's
+    confidence sequence); a report without that check: its interval's upper end."""
+    for check in (doc.get("verdict") or {}).get("checks") or []:
+        if check.get("name") == ERROR_RATE_CHECK and check.get("bound") is not None:
+            return float(check["bound"])
+    return ((doc["uncertainty"]["intervals"].get("error_rate")) or {}).get("high")
+
+
 def comparison_row(policy_id: str, doc: dict[str, Any]) -> dict[str, Any]:
     """One policy's ranking figures from its report document."""
     agg = doc["pricing"]["aggregate"]
@@ -62,7 +72,7 @@ def comparison_row(policy_id: str, doc: dict[str, Any]) -> dict[str, Any]:
             # what its report says to charge (the cautious end of the intervals; None: not deployable)
             "charge_usd_per_unit": (doc.get("recommendation") or {}).get("price_usd_per_unit"),
             "units_per_hour": agg.get("mpl_units_per_hour"), "wh_per_unit": doc["metrics"]["econ"].get(
-                "energy_wh_per_unit"), "fall_rate_bound": (intervals.get("error_rate") or {}).get("high"),
+                "energy_wh_per_unit"), "fall_rate_bound": fall_rate_bound(doc),
             "commanded_speed_m_per_s": provenance.get("commanded_speed_m_per_s"),
             "achieved_speed_m_per_s": provenance.get("achieved_speed_m_per_s"),
             "falls": doc["metrics"]["raw"].get("errors"),

@@ -10,6 +10,9 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+#: the verdict's check of the error (fall) rate, by name (its ``bound`` is the one the verdict judged)
+ERROR_RATE_CHECK = "error rate"
+
 
 @dataclass(frozen=True)
 class Acceptance:

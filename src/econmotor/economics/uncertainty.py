@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 from scipy.special import betaincinv, betaln  # (scipy.stats and .optimize take a second to import)
 
-from econmotor.config.acceptance import Acceptance
+from econmotor.config.acceptance import ERROR_RATE_CHECK, Acceptance
 from econmotor.config.task_economics import TaskEconomics
 from econmotor.economics import labour
 from econmotor.economics.pricing import PricingPolicy, TaskPrice, price_task
@@ -347,7 +347,7 @@ def decide(acceptance: Acceptance, uncertainty: Uncertainty, human_error_rate: f
     text = (f"{_plural(name, 2)} {in_episodes} ({_g(ev.errors)} in {_g(ev.units_attempted)} attempted); "
             f"{err_pct} upper bound on the {name} rate {_g(err.high)} vs {_g(acceptance.max_error_rate)} accepted "
             f"({_g(human_error_rate)} for a human)")
-    checks.append({"name": "error rate", "measured": err.point, "bound": err.high,
+    checks.append({"name": ERROR_RATE_CHECK, "measured": err.point, "bound": err.high,
                    "limit": acceptance.max_error_rate, "passed": err_ok, "text": text})
     if not err_ok and worked:
         reasons.append(text)

@@ -19,6 +19,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from econmotor.config.acceptance import ERROR_RATE_CHECK
 from econmotor.motor_backend.results import PROVENANCE_KEY
 from econmotor.report.plots import render_plots
 
@@ -159,7 +160,7 @@ def headline(doc: Mapping[str, Any]) -> str:
                 f"are diagnostics only. {evidence_text(doc)}")
     rec = doc["recommendation"]
     low, high = rec["interval_usd_per_unit"]
-    err_check = next(c for c in verdict["checks"] if c["name"] == "error rate")
+    err_check = next(c for c in verdict["checks"] if c["name"] == ERROR_RATE_CHECK)
     text = (f"Deployable: {err_check['text']}. Charge {fmt(rec['price_usd_per_unit'])} USD per {unit} "
             f"({fmt(rec['price_usd_per_100_units'])} USD per 100; {fmt(rec['price_usd_per_robot_hour'])} USD per "
             f"robot-hour), priced at the unfavourable end of the 90% intervals; the point estimate is "

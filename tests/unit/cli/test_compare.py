@@ -94,3 +94,21 @@ def test_the_plot_marks_refused_policies_and_draws_the_acceptance_limit_on_the_f
     assert [t.get_text() for t in price.texts] == ["refused"]  # its price is not one it may charge
     limits = [line for line in falls.get_lines() if list(line.get_ydata()) == [0.05, 0.05]]
     assert len(limits) == 1 and "0.05" in limits[0].get_label()
+
+
+def test_a_row_quotes_the_fall_rate_bound_its_reports_verdict_used():
+    """A sequential evaluation's verdict bounds the fall rate by its confidence sequence, wider than the
+    report's fixed-count interval: the comparison shows and ranks by the verdict's bound, so a reader sees
+    one number for one run."""
+    from econmotor.cli.compare import comparison_row
+
+    verdict_check = {"name": "error rate", "measured": 0.096, "bound": 0.396, "limit": 0.01, "passed": False}
+    doc = {"pricing": {"aggregate": {"price_usd_per_unit": 0.13, "mpl_units_per_hour": 94.8}},
+           "uncertainty": {"intervals": {"error_rate": {"point": 0.096, "low": 0.043, "high": 0.181}}},
+           "runs": {"eval": {"config": {}}}, "recommendation": None,
+           "metrics": {"econ": {"energy_wh_per_unit": 1.1}, "raw": {"errors": 6.0, "units_attempted": 62.5}},
+           "verdict": {"label": "not deployable", "deployable": False, "checks": [verdict_check]},
+           "registry": {"report_id": 1}}
+    assert comparison_row("p", doc)["fall_rate_bound"] == 0.396
+    doc["verdict"]["checks"] = []  # a report without the check: the interval's upper end
+    assert comparison_row("p", doc)["fall_rate_bound"] == 0.181
