@@ -73,7 +73,7 @@ def replay(ev, starts, targets) -> float:
     import mujoco
 
     from econmotor.couriers.policy_import import resolve_contract
-    from econmotor.couriers.walker_env import WalkerModel
+    from econmotor.couriers.walker_model import WalkerModel
 
     contract = resolve_contract(ev.policy)
     walker = WalkerModel.build(contract.card, contract.kp, contract.kd)
@@ -144,7 +144,8 @@ def one_robot(ev, episodes: int) -> float:
 
 def env_threads(ev, episodes: int) -> float:
     from econmotor.couriers.policy_import import batched_onnx_policy, resolve_contract
-    from econmotor.couriers.walker_env import WalkerBatch, WalkerModel, run_episodes
+    from econmotor.couriers.walker_env import WalkerBatch, run_episodes
+    from econmotor.couriers.walker_model import WalkerModel
 
     c = resolve_contract(ev.policy)
     batch = WalkerBatch(WalkerModel.build(c.card, c.kp, c.kd), ev.course, ev.meter, ev.stress, ev.episode_s,

@@ -31,7 +31,8 @@ from econmotor.couriers.policy_import import (
     robot_card_for,
 )
 from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_env import WalkerBatch, WalkerModel, run_episodes
+from econmotor.couriers.walker_env import WalkerBatch, run_episodes
+from econmotor.couriers.walker_model import WalkerModel
 from econmotor.couriers.walker_task import MeterSettings
 from econmotor.economics import courier_formulas as cf
 from econmotor.economics.termination import TerminationReason

@@ -19,8 +19,9 @@ import pytest
 from econmotor.couriers.course import CourseSettings
 from econmotor.couriers.policy_import import resolve_contract
 from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_env import WalkerBatch, WalkerModel, run_episodes
+from econmotor.couriers.walker_env import WalkerBatch, run_episodes
 from econmotor.couriers.walker_eval import WalkerEvaluation, build_batch, evaluate
+from econmotor.couriers.walker_model import WalkerModel
 from econmotor.couriers.walker_task import MeterSettings, course_settings, meter_settings, task_settings
 from econmotor.economics import courier_formulas as cf
 from econmotor.robots.model import joint_indices, model_spec

@@ -28,7 +28,8 @@ import numpy as np
 from econmotor.couriers.course import CourseSettings
 from econmotor.couriers.policy_import import PolicyContract, batched_onnx_policy, resolve_contract
 from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_env import WalkerBatch, WalkerModel, run_episodes
+from econmotor.couriers.walker_env import WalkerBatch, run_episodes
+from econmotor.couriers.walker_model import WalkerModel
 from econmotor.couriers.walker_task import MeterSettings
 from econmotor.errors import BackendError
 

@@ -23,7 +23,8 @@ import pytest
 from econmotor.couriers.course import CourseSettings
 from econmotor.couriers.physics import root_tilt_rad
 from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_env import WalkerBatch, WalkerModel
+from econmotor.couriers.walker_env import WalkerBatch
+from econmotor.couriers.walker_model import WalkerModel
 from econmotor.couriers.walker_task import MeterSettings, meter_settings, task_settings
 from econmotor.economics import courier_formulas as cf
 from econmotor.motor_backend.holosoma.econ_formulas import (

@@ -28,8 +28,9 @@ import pytest
 
 from econmotor.couriers.policy_import import resolve_contract
 from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_env import WalkerBatch, WalkerModel
+from econmotor.couriers.walker_env import WalkerBatch
 from econmotor.couriers.walker_eval import WalkerEvaluation, evaluate
+from econmotor.couriers.walker_model import WalkerModel
 from econmotor.couriers.walker_task import MeterSettings
 from econmotor.economics.termination import TerminationReason
 from econmotor.motor_backend.mjx.assets import apply_model_options
