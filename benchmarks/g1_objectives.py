@@ -29,7 +29,7 @@ import numpy as np
 
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.motor_backend.datapacks import load_datapack_configs
-from econmotor.motor_backend.holosoma.backend import HolosomaBackend
+from econmotor.motor_backend.holosoma.host.backend import HolosomaBackend
 from econmotor.motor_backend.mjx.backend import MjxBackend
 from econmotor.objectives import EconomicObjectiveSpec, objective_from_vector
 

@@ -19,7 +19,7 @@ import statistics
 import tempfile
 from pathlib import Path
 
-from econmotor.motor_backend.holosoma.backend import HolosomaBackend
+from econmotor.motor_backend.holosoma.host.backend import HolosomaBackend
 from econmotor.objectives import EconomicObjectiveSpec, load_objective_spec
 
 REPO = Path(__file__).resolve().parents[1]

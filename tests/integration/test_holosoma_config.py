@@ -24,17 +24,17 @@ from econmotor.motor_backend.datapacks import (
     load_datapack_configs,
     parse_datapack,
 )
-from econmotor.motor_backend.holosoma import backend as holosoma_backend
 from econmotor.motor_backend.holosoma.econ_formulas import (
     base_tilt_rad,
     commanded_progress_m_per_s,
     meter_constants,
     overlay_term_rates,
 )
-from econmotor.motor_backend.holosoma.jobs import holosoma_error_text
-from econmotor.motor_backend.holosoma.plan import Capabilities, choose_simulator, plan_training
+from econmotor.motor_backend.holosoma.host import backend as holosoma_backend
+from econmotor.motor_backend.holosoma.host.jobs import holosoma_error_text
+from econmotor.motor_backend.holosoma.host.plan import Capabilities, choose_simulator, plan_training
+from econmotor.motor_backend.holosoma.host.recording_metrics import episodes_from_recording
 from econmotor.motor_backend.holosoma.protocol import PREFIX, parse_line
-from econmotor.motor_backend.holosoma.recording_metrics import episodes_from_recording
 from econmotor.robots import card
 from econmotor.tasks import get_task
 
@@ -45,7 +45,7 @@ GPU = Capabilities(cuda=True, isaacgym=True, mujoco_warp=True)
 
 
 def test_backend_module_imports_without_holosoma_or_torch() -> None:
-    code = ("import sys, econmotor.motor_backend.holosoma.backend as b; "
+    code = ("import sys, econmotor.motor_backend.holosoma.host.backend as b; "
             "print(sorted(m for m in ('torch', 'holosoma') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"

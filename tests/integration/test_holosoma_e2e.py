@@ -21,8 +21,8 @@ from econmotor.couriers.policy_import import find_holosoma_python
 from econmotor.errors import BackendError
 from econmotor.motor_backend.datapacks import load_datapack_configs
 from econmotor.motor_backend.factory import make_motor_backend
+from econmotor.motor_backend.holosoma.host.jobs import run_job
 from econmotor.motor_backend.holosoma.job_specs import parse_job
-from econmotor.motor_backend.holosoma.jobs import run_job
 from econmotor.motor_backend.onnx_policy import OnnxPolicyHandle
 from econmotor.objectives import compile_economic_overlay, load_objective_spec
 

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from econmotor.couriers.policy_import import find_holosoma_python, holosoma_export_metadata, shipped_policy_path
-from econmotor.motor_backend.holosoma.jobs import job_environment
+from econmotor.motor_backend.holosoma.host.jobs import job_environment
 from econmotor.motor_backend.mjx import ppo
 from econmotor.motor_backend.mjx.export import export_onnx
 from econmotor.motor_backend.mjx.onnx_import import read_actor

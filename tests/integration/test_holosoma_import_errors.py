@@ -17,7 +17,7 @@ import pytest
 
 from econmotor.cli import main
 from econmotor.couriers.policy_import import find_holosoma_python, shipped_policy_path
-from econmotor.motor_backend.holosoma.jobs import job_environment
+from econmotor.motor_backend.holosoma.host.jobs import job_environment
 
 pytestmark = [pytest.mark.holosoma]
 REPO = Path(__file__).resolve().parents[2]

@@ -37,8 +37,8 @@ from econmotor.couriers.walker_task import MeterSettings
 from econmotor.economics import courier_formulas as cf
 from econmotor.economics.termination import TerminationReason
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.holosoma.backend import HolosomaBackend
-from econmotor.motor_backend.holosoma.jobs import job_environment
+from econmotor.motor_backend.holosoma.host.backend import HolosomaBackend
+from econmotor.motor_backend.holosoma.host.jobs import job_environment
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.robots import card
 

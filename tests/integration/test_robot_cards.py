@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from econmotor.couriers.policy_import import find_holosoma_python
-from econmotor.motor_backend.holosoma.jobs import job_environment
+from econmotor.motor_backend.holosoma.host.jobs import job_environment
 from econmotor.robots import CARDS
 from econmotor.robots.observation import advance_phase, build_observation, initial_phase
 

@@ -128,9 +128,9 @@ def layer_violations(graph: dict[str, set[str]]) -> list[str]:
 
 
 def test_the_layer_rule_sees_a_crossing():
-    graph = {"econmotor.motor_backend.mjx.backend": {"econmotor.motor_backend.holosoma.plan"},
+    graph = {"econmotor.motor_backend.mjx.backend": {"econmotor.motor_backend.holosoma.host.plan"},
              "econmotor.couriers.course": {"econmotor.motor_backend.mjx.env"},
-             "econmotor.motor_backend.holosoma.backend": {"econmotor.motor_backend.holosoma.venv.runner"},
+             "econmotor.motor_backend.holosoma.host.backend": {"econmotor.motor_backend.holosoma.venv.runner"},
              "econmotor.motor_backend.holosoma.venv.runner": {"econmotor.motor_backend.holosoma.job_specs"}}
     assert len(layer_violations(graph)) == 3
 

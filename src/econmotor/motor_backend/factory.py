@@ -21,7 +21,7 @@ DEFAULT_BACKEND = "mujoco"
 _REGISTRY: dict[str, str] = {
     "mujoco": "econmotor.motor_backend.mujoco.backend:MujocoBackend",
     "dishwashing": "econmotor.motor_backend.dishwashing.backend:DishwashingBackend",
-    "holosoma": "econmotor.motor_backend.holosoma.backend:HolosomaBackend",
+    "holosoma": "econmotor.motor_backend.holosoma.host.backend:HolosomaBackend",
     "mjx": "econmotor.motor_backend.mjx.backend:MjxBackend",
 }
 

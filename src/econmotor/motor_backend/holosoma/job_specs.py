@@ -16,7 +16,7 @@ from dataclasses import MISSING, asdict, dataclass, fields
 from typing import Any, ClassVar
 
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.holosoma.plan import RunPlan
+from econmotor.motor_backend.holosoma.host.plan import RunPlan
 
 
 @dataclass(frozen=True)

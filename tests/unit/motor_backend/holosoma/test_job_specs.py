@@ -9,6 +9,7 @@ from dataclasses import replace
 import pytest
 
 from econmotor.errors import ConfigError
+from econmotor.motor_backend.holosoma.host.plan import RunPlan
 from econmotor.motor_backend.holosoma.job_specs import (
     EvaluateJob,
     Overlay,
@@ -16,7 +17,6 @@ from econmotor.motor_backend.holosoma.job_specs import (
     TrainJob,
     parse_job,
 )
-from econmotor.motor_backend.holosoma.plan import RunPlan
 
 PLAN = RunPlan(experiment="g1_29dof", algo="ppo", simulator="mujoco", device="cpu", num_envs=1, iterations=2,
                env_steps=48, cpu_sized=True, messages=("classic MuJoCo runs one env",), requested={"num_envs": 4})

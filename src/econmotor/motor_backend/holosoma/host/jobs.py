@@ -1,6 +1,6 @@
 """Running a job in .venv-holosoma from the main interpreter (the subprocess client).
 
-:func:`run_job` writes the job (a :mod:`.job_specs` dataclass) as JSON, starts ``<venv>/bin/python -m
+:func:`run_job` writes the job (a :mod:`..job_specs` dataclass) as JSON, starts ``<venv>/bin/python -m
 econmotor.motor_backend.holosoma.venv.runner job.json``, forwards ``progress`` events to the
 caller's :data:`~econmotor.motor_backend.base.ProgressFn` while the job runs, collects
 ``message`` and ``curve`` events, keeps Holosoma's log in ``<run_dir>/<action>.log``,
@@ -59,7 +59,7 @@ def job_environment() -> dict[str, str]:
     env.setdefault("OMP_NUM_THREADS", "1")
     env.setdefault("MKL_NUM_THREADS", env["OMP_NUM_THREADS"])
     env.pop("PYTHONPATH", None)  # the Holosoma venv has its own econmotor (editable) and numpy 1.x
-    source = Path(__file__).resolve().parents[3]  # the src/ folder this econmotor runs from
+    source = Path(__file__).resolve().parents[4]  # the src/ folder this econmotor runs from
     if source.name != "site-packages" and (source / "econmotor").is_dir():
         env["PYTHONPATH"] = str(source)  # the runner runs this very econmotor (a checkout's src/, no other package)
     return env

@@ -69,15 +69,15 @@ from econmotor.motor_backend.base import MotorBackendBase, ProgressFn, StopFn, n
 from econmotor.motor_backend.capabilities import BackendCapabilities, RunSize
 from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.motor_backend.holosoma.econ_formulas import OVERLAY_TERM_KEYS
-from econmotor.motor_backend.holosoma.job_specs import EvaluateJob, Overlay, ProbeJob, TrainJob
-from econmotor.motor_backend.holosoma.jobs import run_job
-from econmotor.motor_backend.holosoma.plan import (
+from econmotor.motor_backend.holosoma.host.jobs import run_job
+from econmotor.motor_backend.holosoma.host.plan import (
     DEFAULT_CPU_MAX_ENV_STEPS,
     Capabilities,
     choose_simulator,
     plan_training,
 )
-from econmotor.motor_backend.holosoma.recording_metrics import episodes_from_recording
+from econmotor.motor_backend.holosoma.host.recording_metrics import episodes_from_recording
+from econmotor.motor_backend.holosoma.job_specs import EvaluateJob, Overlay, ProbeJob, TrainJob
 from econmotor.motor_backend.onnx_policy import ECONMOTOR_PREFIX, OnnxPolicyHandle
 from econmotor.motor_backend.results import (
     EvalProvenance,

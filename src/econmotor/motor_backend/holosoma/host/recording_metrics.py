@@ -4,7 +4,7 @@ The recording (:mod:`.recording`) holds one row per control step of env 0. Episo
 are split where ``reset`` is set (a fall or a time-out); the first ``num_episodes``
 episodes are kept (a last, unfinished one counts when fewer finished). Per episode,
 with ``dt`` the control step (s) and the same formulas and constants as the training reward terms
-and the sim-to-sim evaluator (:mod:`.econ_formulas`, the couriers' meter):
+and the sim-to-sim evaluator (:mod:`..econ_formulas`, the couriers' meter):
 
 - ``units_completed = sum_t progress_t * dt`` (progress in units/s: velocity along the
   command / ``unit_length_m``, or 1 / ``unit_duration_s`` while tracking a clip);
