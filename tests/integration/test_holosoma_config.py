@@ -16,7 +16,7 @@ import pytest
 
 from econmotor.couriers import policy_import
 from econmotor.couriers.datapack_mapping import map_datapacks, validate_motion_npz
-from econmotor.couriers.walker_task import meter_settings
+from econmotor.couriers.walker_task import meter_constants, meter_settings
 from econmotor.economics import courier_formulas as cf
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.datapacks import (
@@ -27,7 +27,6 @@ from econmotor.motor_backend.datapacks import (
 from econmotor.motor_backend.holosoma.econ_formulas import (
     base_tilt_rad,
     commanded_progress_m_per_s,
-    meter_constants,
     overlay_term_rates,
 )
 from econmotor.motor_backend.holosoma.host import backend as holosoma_backend

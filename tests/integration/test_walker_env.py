@@ -146,8 +146,8 @@ def test_the_vec_env_resets_in_the_same_step_and_sb3_learns_on_it(g1_ppo):
 
     ev = WalkerEvaluation(policy=g1_ppo.onnx_path, course=SHORT, meter=METER, stress=Stress(), episode_s=0.2, seed=0)
     batch, _ = build_batch(ev, g1_ppo, slots=2)
-    coefficients = cf.overlay_coefficients({"mpl_per_hour": 1.0, "energy_kwh": -1.0}, 0.2)
-    env = WalkerVecEnv(batch, coefficients, seed=7)
+    factors = {"mpl_per_hour": 1.0, "energy_kwh": -1000.0}
+    env = WalkerVecEnv(batch, factors, seed=7)
     obs = env.reset()
     assert obs.shape == (2, g1_ppo.card.obs_dim)
     returns = np.zeros(2)
@@ -160,8 +160,12 @@ def test_the_vec_env_resets_in_the_same_step_and_sb3_learns_on_it(g1_ppo):
     assert infos[0]["TimeLimit.truncated"] and infos[0]["terminal_observation"].shape == obs[0].shape
     assert not np.array_equal(infos[0]["terminal_observation"], obs[0])  # the new episode's first row
     assert env.next_seed == 11  # seeds 7, 8, then 9 and 10 for the restarted slots
-    # the rewards sum to the episode's overlay J (the potential's last value)
+    # the rewards sum to the episode's J, the objective's metrics of its raw figures
     assert infos[0]["episode"]["r"] == pytest.approx(returns[0] + rewards[0], rel=1e-5)
+    metrics = infos[0]["episode_metrics"]
+    j = sum(f * cf.episode_metric(metrics, key) for key, f in factors.items())
+    assert metrics["units_completed"] > 0.0 and metrics["energy_wh"] > 0.0  # both terms count
+    assert infos[0]["episode"]["r"] == pytest.approx(j, rel=1e-4)
     assert infos[0]["episode"]["l"] == 10
     model = PPO("MlpPolicy", env, n_steps=16, batch_size=32, n_epochs=1, seed=0, device="cpu")
     model.learn(total_timesteps=64)

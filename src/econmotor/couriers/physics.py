@@ -51,12 +51,14 @@ def root_tilt_rad(qpos: Any, free_root: bool, xp: Any) -> Any:
     return xp.abs(qpos[2])
 
 
-def has_fallen(card: Any, qpos: Any, qvel: Any, xp: Any, runaway_speed_m_per_s: float | None = None) -> Any:
+def has_fallen(card: Any, qpos: Any, qvel: Any, xp: Any, runaway_speed_m_per_s: float | None = None,
+               tilt_rad: Any = None) -> Any:
     """A card robot's fall rule on its free-root state (last axis; any leading batch axes): tilt past
     ``card.fall_tilt_rad``, the root below ``card.min_base_z_m``, or the runaway rule: a non-finite
-    state or the root's speed ``|qvel[0:3]|`` past ``runaway_speed_m_per_s`` (default: the card's)."""
+    state or the root's speed ``|qvel[0:3]|`` past ``runaway_speed_m_per_s`` (default: the card's).
+    ``tilt_rad``: the tilt where the caller has it (else from ``qpos``'s quaternion)."""
     limit = card.runaway_speed_m_per_s if runaway_speed_m_per_s is None else runaway_speed_m_per_s
-    tilt = quat_tilt_rad(qpos[..., 4], qpos[..., 5], xp)
+    tilt = quat_tilt_rad(qpos[..., 4], qpos[..., 5], xp) if tilt_rad is None else tilt_rad
     finite = xp.logical_and(xp.all(xp.isfinite(qpos), axis=-1), xp.all(xp.isfinite(qvel), axis=-1))
     speed = xp.sqrt(xp.sum(xp.square(qvel[..., 0:3]), axis=-1))
     return (tilt > card.fall_tilt_rad) | (qpos[..., 2] < card.min_base_z_m) | ~finite | (speed > limit)

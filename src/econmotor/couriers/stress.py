@@ -80,20 +80,3 @@ class Stress:
             kd_range=_pair(actuators.get("kd_range")) if actuators else None,
             ctrl_delay_steps=(int(delay_range[0]), int(delay_range[1])) if delay_range is not None else None,
             ignored=ignored)
-
-    @property
-    def nominal(self) -> bool:
-        """No condition drawn beyond the start pose."""
-        return all(getattr(self, f) is None for f in ("friction_range", "payload_kg_range", "push_interval_s",
-                                                       "kp_range", "kd_range", "ctrl_delay_steps"))
-
-
-def stress_from_datapacks(datapacks: Any, push_preset: Mapping[str, Any], start_joint_noise_rad: float,
-                          packs: Any = ()) -> Stress:
-    """The stress of a resolved datapack bundle (:class:`econmotor.motor_backend.datapacks.DatapackBundle`),
-    with ``push_preset`` (the card's) for what ``pushes: true`` leaves out."""
-    from econmotor.couriers.datapack_mapping import map_datapacks
-
-    overrides = map_datapacks(datapacks, packs, uses_motion_clip=False)
-    return Stress.from_overrides(overrides.randomization, overrides.evaluation,
-                                 {"push_randomizer_state": dict(push_preset)}, start_joint_noise_rad)

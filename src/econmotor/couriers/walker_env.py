@@ -47,15 +47,14 @@ import numpy as np
 from mujoco import rollout
 
 from econmotor.couriers import course as crs
-from econmotor.couriers.physics import has_fallen, root_tilt_rad
+from econmotor.couriers.physics import has_fallen, quat_tilt_rad
 from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_model import WalkerModel, set_pd_gains
+from econmotor.couriers.walker_model import FULL_STATE, WalkerModel, set_pd_gains
 from econmotor.couriers.walker_task import MeterSettings
 from econmotor.economics import courier_formulas as cf
 from econmotor.economics.termination import TerminationReason
 from econmotor.robots import observation as robot_obs
 
-_FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 #: the meter's running sums a walker keeps (no novelty or pose tracking on the course)
 _SUMS = ("steps", "units", "best_x", "errors", "energy_wh", "risk_sum")
 
@@ -96,13 +95,12 @@ class WalkerBatch:
         self.vx_max = float(ranges.get("lin_vel_x", (-1.0, 1.0))[1])
         lo, hi = ranges.get("ang_vel_yaw", (-1.0, 1.0))
         self.yaw_range = (float(lo), float(hi))
-        self.constants = cf.MeterConstants(meter.leg_distance_m, meter.drivetrain_efficiency, meter.idle_power_w,
-                                           card.physics_dt_s, meter.tilt_margin_rad, meter.fall_tilt_rad)
+        self.constants = meter.constants(card.physics_dt_s)
         m = walker.model
         self.models = [copy.copy(m) for _ in range(self.n)]
         # nthread 1: each slot steps its own MjData in this thread (the solver's warm start carries over, as
         # in a plain mj_step loop); more: mujoco.rollout's C threads from the recorded state
-        self.datas = [mujoco.MjData(m) for _ in range(max(1, self.nthread) if self.nthread > 1 else self.n)]
+        self.datas = [mujoco.MjData(m) for _ in range(self.nthread if self.nthread > 1 else self.n)]
         decimation = card.decimation
         self._record = (np.zeros((self.n, decimation, walker.nstate)), np.zeros((self.n, decimation, m.nsensordata)))
         self.nq, self.nv = m.nq, m.nv
@@ -129,7 +127,7 @@ class WalkerBatch:
         """Start episode ``index`` (seeded ``seed``) in ``slot``: its draws, its model, its start state."""
         rng = np.random.default_rng(seed)
         card, st, w, m = self.card, self.stress, self.walker, self.models[slot]
-        d = self.datas[slot] if self._pool is None else mujoco.MjData(m)
+        d = self.datas[slot if self._pool is None else 0]  # the pool's datas are scratch between its calls
         mujoco.mj_resetData(m, d)
         d.qpos[0:3], d.qpos[3:7] = card.init_pos, (1.0, 0.0, 0.0, 0.0)
         noise = st.initial_joint_noise_rad
@@ -155,7 +153,7 @@ class WalkerBatch:
             draws["ctrl_delay_steps"] = float(delay)
         first_push = float(rng.uniform(*st.push_interval_s)) if st.push_interval_s is not None else math.inf
         mujoco.mj_forward(m, d)
-        mujoco.mj_getState(m, d, self.state[slot], _FULL)
+        mujoco.mj_getState(m, d, self.state[slot], FULL_STATE)
         self.episodes[slot] = Episode(index, seed, rng, draws, delay,
                                       history=[np.zeros(card.num_dofs, dtype=np.float32)] * delay)
         self.steps[slot], self.next_push_s[slot], self.delayed[slot] = 0, first_push, delay > 0
@@ -172,7 +170,7 @@ class WalkerBatch:
         """Make the ``state`` rows of ``slots`` (written by the caller) their robots' physics state."""
         if self._pool is None:
             for s in slots:
-                mujoco.mj_setState(self.models[s], self.datas[s], self.state[s], _FULL)
+                mujoco.mj_setState(self.models[s], self.datas[s], self.state[s], FULL_STATE)
 
     def active(self) -> np.ndarray:
         """The slots running an episode."""
@@ -201,9 +199,9 @@ class WalkerBatch:
         lin = np.stack([vx, np.zeros_like(vx)], axis=-1)
         phase, standing = robot_obs.advance_phase(self.phase[slots], self.standing[slots], lin, yaw_rate, card, np)
         self.phase[slots], self.standing[slots] = phase, standing
-        return self._observation(slots)
+        return self.observation(slots)
 
-    def _observation(self, slots: np.ndarray) -> np.ndarray:
+    def observation(self, slots: np.ndarray) -> np.ndarray:
         """The observation of ``slots`` at their current state, command and gait clock."""
         w = self.walker
         qpos, qvel = self._qpos(self.state[slots]), self._qvel(self.state[slots])
@@ -253,12 +251,12 @@ class WalkerBatch:
 
     def _rollout(self, slots: np.ndarray, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``decimation`` physics steps of ``slots`` at PD ``targets``: states and sensordata per step."""
+        if self._pool is None:
+            return self._step_each(slots, targets)
         w = self.walker
         ctrl = np.zeros((len(slots), 1, w.model.nu))
         ctrl[:, 0, w.actuators] = targets
         models = [self.models[s] for s in slots]
-        if self._pool is None:
-            return self._step_each(slots, targets)
         kwargs = {"nstep": self.card.decimation, "initial_warmstart": np.zeros((len(slots), w.model.nv))}
         return self._pool.rollout(models, self.datas, self.state[slots], ctrl, **kwargs)
 
@@ -289,8 +287,8 @@ class WalkerBatch:
         """
         w, card, c, s = self.walker, self.card, self.constants, self.sums
         qpos, qvel = self._qpos(states), self._qvel(states)
-        tilt = root_tilt_rad(np.moveaxis(qpos[..., :7], -1, 0), True, np)
-        fell_at = has_fallen(card, qpos, qvel, np, self.runaway)
+        tilt = quat_tilt_rad(qpos[..., 4], qpos[..., 5], np)
+        fell_at = has_fallen(card, qpos, qvel, np, self.runaway, tilt_rad=tilt)
         # live: the steps up to the first fall (a robot that fell is metered no further)
         live = np.cumsum(np.cumsum(fell_at, axis=1), axis=1) <= 1
         fell = fell_at.any(axis=1)

@@ -18,7 +18,8 @@ import numpy as np
 from econmotor.robots import RobotCard
 from econmotor.robots.model import FLOOR, joint_indices, model_spec
 
-_FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+#: the state a walker's robots are saved and restored in (``mujoco.rollout``'s layout: time, qpos, qvel, ...)
+FULL_STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 
 def pd_actuator_spec(card: RobotCard, kp: np.ndarray, kd: np.ndarray) -> mujoco.MjSpec:
@@ -78,4 +79,4 @@ class WalkerModel:
 
     @property
     def nstate(self) -> int:
-        return mujoco.mj_stateSize(self.model, _FULL)
+        return mujoco.mj_stateSize(self.model, FULL_STATE)

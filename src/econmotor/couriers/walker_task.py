@@ -11,11 +11,12 @@ the delivery course (:func:`course_settings`).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Any
 
 from econmotor.config.loading import as_float
 from econmotor.couriers.course import CourseSettings
+from econmotor.economics import courier_formulas as cf
 from econmotor.errors import ConfigError
 from econmotor.robots import CARDS
 from econmotor.robots import card as robot_card
@@ -31,6 +32,10 @@ class MeterSettings:
     idle_power_w: float
     tilt_margin_rad: float
     fall_tilt_rad: float
+
+    def constants(self, dt_s: float) -> cf.MeterConstants:
+        """The shared meter's constants, metering steps of ``dt_s``."""
+        return meter_constants(asdict(self), dt_s)
 
 
 #: the econ overlay's physical parameters where a task's ``backends.holosoma`` catalog entry leaves them out
@@ -101,6 +106,16 @@ def meter_settings(task_id: str, settings: Mapping[str, Any], source: str) -> di
     return {"leg_distance_m": v["unit_length_m"], "drivetrain_efficiency": v["drivetrain_efficiency"],
             "idle_power_w": v["idle_power_w"], "tilt_margin_rad": v["tilt_margin_rad"],
             "fall_tilt_rad": robot.fall_tilt_rad}
+
+
+def meter_constants(meter: Mapping[str, float], dt_s: float) -> cf.MeterConstants:
+    """The courier meter's constants from a task's meter settings (``walker_task.meter_settings``: ``leg_distance_m``,
+    ``drivetrain_efficiency``, ``idle_power_w``, ``tilt_margin_rad``, ``fall_tilt_rad``), metering steps of ``dt_s``."""
+    return cf.MeterConstants(leg_distance_m=float(meter["leg_distance_m"]),
+                             drivetrain_efficiency=float(meter["drivetrain_efficiency"]),
+                             idle_power_w=float(meter["idle_power_w"]), dt_s=float(dt_s),
+                             tilt_margin_rad=float(meter["tilt_margin_rad"]),
+                             fall_tilt_rad=float(meter["fall_tilt_rad"]))
 
 
 def course_settings(settings: Mapping[str, Any], speed_m_per_s: float | None = None) -> CourseSettings:

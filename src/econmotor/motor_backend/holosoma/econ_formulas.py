@@ -23,7 +23,6 @@ base orientation quaternion.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from types import SimpleNamespace
 from typing import Any
 
@@ -46,16 +45,6 @@ def torch_namespace() -> Any:
                            minimum=lambda a, b: torch.where(a <= b, a, b), where=torch.where, clip=torch.clip,
                            arccos=torch.arccos, abs=torch.abs, absolute=torch.abs, multiply=torch.multiply,
                            sum=torch.sum, floor=torch.floor)
-
-
-def meter_constants(meter: Mapping[str, float], dt_s: float) -> cf.MeterConstants:
-    """The courier meter's constants from a task's meter settings (``walker_task.meter_settings``: ``leg_distance_m``,
-    ``drivetrain_efficiency``, ``idle_power_w``, ``tilt_margin_rad``, ``fall_tilt_rad``), metering steps of ``dt_s``."""
-    return cf.MeterConstants(leg_distance_m=float(meter["leg_distance_m"]),
-                             drivetrain_efficiency=float(meter["drivetrain_efficiency"]),
-                             idle_power_w=float(meter["idle_power_w"]), dt_s=float(dt_s),
-                             tilt_margin_rad=float(meter["tilt_margin_rad"]),
-                             fall_tilt_rad=float(meter["fall_tilt_rad"]))
 
 
 def base_tilt_rad(quat_xyzw: Any, xp: Any) -> Any:
@@ -99,7 +88,8 @@ def overlay_term_rates(
 ) -> dict[str, Any]:
     """Raw per-step rates of the overlay keys, normalised so sum_t rate_t * dt = episode metric.
 
-    ``constants``: the courier meter's (:func:`meter_constants`, ``dt_s`` the control step).
+    ``constants``: the courier meter's (:func:`econmotor.couriers.walker_task.meter_constants`, ``dt_s``
+    the control step).
     Holosoma's reward manager adds ``raw * weight * dt`` each step, so over an episode of the
     nominal length ``T = episode_s``:
 

@@ -8,12 +8,14 @@ ended episode's last observation is ``infos[i]["terminal_observation"]``, its ra
 
 Episodes are seeded ``seed, seed + 1, ...`` in the order they start. The reward is the step's change of
 the economic overlay's potential (:func:`econmotor.economics.courier_formulas.overlay_potential` over the
-episode's running sums, with the overlay's ``coefficients``), so an episode's rewards sum to its ``J``.
+episode's running sums, which count physics steps), so an episode's rewards sum to its ``J = sum_k
+factor_k * metric_k`` over the overlay ``factors`` (key -> ``scale_k / reference_k``).
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -28,13 +30,14 @@ from econmotor.economics.termination import TerminationReason
 class WalkerVecEnv(VecEnv):
     """``batch.n`` walkers as one SB3 ``VecEnv`` (module docstring)."""
 
-    def __init__(self, batch: WalkerBatch, coefficients: cf.OverlayCoefficients, seed: int = 0) -> None:
+    def __init__(self, batch: WalkerBatch, factors: Mapping[str, float], seed: int = 0) -> None:
         card = batch.card
         obs_space = spaces.Box(-np.inf, np.inf, (card.obs_dim,), np.float32)
         act_space = spaces.Box(-card.action_clip, card.action_clip, (card.num_dofs,), np.float32)
         self.render_mode = None
         super().__init__(batch.n, obs_space, act_space)
-        self.batch, self.coefficients, self.next_seed = batch, coefficients, int(seed)
+        self.batch, self.next_seed = batch, int(seed)
+        self.coefficients = cf.overlay_coefficients(factors, card.physics_dt_s)  # the meter's steps
         self.slots = np.arange(batch.n)
         self.returns, self.started = np.zeros(batch.n), np.zeros(batch.n)
         self.potential = np.zeros(batch.n)
@@ -66,7 +69,7 @@ class WalkerVecEnv(VecEnv):
         self.returns += rewards
         infos: list[dict[str, Any]] = [{} for _ in self.slots]
         for slot in np.flatnonzero(done):
-            terminal = self.batch._observation(np.array([slot]))[0]
+            terminal = self.batch.observation(np.array([slot]))[0]
             steps = int(self.batch.steps[slot])
             metrics = self.batch.finish(int(slot))
             infos[slot] = {"terminal_observation": terminal, "episode_metrics": metrics,

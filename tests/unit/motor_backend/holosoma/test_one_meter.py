@@ -25,11 +25,10 @@ from econmotor.couriers.physics import root_tilt_rad
 from econmotor.couriers.stress import Stress
 from econmotor.couriers.walker_env import WalkerBatch
 from econmotor.couriers.walker_model import WalkerModel
-from econmotor.couriers.walker_task import MeterSettings, meter_settings, task_settings
+from econmotor.couriers.walker_task import MeterSettings, meter_constants, meter_settings, task_settings
 from econmotor.economics import courier_formulas as cf
 from econmotor.motor_backend.holosoma.econ_formulas import (
     base_tilt_rad,
-    meter_constants,
     overlay_term_rates,
     torch_namespace,
 )

@@ -24,13 +24,13 @@ from typing import Any
 
 import numpy as np
 
+from econmotor.couriers.walker_task import meter_constants
 from econmotor.economics import courier_formulas as cf
 from econmotor.economics.termination import TerminationReason
 from econmotor.errors import BackendError
 from econmotor.motor_backend.holosoma.econ_formulas import (
     base_tilt_rad,
     commanded_progress_m_per_s,
-    meter_constants,
     novelty_step,
 )
 

@@ -38,11 +38,11 @@ from holosoma.managers.observation.terms.locomotion import get_base_lin_vel
 from holosoma.managers.reward.base import RewardTermBase
 
 from econmotor.economics import courier_formulas as cf
+from econmotor.couriers.walker_task import meter_constants
 from econmotor.motor_backend.holosoma.econ_formulas import (
     OVERLAY_TERM_KEYS,
     base_tilt_rad,
     commanded_progress_m_per_s,
-    meter_constants,
     novelty_step,
     overlay_term_rates,
     torch_namespace,
