@@ -171,3 +171,20 @@ def test_the_vec_env_resets_in_the_same_step_and_sb3_learns_on_it(g1_ppo):
     model.learn(total_timesteps=64)
     assert model.num_timesteps >= 64
     env.close()
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_stopped_evaluation_returns_the_episodes_up_to_the_look_that_stopped_it(g1_ppo, workers):
+    """``stop`` is asked at every ``batch`` boundary in order, even when several episodes end in one
+    control step, and the evaluation returns exactly the episodes it was asked about when it said stop:
+    what a report derives from them (speed, power) does not depend on how many were still in flight."""
+    ev = WalkerEvaluation(policy=g1_ppo.onnx_path, course=SHORT, meter=METER, stress=Stress(), episode_s=0.4,
+                          seed=3, slots=6)
+    asked: list[int] = []
+
+    def stop(rows):
+        asked.append(len(rows))
+        return len(rows) >= 2
+
+    episodes, _ = evaluate(ev, 12, workers, stop=stop, batch=2)
+    assert asked == [2] and len(episodes) == 2  # six end together at their time limit: the look at 2 still decides

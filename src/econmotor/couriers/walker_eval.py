@@ -75,10 +75,10 @@ def _run(ev: WalkerEvaluation, indices: list[int], emit: Callable[[int, dict[str
         batch.close()
 
 
-def _worker(ev: WalkerEvaluation, indices: list[int], out: Any, stop: Any) -> None:
+def _worker(ev: WalkerEvaluation, contract: PolicyContract, indices: list[int], out: Any, stop: Any) -> None:
     """A worker process: episodes to ``out`` as ``("episode", index, metrics)``; ``("end", None, None)``."""
     try:
-        _run(ev, indices, lambda i, episode: out.put(("episode", i, episode)) or stop.is_set())
+        _run(ev, indices, lambda i, episode: out.put(("episode", i, episode)) or stop.is_set(), contract)
         out.put(("end", None, None))
     except BaseException:
         out.put(("error", None, traceback.format_exc()))
@@ -102,36 +102,43 @@ def evaluate(ev: WalkerEvaluation, num_episodes: int, workers: int = 1, *, progr
              ) -> tuple[list[dict[str, Any]], float]:
     """``num_episodes`` seeded episodes on ``workers`` processes: (the episodes finished in order, wall s).
 
-    ``stop(episodes)`` is asked every ``batch`` episodes finished in order (all of them when it is None).
+    ``stop(episodes)`` is asked at every ``batch`` boundary of the episodes finished in order, one boundary
+    after another; once it says stop, the evaluation returns the episodes it was asked about then (the
+    ones still in flight are dropped, however many there were), else every episode.
     """
     contract = resolve_contract(ev.policy)  # a bad policy is a ConfigError here, before any worker starts
-    gathered, asked, start = _Prefix(), 0, time.monotonic()
+    gathered, asked, stopped_at, start = _Prefix(), 0, None, time.monotonic()
     report = progress or (lambda label, done, total: None)
     report("sim-to-sim episodes", 0, num_episodes)
 
     def take(index: int, episode: dict[str, Any]) -> bool:
-        nonlocal asked
+        nonlocal asked, stopped_at
         gathered.rows[index] = episode
         report("sim-to-sim episodes", len(gathered.rows), num_episodes)
+        if stop is None or stopped_at is not None:
+            return stopped_at is not None
         done = gathered.prefix()
-        if stop is not None and len(done) >= asked + batch and len(done) < num_episodes:
-            asked = len(done) - len(done) % batch
-            return bool(stop(done))
+        while asked + batch <= len(done) and asked + batch < num_episodes:
+            asked += batch
+            if stop(done[:asked]):
+                stopped_at = asked
+                return True
         return False
 
     workers = max(1, min(int(workers), num_episodes))
     if workers == 1:
         _run(ev, list(range(num_episodes)), take, contract)
     else:
-        _in_processes(ev, num_episodes, workers, take, timeout_s, start)
-    return gathered.prefix(), time.monotonic() - start
+        _in_processes(ev, contract, num_episodes, workers, take, timeout_s, start)
+    return gathered.prefix()[:stopped_at], time.monotonic() - start
 
 
-def _in_processes(ev: WalkerEvaluation, num_episodes: int, workers: int, take: Callable[[int, dict[str, Any]], bool],
-                  timeout_s: float | None, start: float) -> None:
+def _in_processes(ev: WalkerEvaluation, contract: PolicyContract, num_episodes: int, workers: int,
+                  take: Callable[[int, dict[str, Any]], bool], timeout_s: float | None, start: float) -> None:
+    """``workers`` spawned processes, each given the contract resolved here (its ONNX read once)."""
     ctx = mp.get_context("spawn")
     out, stop_event = ctx.Queue(), ctx.Event()
-    procs = [ctx.Process(target=_worker, args=(ev, list(range(w, num_episodes, workers)), out, stop_event),
+    procs = [ctx.Process(target=_worker, args=(ev, contract, list(range(w, num_episodes, workers)), out, stop_event),
                          daemon=True, name=f"econmotor-walker-{w}") for w in range(workers)]
     try:
         for proc in procs:
@@ -156,7 +163,7 @@ def _in_processes(ev: WalkerEvaluation, num_episodes: int, workers: int, take: C
                 return
     finally:
         stop_event.set()
-        for proc in procs:
+        for proc in (p for p in procs if p.pid is not None):  # a start that failed left the rest unstarted
             if proc.is_alive():
                 proc.terminate()
             proc.join(timeout=10)
