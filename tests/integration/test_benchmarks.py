@@ -68,7 +68,7 @@ SLOW = {"conditioned_vs_specialists.py", "constraints_dishwashing.py", "demo_rel
 HEAVY = {"mjx_model_options.py", "mjx_physics_gap.py", "mjx_throughput.py", "mjx_time_to_courier.py",
          "mjx_humanoid_throughput.py", "mjx_eval_timeline.py", "g1_objectives.py", "holosoma_overlay_overhead.py"}
 #: need the isolated Holosoma environment (the script runs in it, or starts jobs in it)
-HOLOSOMA = {"holosoma_overlay_overhead.py", "g1_objectives.py"}
+HOLOSOMA = {"holosoma_overlay_overhead.py"}
 TIMEOUT_S = 900  # generous: minutes on 2 shared cores with a cold compilation cache
 
 

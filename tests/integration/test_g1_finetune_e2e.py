@@ -18,10 +18,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from econmotor.couriers.onnx_actor import read_actor
 from econmotor.couriers.policy_import import find_holosoma_python, shipped_policy_path
 from econmotor.motor_backend.mjx import ppo
 from econmotor.motor_backend.mjx.backend import MjxBackend
-from econmotor.motor_backend.mjx.onnx_import import read_actor, warm_start
+from econmotor.motor_backend.mjx.onnx_import import warm_start
 from econmotor.objectives import EconomicObjectiveSpec
 from econmotor.robots import G1_29DOF
 

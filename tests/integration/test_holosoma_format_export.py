@@ -1,7 +1,7 @@
 """A policy exported here in Holosoma's format runs on Holosoma's own inference stack.
 
 Holosoma's shipped G1 PPO walker goes ONNX -> the mjx JAX actor (``mjx/onnx_import.py``) -> an
-econmotor export in Holosoma's format (``mjx/export.py``, the G1 card's metadata); in
+econmotor export in Holosoma's format (``couriers/onnx_export.py``, the G1 card's metadata); in
 ``.venv-holosoma``, holosoma_inference's policy loader (``BasePolicy.setup_policy``) loads it, reads
 its PD gains, and acts exactly as the shipped file on the same observations; the sim-to-sim
 evaluator's importer (``policy_import.resolve_contract``) resolves it to the G1 preset.
@@ -18,11 +18,11 @@ import jax
 import numpy as np
 import pytest
 
+from econmotor.couriers.onnx_actor import read_actor
+from econmotor.couriers.onnx_export import export_onnx
 from econmotor.couriers.policy_import import find_holosoma_python, holosoma_export_metadata, shipped_policy_path
 from econmotor.motor_backend.holosoma.host.jobs import job_environment
 from econmotor.motor_backend.mjx import ppo
-from econmotor.motor_backend.mjx.export import export_onnx
-from econmotor.motor_backend.mjx.onnx_import import read_actor
 from econmotor.robots import G1_29DOF
 
 pytestmark = [pytest.mark.holosoma]

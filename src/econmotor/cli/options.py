@@ -137,6 +137,17 @@ def course_speed_options(backend: type[MotorBackendBase], speed_m_per_s: float |
     return {"course_speed_m_per_s": speed_m_per_s}
 
 
+def time_budget_options(backend: type[MotorBackendBase], max_minutes: float | None) -> dict[str, Any]:
+    """The backend option of ``--max-minutes``; an error for a backend without a time budget or a bad value."""
+    if max_minutes is None:
+        return {}
+    if not max_minutes > 0:
+        raise ConfigError("--max-minutes", None, f"must be > 0, got {max_minutes}")
+    if not backend.capabilities.time_budget:
+        raise ConfigError("--max-minutes", None, f"backend '{backend.name}' trains to --max-steps only")
+    return {"max_wall_s": 60.0 * float(max_minutes)}
+
+
 def init_policy_options(backend: type[MotorBackendBase], init_policy: str | None,
                         resume: bool = False) -> dict[str, Any]:
     """The backend option of ``--init-policy``; an error for a backend that cannot start from one."""

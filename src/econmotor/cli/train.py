@@ -27,6 +27,7 @@ from econmotor.cli.options import (
     init_policy_options,
     resolve_objective,
     selection_options,
+    time_budget_options,
     training_eval_episodes,
 )
 from econmotor.cli.runs import interrupted_note, train_with_bars
@@ -189,6 +190,8 @@ def train_command(
     select_every: int = SELECT_EVERY_OPTION,
     select_episodes: int = SELECT_EPISODES_OPTION,
     init_policy: str = INIT_POLICY_OPTION,
+    max_minutes: float = typer.Option(None, "--max-minutes", help="Stop training after this many minutes of wall "
+                                      "time (held-out selection included; backends with a time budget)."),
     db_url: str = DB_URL_OPTION,
     json_out: Path = JSON_OPTION,
 ) -> None:
@@ -207,7 +210,8 @@ def train_command(
     set_cpu_threads()
     extra: dict[str, Any] = {**selection_options(cls, until_deployable, select_every, select_episodes),
                              **init_policy_options(cls, init_policy, resume),
-                             **({"resume": True} if resume else {}), **({"algorithm": algorithm} if algorithm else {})}
+                             **({"resume": True} if resume else {}), **({"algorithm": algorithm} if algorithm else {}),
+                             **time_budget_options(cls, max_minutes)}
     if resume and nothing_to_resume(backend, output_dir):
         return
     motor = make_backend(backend, **({"vec_env": vec_env} if vec_env else {}))

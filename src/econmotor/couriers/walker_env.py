@@ -166,6 +166,19 @@ class WalkerBatch:
             getattr(self.sums, name)[slot] = 0.0
         self.sums.best_x[slot] = d.qpos[0]
 
+    def place(self, slot: int, x_m: float, course: crs.CourseState, elapsed_steps: int) -> None:
+        """Move the episode just started in ``slot`` to a point of the course: the base translated to ``x_m``
+        along the (flat) floor, the course's state ``course`` (leg, dwell left, legs walked) and ``elapsed_steps``
+        control steps of the episode's time limit used up (a learner's random start point; the meter counts
+        from here: its high-water mark starts at ``x_m``)."""
+        self.state[slot, 1] = x_m  # FULL_STATE: time, then qpos (the free root's x first)
+        self.load_state(np.array([slot]))
+        for part, value in zip(self.course_state, course, strict=True):
+            part[slot] = value
+        self.steps[slot] = int(elapsed_steps)
+        self.next_push_s[slot] += elapsed_steps * self.card.control_dt_s
+        self.sums.best_x[slot] = x_m
+
     def load_state(self, slots: np.ndarray) -> None:
         """Make the ``state`` rows of ``slots`` (written by the caller) their robots' physics state."""
         if self._pool is None:

@@ -27,6 +27,8 @@ class BackendCapabilities:
         course_speed: the evaluation walks a course at a commanded speed, and the constructor's
             ``course_speed_m_per_s`` (m/s; default: the task catalog's ``course_speed_m_per_s``) sets it
             (``compare --command-speed``).
+        time_budget: ``train_policy(..., max_wall_s=...)`` stops training at a wall-time budget
+            (``train --max-minutes``).
     """
 
     resume: bool = False
@@ -38,6 +40,7 @@ class BackendCapabilities:
     init_policies: bool = False
     shadow_env: bool = False
     course_speed: bool = False
+    time_budget: bool = False
 
 
 class ShadowEnv(NamedTuple):

@@ -53,6 +53,7 @@ from econmotor.couriers.course import (
     heading_yaw,
 )
 from econmotor.couriers.datapack_mapping import map_datapacks
+from econmotor.couriers.locomotion_rewards import TERMS, LocomotionReading, locomotion_reward
 from econmotor.couriers.overlay import human_baseline_references, overlay_term_factors
 from econmotor.couriers.physics import has_fallen, root_tilt_rad
 from econmotor.couriers.stress import Stress
@@ -62,7 +63,6 @@ from econmotor.errors import ConfigError
 from econmotor.motor_backend.mjx._mjx import mjx
 from econmotor.motor_backend.mjx.assets import apply_model_options
 from econmotor.motor_backend.mjx.env import auto_reset, task_settings, with_overlay_columns
-from econmotor.motor_backend.mjx.locomotion_rewards import TERMS, LocomotionReading, locomotion_reward
 from econmotor.motor_backend.mjx.settings import MjxTaskSettings
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
 from econmotor.robots import card as robot_card

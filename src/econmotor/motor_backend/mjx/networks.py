@@ -1,7 +1,7 @@
 """The mjx backend's networks and observation normaliser, as plain JAX functions on pytrees.
 
 Parameters are dicts of arrays (no Flax), so checkpoints are flat ``.npz`` files and the ONNX
-export (``mjx/export.py``) reads the same arrays::
+export (``couriers/onnx_export.py``) reads the same arrays::
 
     params = {"policy": [{"w": [in, h1], "b": [h1]}, ..., {"w": [h_k, act], "b": [act]}],
               "log_std": [act],
@@ -27,10 +27,10 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 
+from econmotor.couriers.onnx_export import NORM_EPS
+
 Params = dict[str, Any]
-#: VecNormalize's epsilon inside the square root.
-NORM_EPS = 1e-8
-#: hidden-layer activations by name (the ONNX export writes the same op, ``export.py``).
+#: hidden-layer activations by name (the ONNX export writes the same op, ``couriers/onnx_export.py``).
 ACTIVATIONS = {"tanh": jnp.tanh, "elu": jax.nn.elu, "relu": jax.nn.relu, "silu": jax.nn.silu}
 
 

@@ -9,10 +9,16 @@ datapacks add domain randomization, a curriculum and motion clips (``mujoco/rand
 ``mujoco/clips.py``); policies deploy to ONNX (``mujoco/export.py``).
 
 ``policy_id`` is the run directory (layout in ``mujoco/training.py``).
+
+The card robots (G1, T1: tasks whose ``backends.mujoco`` entry holds ``walker:``) train on the CPU
+with PPO on the batched MuJoCo walker env that prices them, from scratch or ``--init-policy`` (a
+Holosoma-format ONNX), export Holosoma's ONNX format and are priced sim-to-sim on the same env
+(``mujoco/walker_backend.py``, ``mujoco/walker_training.py``, ``mujoco/walker_ppo.py``).
 """
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -20,6 +26,8 @@ from typing import Any
 import gymnasium as gym
 import torch
 
+from econmotor.couriers.datapack_mapping import map_datapacks
+from econmotor.couriers.onnx_actor import policy_file, read_actor
 from econmotor.couriers.overlay import human_baseline_references
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import MotorBackendBase, ProgressFn, StopFn, no_progress
@@ -35,6 +43,15 @@ from econmotor.motor_backend.mujoco.run import HELD_OUT_BATCH, TrainingRun
 from econmotor.motor_backend.mujoco.settings import MujocoTaskSettings, parse_mujoco_settings
 from econmotor.motor_backend.mujoco.step_summary import MujocoStepSummaryWrapper
 from econmotor.motor_backend.mujoco.training import obs_normalizer
+from econmotor.motor_backend.mujoco.walker_backend import (
+    WALKER_CADENCE,
+    WALKER_SELECT_BATCH,
+    holosoma_settings,
+    is_walker_task,
+    train_walker,
+    walker_curve,
+    walker_train_settings,
+)
 from econmotor.motor_backend.results import (
     EvalProvenance,
     MotorEvalResult,
@@ -43,8 +60,9 @@ from econmotor.motor_backend.results import (
     evaluation_result,
     mean_power_w,
 )
-from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, read_run_config
+from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, read_run_config, write_run_config
 from econmotor.motor_backend.selection import selection_for
+from econmotor.motor_backend.walker_pricing import WalkerPricing, price_walker
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
 from econmotor.robots.gym_couriers import robot_name
 from econmotor.tasks.catalog import TaskCatalog, TaskSpec
@@ -67,7 +85,8 @@ class MujocoBackend(MotorBackendBase):
 
     name = "mujoco"
     capabilities = BackendCapabilities(resume=True, algorithms=("ppo", "sac"), vec_env_kinds=("dummy", "subproc"),
-                                       records_clips=True, evaluation_driven=True, shadow_env=True)
+                                       records_clips=True, evaluation_driven=True, shadow_env=True,
+                                       init_policies=True, time_budget=True)
     defaults = RunSize(num_envs=0, max_steps=100_000)
     smoke_run = RunSize(num_envs=1, max_steps=64, task_id="hopper_courier")
     max_num_envs = 256  # SB3 vector envs: one process (subproc) or one env object (dummy) each
@@ -77,7 +96,7 @@ class MujocoBackend(MotorBackendBase):
     def __init__(self, *, task_files: Sequence[str | Path] = (), runs_dir: str | Path = "runs",
                  catalog: TaskCatalog | None = None,
                  datapack_provider: DatapackProvider | None = None, vec_env: str = "dummy",
-                 keep_task_reward: bool = True, torch_threads: int = 1) -> None:
+                 keep_task_reward: bool = True, torch_threads: int = 1, eval_workers: int | None = None) -> None:
         if vec_env not in self.capabilities.vec_env_kinds:
             raise ConfigError("<mujoco backend>", "vec_env", f"unknown vector env '{vec_env}'",
                               self.capabilities.vec_env_kinds)
@@ -86,6 +105,9 @@ class MujocoBackend(MotorBackendBase):
         self.vec_env = vec_env
         self.keep_task_reward = keep_task_reward
         self.torch_threads = max(1, int(torch_threads))
+        #: worker processes of a walker task's sim-to-sim evaluation (None: the CPUs this process may use)
+        self.eval_workers = int(eval_workers or (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                                                 else os.cpu_count() or 1))
 
     # --- configuration -------------------------------------------------------------------
     def task(self, task_id: str) -> tuple[TaskSpec, MujocoTaskSettings]:
@@ -126,7 +148,9 @@ class MujocoBackend(MotorBackendBase):
 
     def evaluation_batch(self, task_id: str) -> int:
         """Held-out episodes run :data:`HELD_OUT_BATCH` envs at a time; a report's evaluation asks ``stop``
-        as often."""
+        as often (a walker task: ten episodes per worker process, as the holosoma backend's)."""
+        if is_walker_task(self.catalog.get(task_id)):
+            return 10 * self.eval_workers
         return HELD_OUT_BATCH
 
     # --- the MotorBackendBase contract ------------------------------------------------------
@@ -138,7 +162,8 @@ class MujocoBackend(MotorBackendBase):
                      hyperparameters: dict[str, Any] | None = None,
                      checkpoint_every_steps: int | None = None, select_every_steps: int | None = None,
                      select_episodes: int | None = None,
-                     until_deployable: bool = False) -> MotorTrainingResult:
+                     until_deployable: bool = False, init_policy: str | None = None,
+                     max_wall_s: float | None = None) -> MotorTrainingResult:
         """Train a policy and evaluate it on ``eval_episodes`` deterministic episodes.
 
         ``num_envs <= 0`` uses the catalog's default; ``resume=True`` continues the run in
@@ -147,9 +172,19 @@ class MujocoBackend(MotorBackendBase):
         env steps (None: :attr:`held_out_cadence`) and at the end, a sequential held-out evaluation of
         at most ``select_episodes`` episodes judges the policy by the task's acceptance rule; the best is
         kept (``0`` turns it off: the last weights are kept).
-        ``until_deployable`` stops at the first held-out evaluation that passes.
+        ``until_deployable`` stops at the first held-out evaluation that passes. ``max_wall_s`` stops
+        training at a wall-time budget (walker tasks). A walker task (the G1, T1) trains on the batched
+        walker env, from ``init_policy`` (an ONNX walker) or from scratch (module docstring).
         """
         torch.set_num_threads(self.torch_threads)
+        spec = self.catalog.get(task_id)
+        if is_walker_task(spec):
+            return self._train_walker(spec, objective, list(datapack_configs or ()), num_envs, max_steps, seed,
+                                      output_dir, eval_episodes, progress, resume, hyperparameters,
+                                      select_every_steps, select_episodes, until_deployable, init_policy, max_wall_s)
+        if init_policy is not None or max_wall_s is not None:
+            raise ConfigError("--init-policy/--max-minutes", task_id, "apply to the card robots' walker tasks only",
+                              [t for t in self.catalog.ids(self.name) if is_walker_task(self.catalog.get(t))])
         recipe, described = self.recipe(task_id, objective, datapack_ids, datapack_configs)
         settings = recipe.settings
         if output_dir is None and resume:
@@ -186,6 +221,13 @@ class MujocoBackend(MotorBackendBase):
         nominal task is evaluated.
         """
         config = read_run_config(policy_id, "mujoco", task_id)
+        spec = self.catalog.get(task_id)
+        if is_walker_task(spec):
+            return price_walker(WalkerPricing(
+                backend=self.name, spec=spec, settings=holosoma_settings(spec), packs=list(datapack_configs or ()),
+                policy=str(Path(policy_id).resolve() / ONNX_FILE), policy_id=str(policy_id), imported=False,
+                workers=self.eval_workers, batch=self.evaluation_batch(task_id), label="mujoco"),
+                num_episodes, seed, self.run_dir(output_dir, task_id, seed).resolve(), progress, stop)
         torch.set_num_threads(self.torch_threads)
         recipe, described = self.recipe(task_id, objective, datapack_ids, datapack_configs)
         _, act = load_policy(policy_id, config["algorithm"])
@@ -206,6 +248,8 @@ class MujocoBackend(MotorBackendBase):
         """An onnxruntime handle on the run's ``policy.onnx`` (exported now if missing)."""
         path = Path(policy_id) / ONNX_FILE
         config = read_run_config(policy_id, self.name)  # a mujoco run directory, checked before anything is loaded
+        if not path.is_file() and config.get("trainer") == "walker":
+            raise BackendError(f"walker run {policy_id} has no {ONNX_FILE}: it did not finish (resume it)")
         if not path.is_file():
             model, _ = load_policy(policy_id, config["algorithm"])
             export_onnx(model, obs_normalizer(policy_id), path, self._onnx_metadata(config))
@@ -234,21 +278,80 @@ class MujocoBackend(MotorBackendBase):
 
     @classmethod
     def robot_id(cls, spec: TaskSpec) -> str:
-        """The couriers' robot of the task's env (``Hopper-v5`` -> ``hopper``)."""
+        """The couriers' robot of the task's env (``Hopper-v5`` -> ``hopper``); a walker task's robot card."""
+        if is_walker_task(spec):
+            return str(holosoma_settings(spec)["robot"])
         return robot_name(parse_mujoco_settings(spec).env_id)
 
     @classmethod
     def check_datapack(cls, pack: DatapackConfig, source: str) -> None:
         """The randomization and curriculum a mujoco training run would apply, and its motion clips'
-        files (their frames are checked against the robot when a run loads them)."""
-        parse_randomization(pack.domain_randomization, pack.curriculum, source)
+        files (their frames are checked against the robot when a run loads them); or the stress a walker
+        task (the G1, T1) trains and is priced under."""
+        try:
+            parse_randomization(pack.domain_randomization, pack.curriculum, source)
+        except ConfigError as sb3_error:
+            try:
+                bundle = DatapackProvider().resolve("<validate>", [pack.id], [pack])
+                map_datapacks(bundle, [pack], uses_motion_clip=False)
+            except ConfigError:
+                raise sb3_error from None
         for i, clip in enumerate(pack.motion_clips):
             check_clip_file(clip.resolve(pack.base_dir), source, f"motion_clips[{i}]")
 
     @classmethod
     def check_task_entry(cls, spec: TaskSpec) -> None:
-        """The ``backends.mujoco`` entry as a training run reads it (``parse_mujoco_settings``)."""
+        """The ``backends.mujoco`` entry as a training run reads it (``parse_mujoco_settings``; a walker task's
+        trainer settings and walker entry)."""
+        if is_walker_task(spec):
+            walker_train_settings(spec)
+            holosoma_settings(spec)
+            return
         parse_mujoco_settings(spec)
+
+    def check_init_policy(self, policy: str, task_id: str) -> None:
+        """``--init-policy`` starts the walker tasks only, from an ONNX actor this trainer can read."""
+        spec = self.catalog.get(task_id)
+        if not is_walker_task(spec):
+            raise ConfigError("--init-policy", policy, f"task '{task_id}' trains with SB3 from scratch; the mujoco "
+                              "backend starts the card robots' walker tasks from a policy",
+                              [t for t in self.catalog.ids(self.name) if is_walker_task(self.catalog.get(t))])
+        read_actor(policy_file(policy), policy)
+
+    @classmethod
+    def is_complete_run(cls, run_dir: str | Path) -> bool:
+        """An SB3 run's ``policy.zip`` or a walker run's ``policy.onnx``, beside its ``run_config.json``."""
+        folder = Path(run_dir)
+        if not (folder / RUN_CONFIG_FILE).is_file():
+            return False
+        return (folder / cls.final_policy_file).is_file() or (
+            (folder / ONNX_FILE).is_file() and read_run_config(folder).get("trainer") == "walker")
+
+    def _train_walker(self, spec: TaskSpec, objective: EconomicObjectiveSpec, packs: list[DatapackConfig],
+                      num_envs: int, max_steps: int, seed: int, output_dir: str | Path | None, eval_episodes: int,
+                      progress: ProgressFn, resume: bool, hyperparameters: dict[str, Any] | None,
+                      select_every_steps: int | None, select_episodes: int | None, until_deployable: bool,
+                      init_policy: str | None, max_wall_s: float | None) -> MotorTrainingResult:
+        """A walker task's run (``mujoco/walker_backend.py``), its post-training evaluation and result."""
+        if output_dir is None and resume:
+            raise ConfigError("<train>", "output_dir", "resume needs the run directory to continue")
+        run_dir = self.run_dir(output_dir, spec.task_id, seed)
+        if resume:
+            init_policy = (read_run_config(run_dir).get("init_policy") or {}).get("policy")
+        selection = selection_for(spec, objective, select_every_steps, select_episodes, until_deployable, seed,
+                                  WALKER_CADENCE, WALKER_SELECT_BATCH)
+        config = train_walker(spec, objective, packs, run_dir, num_envs=num_envs, max_steps=max_steps, seed=seed,
+                              init_policy=init_policy, hyperparameters=hyperparameters, selection=selection,
+                              resume=resume, max_wall_s=max_wall_s, progress=progress,
+                              described={"datapacks": [p.to_dict() for p in packs]})
+        write_run_config(run_dir, config, self.name)
+        curve = walker_curve(run_dir)
+        evaluation = self.evaluate_after_training(run_dir, spec.task_id, objective, eval_episodes, seed,
+                                                  datapack_configs=packs, progress=progress)
+        artifacts = {"policy": str(run_dir), "onnx": str(run_dir / ONNX_FILE), "run_config": str(run_dir /
+                                                                                              RUN_CONFIG_FILE),
+                     "curve": str(run_dir / "curve.jsonl"), "checkpoint": str(run_dir / "checkpoints" / "latest.pt")}
+        return self.training_result(run_dir, spec.task_id, evaluation, curve, config, artifacts)
 
     # --- extras ------------------------------------------------------------------------------
     def record_clip(self, policy_id: str, path: str | Path, num_steps: int = 500, seed: int = 0) -> Path:

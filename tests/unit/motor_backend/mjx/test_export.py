@@ -9,11 +9,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from econmotor.couriers.onnx_export import export_onnx
 from econmotor.errors import BackendError
 from econmotor.motor_backend.mjx import checkpoint as ckpt
 from econmotor.motor_backend.mjx import networks as nets
 from econmotor.motor_backend.mjx import ppo
-from econmotor.motor_backend.mjx.export import export_onnx
 from econmotor.motor_backend.onnx_policy import OnnxPolicyHandle
 
 OBS, ACT = 11, 3

@@ -14,12 +14,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from econmotor.couriers.onnx_actor import read_actor
+from econmotor.couriers.onnx_export import export_onnx
 from econmotor.couriers.policy_import import find_holosoma_python, shipped_policy_path
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.mjx import networks as nets
 from econmotor.motor_backend.mjx import ppo
-from econmotor.motor_backend.mjx.export import export_onnx
-from econmotor.motor_backend.mjx.onnx_import import read_actor
 
 REPO = Path(__file__).resolve().parents[4]
 BOUND = np.float32(1e4)  # wide action bounds: the comparison is of the network, not of a clip

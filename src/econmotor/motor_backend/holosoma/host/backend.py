@@ -39,7 +39,6 @@ import math
 import os
 import shutil
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -50,20 +49,11 @@ from econmotor.couriers.policy_import import (
     find_holosoma_python,
     find_shipped_policy,
     is_imported_policy,
-    model_text,
-    resolve_contract,
 )
-from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_eval import WalkerEvaluation
-from econmotor.couriers.walker_eval import evaluate as evaluate_walkers
 from econmotor.couriers.walker_task import (
-    SIM2SIM_KEYS,
-    MeterSettings,
-    course_settings,
     meter_settings,
     task_settings,
 )
-from econmotor.economics.courier_formulas import mechanical_from_electrical_w
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import MotorBackendBase, ProgressFn, StopFn, no_progress
 from econmotor.motor_backend.capabilities import BackendCapabilities, RunSize
@@ -83,12 +73,10 @@ from econmotor.motor_backend.results import (
     EvalProvenance,
     MotorEvalResult,
     MotorTrainingResult,
-    aggregate_raw,
     evaluation_result,
-    mean_power_w,
-    walking_speed_m_per_s,
 )
 from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, read_run_config, write_run_config
+from econmotor.motor_backend.walker_pricing import WalkerPricing, price_walker
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
 from econmotor.tasks.catalog import TaskCatalog
 
@@ -114,16 +102,6 @@ def attach_econmotor_metadata(onnx_path: str | Path, metadata: dict[str, Any]) -
     tmp = Path(str(onnx_path) + ".tmp")
     onnx.save(model, str(tmp))
     tmp.replace(onnx_path)
-
-
-def _stress_notes(stress: Stress, nominal: bool) -> list[str]:
-    """What a sim-to-sim evaluation says of its conditions: terms it does not apply, or that it is nominal."""
-    notes = ["not applied in the sim-to-sim evaluation: " + "; ".join(stress.ignored)] if stress.ignored else []
-    if nominal:
-        notes.append("nominal conditions (no datapack randomization): episodes differ by seed only in their "
-                     f"start pose (joints within +-{stress.initial_joint_noise_rad:g} rad of the default); a "
-                     "datapack such as configs/datapacks/humanoid_stress.yaml adds stress")
-    return notes
 
 
 class HolosomaBackend(MotorBackendBase):
@@ -345,62 +323,14 @@ class HolosomaBackend(MotorBackendBase):
     def _sim2sim(self, policy: str, policy_id: str, imported: bool, spec: Any, settings: dict[str, Any],
                  num_episodes: int, seed: int, packs: list[DatapackConfig], run_dir: Path,
                  progress: ProgressFn, stop: StopFn | None = None) -> MotorEvalResult:
-        """The batched MuJoCo walker env in this interpreter (:mod:`econmotor.couriers.walker_eval`), on
-        :attr:`eval_workers` processes: the course, the shared meter and the datapack's stress from the
-        task catalog."""
-        import mujoco
-
-        task_id = spec.task_id
-        missing = [k for k in SIM2SIM_KEYS if k not in settings]
-        if missing:
-            raise ConfigError(spec.source, f"tasks.{task_id}.backends.holosoma.{missing[0]}",
-                              "the sim-to-sim evaluation needs it (with its unit and source)", SIM2SIM_KEYS)
-        bundle = DatapackProvider().resolve(task_id, [p.id for p in packs], packs)
-        overrides = map_datapacks(bundle, packs, uses_motion_clip=False)
-        course = course_settings(settings, self.course_speed_m_per_s)
-        episode_s = float(self.eval_episode_length_s or settings["sim2sim_episode_s"])
-        meter = meter_settings(task_id, settings, spec.source)  # the training terms' constants too
-        contract = resolve_contract(policy, self._holosoma_python())
-        experiments = sorted(set(settings["experiment"].values()))
-        if contract.experiment not in experiments:
-            raise ConfigError("--policy", policy_id, f"drives Holosoma's '{contract.experiment}' robot but task "
-                              f"'{task_id}' is priced for {experiments} (its catalog's experiments)")
-        noise = float(settings["sim2sim_start_joint_noise_rad"])
-        stress = Stress.from_overrides(overrides.randomization, overrides.evaluation,
-                                       {"push_randomizer_state": dict(contract.card.push_preset)}, noise)
-        workers = max(1, min(self.eval_workers, int(num_episodes)))
-        notes = [*overrides.messages, *_stress_notes(stress, not overrides.randomization and not overrides.evaluation),
-                 f"sim-to-sim: {contract.policy} ({contract.inference_preset} observations, "
-                 f"{contract.control_rate_hz:g} Hz policy, {1 / contract.physics_dt_s:g} Hz PD in MuJoCo "
-                 f"{mujoco.__version__}'s actuators) on {workers} process(es), "
-                 f"{'up to ' if stop is not None else ''}{num_episodes} episode(s) of "
-                 f"{course.legs or 'unlimited'} {course.leg_m:g} m leg(s) with a {course.dwell_s:g} s dwell "
-                 f"each (at most {episode_s:g} s) at {course.speed_m_per_s:g} m/s commanded"]
-        for text in notes:
-            progress(f"holosoma: {text}", 1.0, 1.0)
-        ev = WalkerEvaluation(policy=contract.onnx_path, course=course, meter=MeterSettings(**meter), stress=stress,
-                              episode_s=episode_s, seed=int(seed))
-        episodes, wall_s = evaluate_walkers(ev, int(num_episodes), workers, progress=progress, stop=stop,
-                                            batch=self.evaluation_batch(task_id), timeout_s=self.job_timeout_s)
-        power_w = mean_power_w(aggregate_raw(episodes)) or 0.0
-        contract_dict = contract.to_dict()
-        provenance = EvalProvenance(
-            evaluator="sim2sim", imported=imported,
-            figures_from=f"MuJoCo {mujoco.__version__} sim-to-sim (the batched walker env in econmotor's "
-                         "interpreter, the policy's ONNX, holosoma_inference's observations; "
-                         f"{model_text(contract_dict)})",
-            commanded_speed_m_per_s=course.speed_m_per_s,
-            achieved_speed_m_per_s=walking_speed_m_per_s(episodes) or 0.0,
-            mean_power_w=power_w, mean_mech_power_w=mechanical_from_electrical_w(
-                power_w, meter["drivetrain_efficiency"], meter["idle_power_w"]))
-        config = {
-            "seed": int(seed), "policy": policy_id, "episode_length_s": episode_s, "course": asdict(course),
-            "meter": meter, "datapacks": list(bundle.datapack_ids),
-            "stress": json.loads(json.dumps(asdict(stress))),  # as evaluation.json holds it (lists)
-            "contract": contract_dict, "wall_s": wall_s, "workers": workers, "mujoco": mujoco.__version__,
-            "messages": notes}
-        return evaluation_result(self.name, policy_id, task_id, episodes, spec.economics, config, output_dir=run_dir,
-                                 provenance=provenance)
+        """The batched MuJoCo walker env in this interpreter, on :attr:`eval_workers` processes
+        (:func:`econmotor.motor_backend.walker_pricing.price_walker`)."""
+        return price_walker(WalkerPricing(
+            backend=self.name, spec=spec, settings=settings, packs=packs, policy=policy, policy_id=policy_id,
+            imported=imported, workers=self.eval_workers, batch=self.evaluation_batch(spec.task_id),
+            course_speed_m_per_s=self.course_speed_m_per_s, episode_s=self.eval_episode_length_s,
+            fallback_python=self._holosoma_python(), timeout_s=self.job_timeout_s, label="holosoma"),
+            num_episodes, seed, run_dir, progress, stop)
 
     def evaluation_batch(self, task_id: str) -> int:
         """Ten episodes per worker process between looks."""

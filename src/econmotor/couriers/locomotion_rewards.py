@@ -3,7 +3,8 @@
 Holosoma's locomotion terms (``holosoma/managers/reward/terms/locomotion.py``; its G1 and T1
 presets in ``holosoma/config_values/loco/{g1,t1}/reward.py`` give the weights the catalog copies,
 ``tasks/mjx.yaml``), which in turn follow MuJoCo Playground's G1 joystick: each reads a
-:class:`LocomotionReading` of one env after a control step and returns a scalar. The step's
+:class:`LocomotionReading` of one env after a control step and returns a scalar (the terms the
+mujoco walker trainer uses also read a batch: arrays with a leading robot axis give one value per robot). The step's
 locomotion reward is ``sum_k weight_k * term_k * control_dt_s`` (Holosoma's reward manager
 scales by the step), :func:`locomotion_reward`.
 """
@@ -35,27 +36,27 @@ class LocomotionReading(NamedTuple):
 
 def tracking_lin_vel(r: LocomotionReading, xp: Any, tracking_sigma: float = 0.25) -> Any:
     """``exp(-|cmd_xy - v_xy|^2 / sigma)``: the commanded planar velocity, tracked."""
-    return xp.exp(-xp.sum(xp.square(r.command[:2] - r.lin_vel_body[:2])) / tracking_sigma)
+    return xp.exp(-xp.sum(xp.square(r.command[..., :2] - r.lin_vel_body[..., :2]), axis=-1) / tracking_sigma)
 
 
 def tracking_ang_vel(r: LocomotionReading, xp: Any, tracking_sigma: float = 0.25) -> Any:
     """``exp(-(cmd_yaw - w_z)^2 / sigma)``: the commanded yaw rate, tracked."""
-    return xp.exp(-xp.square(r.command[2] - r.ang_vel_body[2]) / tracking_sigma)
+    return xp.exp(-xp.square(r.command[..., 2] - r.ang_vel_body[..., 2]) / tracking_sigma)
 
 
 def penalty_ang_vel_xy(r: LocomotionReading, xp: Any) -> Any:
     """``w_x^2 + w_y^2``: roll and pitch rates."""
-    return xp.sum(xp.square(r.ang_vel_body[:2]))
+    return xp.sum(xp.square(r.ang_vel_body[..., :2]), axis=-1)
 
 
 def penalty_orientation(r: LocomotionReading, xp: Any) -> Any:
     """``g_x^2 + g_y^2`` of gravity in the body frame: a base that is not level."""
-    return xp.sum(xp.square(r.gravity_body[:2]))
+    return xp.sum(xp.square(r.gravity_body[..., :2]), axis=-1)
 
 
 def penalty_action_rate(r: LocomotionReading, xp: Any) -> Any:
     """``|a - a_prev|^2``: jerky actions."""
-    return xp.sum(xp.square(r.action - r.last_action))
+    return xp.sum(xp.square(r.action - r.last_action), axis=-1)
 
 
 def expected_foot_height(phase: Any, swing_height: float, xp: Any) -> Any:

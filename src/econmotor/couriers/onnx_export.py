@@ -1,7 +1,8 @@
-"""ONNX deployment of an mjx policy, built node by node with ``onnx.helper`` (no torch in the loop).
+"""ONNX deployment of an MLP walker (the mjx and mujoco trainers' actors), built node by node with
+``onnx.helper`` (no torch in the loop).
 
-The graph computes, for observations ``obs`` [batch, obs_dim] (float32), exactly
-``ppo.deterministic_action``::
+The graph computes, for observations ``obs`` [batch, obs_dim] (float32), exactly the
+actor's deterministic action (``mjx/ppo.deterministic_action``, the mujoco walker trainer's mean)::
 
     x = clip((obs - mean) / sqrt(var + eps), -clip_obs, clip_obs)   # Sub, Div, Clip (if normalised)
     h = f(x W1 + b1) ... f(h W_{k-1} + b_{k-1})                       # MatMul, Add, f: Tanh | Elu | Relu |
@@ -33,9 +34,12 @@ from typing import Any
 
 import numpy as np
 
-from econmotor.motor_backend.mjx.networks import ACTIVATIONS, NORM_EPS
 from econmotor.motor_backend.onnx_policy import ECONMOTOR_PREFIX, METADATA_KEY
 
+#: VecNormalize's epsilon inside the square root (the mjx normaliser's too)
+NORM_EPS = 1e-8
+#: the hidden layers' activations an actor may have (each a graph op, or Sigmoid * x for silu)
+ACTIVATIONS = ("tanh", "elu", "relu", "silu")
 #: Holosoma's exporter writes opset 13 (``torch.onnx.export(..., opset_version=13)``); every op here has it
 OPSET = 13
 

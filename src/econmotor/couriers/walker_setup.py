@@ -1,0 +1,76 @@
+"""What prices (and trains) a card robot on a walker task: its policy contract, course, meter and stress.
+
+:func:`walker_setup` reads them from the task catalog's walker entry (``backends.holosoma``:
+:func:`econmotor.couriers.walker_task.task_settings`) and the datapacks, for every backend that runs
+the batched walker env (the holosoma backend's sim-to-sim evaluation, the mujoco backend's CPU trainer
+and its evaluation): one reading, so what a policy is trained on is what it is priced on.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from econmotor.couriers.course import CourseSettings
+from econmotor.couriers.datapack_mapping import map_datapacks
+from econmotor.couriers.policy_import import PolicyContract, resolve_contract
+from econmotor.couriers.stress import Stress
+from econmotor.couriers.walker_task import SIM2SIM_KEYS, MeterSettings, course_settings, meter_settings
+from econmotor.errors import ConfigError
+from econmotor.robots import card as robot_card
+from econmotor.robots.card import RobotCard
+
+
+@dataclass(frozen=True)
+class WalkerSetup:
+    """A walker task's pricing conditions for one policy."""
+
+    contract: PolicyContract | None  # None: a policy trained from scratch (the card's own gains and ranges)
+    card: RobotCard
+    course: CourseSettings
+    meter: MeterSettings
+    stress: Stress
+    episode_s: float
+    notes: tuple[str, ...]
+    datapack_ids: tuple[str, ...]
+
+
+def stress_notes(stress: Stress, nominal: bool) -> list[str]:
+    """What a sim-to-sim evaluation says of its conditions: terms it does not apply, or that it is nominal."""
+    notes = ["not applied in the sim-to-sim evaluation: " + "; ".join(stress.ignored)] if stress.ignored else []
+    if nominal:
+        notes.append("nominal conditions (no datapack randomization): episodes differ by seed only in their "
+                     f"start pose (joints within +-{stress.initial_joint_noise_rad:g} rad of the default); a "
+                     "datapack such as configs/datapacks/humanoid_stress.yaml adds stress")
+    return notes
+
+
+def walker_setup(spec: Any, settings: Mapping[str, Any], bundle: Any, packs: Sequence[Any], policy: str | None,
+                 policy_id: str | None = None, course_speed_m_per_s: float | None = None,
+                 episode_s: float | None = None, fallback_python: str | Path | None = None) -> WalkerSetup:
+    """The conditions of task ``spec`` (its walker ``settings``, the datapacks' resolved ``bundle`` and
+    ``packs``) for ``policy`` (an ONNX path or a shipped name; None: the task's robot card, for a policy
+    trained from scratch); a ConfigError names a missing catalog key or a policy for another robot."""
+    task_id = spec.task_id
+    missing = [k for k in SIM2SIM_KEYS if k not in settings]
+    if missing:
+        raise ConfigError(spec.source, f"tasks.{task_id}.backends.holosoma.{missing[0]}",
+                          "the sim-to-sim evaluation needs it (with its unit and source)", SIM2SIM_KEYS)
+    overrides = map_datapacks(bundle, packs, uses_motion_clip=False)
+    course = course_settings(settings, course_speed_m_per_s)
+    meter = meter_settings(task_id, settings, spec.source)
+    contract = resolve_contract(policy, fallback_python) if policy is not None else None
+    card = contract.card if contract is not None else robot_card(str(settings["robot"]), spec.source)
+    experiments = sorted(set(settings["experiment"].values()))
+    if contract is not None and contract.experiment not in experiments:
+        raise ConfigError("--policy", policy_id or policy, f"drives Holosoma's '{contract.experiment}' robot but "
+                          f"task '{task_id}' is priced for {experiments} (its catalog's experiments)")
+    noise = float(settings["sim2sim_start_joint_noise_rad"])
+    stress = Stress.from_overrides(overrides.randomization, overrides.evaluation,
+                                   {"push_randomizer_state": dict(card.push_preset)}, noise)
+    notes = [*overrides.messages, *stress_notes(stress, not overrides.randomization and not overrides.evaluation)]
+    return WalkerSetup(contract=contract, card=card, course=course, meter=MeterSettings(**meter), stress=stress,
+                       episode_s=float(episode_s or settings["sim2sim_episode_s"]), notes=tuple(notes),
+                       datapack_ids=tuple(bundle.datapack_ids))

@@ -1,0 +1,200 @@
+"""The batched walker env as a learner sees it: random start points, the step reward and a critic's view.
+
+:class:`WalkerLearningEnv` drives a :class:`~econmotor.couriers.walker_env.WalkerBatch` (the env that
+prices the G1 and T1: the same model, course, stress, meter and fall rule) for a trainer:
+
+- **episodes start at random points of the course** (Holosoma's random episode start times): a leg
+  ``k`` of the course's legs, then either part-way along it or in its dwell, the base placed
+  there and the time the course would have taken so far counted against the episode's limit
+  (:func:`start_point`); an episode then runs to the course's end, a fall or the time limit, so
+  the learner practises standing starts, dwells and every leg the priced course has;
+- **the step reward** ``r = sum_k w_k term_k dt + gain * rates . (d units, d Wh, d falls, d risk)``:
+  Holosoma's locomotion terms that a base-state reading supports (:data:`BASE_TERMS`,
+  :mod:`econmotor.couriers.locomotion_rewards`) plus the economic overlay linearised at the priced
+  episode (:func:`econmotor.economics.courier_formulas.overlay_rates`) times ``gain``;
+- **terminated** only by a fall (the card's rule, the runaway rule included); the course's end and the
+  time limit **truncate** (the trainer bootstraps them with the critic);
+- **a privileged view** for the critic (:meth:`WalkerLearningEnv.privileged`): the base's velocity
+  in its own frame and height, the episode's friction and payload, the dwell left and the share of
+  the time limit left, things a deployed actor cannot observe.
+
+NumPy and MuJoCo only (no learner): the mujoco backend's trainer (torch) runs it; another trainer may.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from econmotor.couriers import course as crs
+from econmotor.couriers import locomotion_rewards as lr
+from econmotor.couriers.walker_env import WalkerBatch
+from econmotor.economics import courier_formulas as cf
+from econmotor.robots.observation import projected_gravity
+
+#: Holosoma's locomotion terms computed from the base's state and the actions (no feet or pose terms)
+BASE_TERMS = ("tracking_lin_vel", "tracking_ang_vel", "penalty_ang_vel_xy", "penalty_orientation",
+              "penalty_action_rate", "alive")
+#: width of :meth:`WalkerLearningEnv.privileged`
+PRIVILEGED_DIM = 9
+
+
+def start_point(course: crs.CourseSettings, rng: np.random.Generator, control_dt_s: float,
+                limit_steps: int) -> tuple[float, crs.CourseState, int]:
+    """A random point of the course: ``(x_m, course state, elapsed control steps)``.
+
+    A leg ``k`` uniform over the course's legs (1 for an endless course); then, with the dwell's share
+    of a leg's nominal time (walking at the course speed), in the dwell at the leg's end with a uniform
+    time left, else a uniform fraction along the leg. The elapsed time is the nominal time to get there,
+    capped a second short of the time limit.
+    """
+    legs = max(int(course.legs), 1)
+    k = int(rng.integers(0, legs))
+    walk_s = course.leg_m / max(course.speed_m_per_s, 1e-6)
+    in_dwell = course.dwell_s > 0 and rng.uniform() < course.dwell_s / (walk_s + course.dwell_s)
+    if in_dwell:
+        left = float(rng.uniform(0.0, course.dwell_s))
+        x, state = (k + 1) * course.leg_m, crs.CourseState(float(k), left, float(k + 1))
+        elapsed_s = k * (walk_s + course.dwell_s) + walk_s + course.dwell_s - left
+    else:
+        f = float(rng.uniform())
+        x, state = (k + f) * course.leg_m, crs.CourseState(float(k), 0.0, float(k))
+        elapsed_s = k * (walk_s + course.dwell_s) + f * walk_s
+    return x, state, int(min(elapsed_s / control_dt_s, limit_steps - 1.0 / control_dt_s))
+
+
+@dataclass
+class StepOut:
+    """One control step of every robot: the next observations and what the learner needs."""
+
+    obs: np.ndarray  # [N, obs_dim]: after resets, the new episodes' first observations
+    privileged: np.ndarray  # [N, PRIVILEGED_DIM]
+    reward: np.ndarray  # [N]
+    terminated: np.ndarray  # [N] a fall
+    truncated: np.ndarray  # [N] the course's end or the time limit
+    terminal_obs: np.ndarray  # [N, obs_dim]: the ended episodes' last observations (rows of the others: 0)
+    terminal_privileged: np.ndarray
+    episodes: list[dict[str, Any]] = field(default_factory=list)  # the ended episodes' raw metrics
+    terms: dict[str, float] = field(default_factory=dict)  # the step's mean reward per part
+
+
+class WalkerLearningEnv:
+    """``batch.n`` robots on the course for a learner (module docstring).
+
+    Args:
+        batch: the walker env (its course, meter and stress are the priced ones).
+        rates: the overlay's coefficients (:func:`~econmotor.economics.courier_formulas.overlay_rates`).
+        gain: the overlay's weight against the locomotion terms (reward units per unit of J).
+        weights / params: locomotion term weights and parameters (keys of :data:`BASE_TERMS`).
+        seed: episode ``i`` started by this env is seeded ``seed + i``.
+        random_start: start episodes at random points of the course (else at its start).
+    """
+
+    def __init__(self, batch: WalkerBatch, rates: cf.OverlayRates, gain: float, weights: Mapping[str, float],
+                 params: Mapping[str, Mapping[str, Any]] | None = None, seed: int = 0,
+                 random_start: bool = True) -> None:
+        unknown = sorted(set(weights) - set(BASE_TERMS))
+        if unknown:
+            raise ValueError(f"locomotion terms {unknown} need feet or pose readings; the walker trainer has "
+                             f"{list(BASE_TERMS)}")
+        self.batch, self.rates, self.gain = batch, rates, float(gain)
+        self.weights, self.params = dict(weights), {k: dict(v) for k, v in (params or {}).items()}
+        self.next_seed, self.random_start = int(seed), bool(random_start)
+        self.slots = np.arange(batch.n)
+        self._obs = np.zeros((batch.n, batch.card.obs_dim), np.float32)
+
+    @property
+    def num_envs(self) -> int:
+        return self.batch.n
+
+    def _start(self, slot: int) -> None:
+        b = self.batch
+        b.start(slot, self.next_seed, self.next_seed)
+        if self.random_start:
+            rng = np.random.default_rng([self.next_seed, 1])  # the episode's own draws stay the evaluator's
+            x, state, elapsed = start_point(b.course, rng, b.card.control_dt_s, b.control_steps)
+            b.place(slot, x, state, elapsed)
+        self.next_seed += 1
+
+    def reset(self) -> tuple[np.ndarray, np.ndarray]:
+        """Start every robot's episode; their first observations and privileged views."""
+        for slot in self.slots:
+            self._start(int(slot))
+        self._obs = self.batch.observe(self.slots)
+        return self._obs, self.privileged(self.slots)
+
+    def privileged(self, slots: np.ndarray) -> np.ndarray:
+        """What the critic may see besides the observation (module docstring), ``[len(slots), PRIVILEGED_DIM]``."""
+        b = self.batch
+        state = b.state[slots]
+        qpos, qvel = b._qpos(state), b._qvel(state)
+        lin = _rotate_inverse(qpos[:, 3:7], qvel[:, 0:3])
+        friction = np.array([b.models[s].geom_friction[b.walker.floor, 0] for s in slots])
+        payload = np.array([b.episodes[s].draws.get("payload_kg", 0.0) if b.episodes[s] else 0.0 for s in slots])
+        dwell = b.course_state.dwell_left_s[slots] / max(b.course.dwell_s, 1e-6)
+        left = 1.0 - b.steps[slots] / b.control_steps
+        legs = b.course_state.legs_done[slots] / max(b.course.legs, 1)
+        return np.column_stack([lin, qpos[:, 2], friction, payload / 5.0, dwell, left, legs]).astype(np.float32)
+
+    def _locomotion(self, slots: np.ndarray, action: np.ndarray, last_action: np.ndarray) -> tuple[np.ndarray, dict]:
+        b = self.batch
+        state = b.state[slots]
+        qpos, qvel = b._qpos(state), b._qvel(state)
+        quat = qpos[:, 3:7]
+        command = np.column_stack([b.command[slots, 0], np.zeros(len(slots)), b.command[slots, 1]])
+        reading = lr.LocomotionReading(
+            command=command, lin_vel_body=_rotate_inverse(quat, qvel[:, 0:3]), ang_vel_body=qvel[:, 3:6],
+            gravity_body=projected_gravity(quat, np), action=action, last_action=last_action, q=None,
+            default_q=None, phase=None, foot_z=None, feet_xy=None, feet_gravity_xy=None, base_yaw=None)
+        raw = {k: np.broadcast_to(lr.TERMS[k](reading, np, **self.params.get(k, {})), (len(slots),))
+               for k in self.weights}
+        dt = b.card.control_dt_s
+        total = sum(float(self.weights[k]) * raw[k] for k in self.weights) * dt
+        return np.asarray(total, dtype=np.float64), {k: float(np.mean(v)) for k, v in raw.items()}
+
+    def step(self, actions: np.ndarray) -> StepOut:
+        """One control step of every robot with ``actions`` ``[N, num_dofs]``; ended episodes restart."""
+        b, slots = self.batch, self.slots
+        s = b.sums
+        before = [getattr(s, k)[slots].copy() for k in ("units", "energy_wh", "errors", "risk_sum")]
+        last_action = b.last_action[slots].copy()
+        done = b.act(slots, actions)
+        r = self.rates
+        deltas = [getattr(s, k)[slots] - v for k, v in zip(("units", "energy_wh", "errors", "risk_sum"), before,
+                                                            strict=True)]
+        econ = self.gain * (r.unit * deltas[0] + r.wh * deltas[1] + r.error * deltas[2] + r.risk * deltas[3])
+        loco, terms = self._locomotion(slots, b.last_action[slots], last_action)
+        n, dim = b.n, b.card.obs_dim
+        out = StepOut(obs=self._obs, privileged=np.zeros((n, PRIVILEGED_DIM), np.float32),
+                      reward=loco + econ, terminated=np.zeros(n, bool), truncated=np.zeros(n, bool),
+                      terminal_obs=np.zeros((n, dim), np.float32),
+                      terminal_privileged=np.zeros((n, PRIVILEGED_DIM), np.float32),
+                      terms={**terms, "locomotion": float(loco.mean()), "economic": float(econ.mean())})
+        ended = np.flatnonzero(done)
+        if len(ended):
+            out.terminal_obs[ended] = b.observation(ended)
+            out.terminal_privileged[ended] = self.privileged(ended)
+            fell = deltas[2][ended] > 0
+            out.terminated[ended], out.truncated[ended] = fell, ~fell
+            for slot in ended:
+                out.episodes.append(b.finish(int(slot)))
+                self._start(int(slot))
+        self._obs = out.obs = b.observe(slots)
+        out.privileged = self.privileged(slots)
+        return out
+
+    def close(self) -> None:
+        self.batch.close()
+
+
+def _rotate_inverse(quat_wxyz: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """World vectors ``v`` [N, 3] in the frames of the bases ``quat_wxyz`` [N, 4]: ``R(q)^T v``."""
+    w, x, y, z = (quat_wxyz[:, i] for i in range(4))
+    rot = np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=-1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=-1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1)], axis=-2)
+    return np.einsum("nji,nj->ni", rot, v)

@@ -1,0 +1,178 @@
+"""The mujoco backend's walker tasks: the card robots (G1, T1) trained and priced on the CPU.
+
+A task whose ``backends.mujoco`` entry holds ``walker:`` (``tasks/holosoma.yaml``) is a walker task:
+its robot, course, meter and sim-to-sim settings are the task's walker entry (``backends.holosoma``,
+:func:`econmotor.couriers.walker_task.task_settings`), and its ``walker:`` mapping holds the trainer's:
+
+- ``econ_gain``: the economic overlay's weight against the locomotion terms (reward units per unit of
+  the objective's J; :func:`econmotor.economics.courier_formulas.overlay_rates`);
+- ``rewards``: Holosoma's locomotion terms the trainer keeps (``{name: {weight, ...params}}``, names in
+  :data:`econmotor.couriers.walker_train.BASE_TERMS`);
+- ``ppo``: the recipe (:class:`~econmotor.motor_backend.mujoco.walker_ppo.WalkerPPOConfig`), under the
+  run's ``--hyperparameters``;
+- ``checkpoint_every_s``: wall seconds between checkpoints.
+
+:func:`train_walker` runs :class:`~econmotor.motor_backend.mujoco.walker_training.WalkerTrainingRun`;
+evaluation is :func:`econmotor.motor_backend.walker_pricing.price_walker` on the run's ``policy.onnx``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from econmotor.config.loading import as_float
+from econmotor.couriers.onnx_actor import policy_file, read_actor
+from econmotor.couriers.overlay import human_baseline_references
+from econmotor.couriers.walker_setup import WalkerSetup, walker_setup
+from econmotor.couriers.walker_task import task_settings
+from econmotor.couriers.walker_train import BASE_TERMS
+from econmotor.economics import courier_formulas as cf
+from econmotor.errors import ConfigError
+from econmotor.motor_backend.capabilities import HeldOutCadence
+from econmotor.motor_backend.datapacks import DatapackProvider
+from econmotor.motor_backend.mujoco.walker_ppo import WalkerPPOConfig
+from econmotor.motor_backend.mujoco.walker_training import CURVE_FILE, ONNX_FILE, TRAIN_SEED_BASE, WalkerTrainingRun
+from econmotor.motor_backend.run_dir import write_run_config
+from econmotor.motor_backend.selection import SELECTION_SEED_OFFSET, Selection
+from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
+
+WALKER_KEYS = ("econ_gain", "rewards", "ppo", "checkpoint_every_s")
+
+
+@dataclass(frozen=True)
+class WalkerTrainSettings:
+    """A walker task's trainer settings (module docstring)."""
+
+    econ_gain: float
+    weights: dict[str, float]
+    params: dict[str, dict[str, Any]]
+    ppo: dict[str, Any]
+    checkpoint_every_s: float = 300.0
+
+
+def is_walker_task(spec: Any) -> bool:
+    """The task's mujoco entry trains a card robot on the walker env."""
+    return isinstance(spec.backends.get("mujoco"), Mapping) and "walker" in spec.backends["mujoco"]
+
+
+def walker_train_settings(spec: Any) -> WalkerTrainSettings:
+    """The task's ``backends.mujoco.walker`` settings; a ConfigError names the file and key."""
+    where = f"tasks.{spec.task_id}.backends.mujoco.walker"
+    entry = spec.backends["mujoco"]["walker"]
+    if not isinstance(entry, Mapping):
+        raise ConfigError(spec.source, where, "must be a mapping", WALKER_KEYS)
+    unknown = [k for k in entry if k not in WALKER_KEYS]
+    if unknown:
+        raise ConfigError(spec.source, f"{where}.{unknown[0]}", "unknown key", WALKER_KEYS)
+    gain = as_float(entry.get("econ_gain", 1.0), spec.source, f"{where}.econ_gain")
+    if not gain >= 0:
+        raise ConfigError(spec.source, f"{where}.econ_gain", f"must be >= 0, got {gain}")
+    weights, params = {}, {}
+    for name, term in dict(entry.get("rewards") or {}).items():
+        if name not in BASE_TERMS or not isinstance(term, Mapping) or "weight" not in term:
+            raise ConfigError(spec.source, f"{where}.rewards.{name}", "a term {weight: w, ...params} of the walker "
+                              "trainer's", BASE_TERMS)
+        weights[name] = as_float(term["weight"], spec.source, f"{where}.rewards.{name}.weight")
+        params[name] = {k: v for k, v in term.items() if k != "weight"}
+    ppo = dict(entry.get("ppo") or {})
+    WalkerPPOConfig.from_mapping(ppo, f"{spec.source}: {where}.ppo")
+    every = as_float(entry.get("checkpoint_every_s", 300.0), spec.source, f"{where}.checkpoint_every_s")
+    return WalkerTrainSettings(gain, weights, params, ppo, every)
+
+
+def holosoma_settings(spec: Any) -> dict[str, Any]:
+    """The task's walker entry (robot, course, meter, sim-to-sim settings)."""
+    return task_settings(spec.task_id, spec.backend_entry("holosoma"), spec.source)
+
+
+def overlay(spec: Any, objective: EconomicObjectiveSpec, setup: WalkerSetup) -> tuple[dict[str, float],
+                                                                                         cf.OverlayRates]:
+    """The objective's overlay factors (scales over the human-baseline references at the priced episode) and
+    their rates on the meter's increments."""
+    scales = dict(compile_economic_overlay(objective))
+    economics = spec.economics
+    refs = human_baseline_references(economics.mp_human_units_per_hour, economics.error_rate_human,
+                                     setup.meter.idle_power_w, setup.episode_s)
+    factors = cf.overlay_factors(scales, {k: v for k, v in refs.items() if k in scales})
+    units = float(setup.course.legs) if setup.course.legs else setup.episode_s * setup.course.speed_m_per_s / \
+        setup.course.leg_m
+    return factors, cf.overlay_rates(factors, setup.episode_s, setup.card.physics_dt_s, units)
+
+
+def train_walker(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[Any], run_dir: Path, *,
+                 num_envs: int, max_steps: int, seed: int, init_policy: str | None,
+                 hyperparameters: Mapping[str, Any] | None, selection: Selection | None, resume: bool,
+                 max_wall_s: float | None, progress: Any, described: Mapping[str, Any]) -> dict[str, Any]:
+    """Train a walker (module docstring) into ``run_dir``; the run's config (``run_config.json``'s content)."""
+    trainer = walker_train_settings(spec)
+    settings = holosoma_settings(spec)
+    bundle = DatapackProvider().resolve(spec.task_id, [p.id for p in packs], list(packs))
+    init = read_actor(policy_file(init_policy), init_policy) if init_policy else None
+    setup = walker_setup(spec, settings, bundle, list(packs), str(init.path) if init else None,
+                         init_policy)
+    nominal = walker_setup(spec, settings, DatapackProvider().resolve(spec.task_id, [], []), [], None) \
+        if packs else setup
+    ppo = {**trainer.ppo, **dict(hyperparameters or {})}
+    if num_envs > 0:
+        ppo["num_envs"] = num_envs
+    cfg = WalkerPPOConfig.from_mapping(ppo, "--hyperparameters")
+    factors, rates = overlay(spec, objective, setup)
+    c = setup.contract
+    config = {
+        **described, "backend": "mujoco", "trainer": "walker", "task_id": spec.task_id, "robot": setup.card.name,
+        "algorithm": "ppo", "seed": int(seed), "max_steps": int(max_steps), "max_wall_s": max_wall_s,
+        "hyperparameters": cfg.to_dict(), "objective": objective.to_dict(), "overlay_factors": factors,
+        "overlay_rates": rates._asdict(), "econ_gain": trainer.econ_gain,
+        "locomotion_rewards": {k: {"weight": w, **trainer.params.get(k, {})} for k, w in trainer.weights.items()},
+        "course": asdict(setup.course), "meter": asdict(setup.meter), "episode_s": setup.episode_s,
+        "stress": asdict(setup.stress), "selection_stress": asdict(nominal.stress),
+        "datapack_ids": list(setup.datapack_ids), "notes": list(setup.notes),
+        "init_policy": init.describe() if init else None, "economics": {r["name"]: r["value"]
+                                                                        for r in spec.economics.parameters()},
+        "seeds": {"training_from": TRAIN_SEED_BASE + int(seed) * 1_000_000,
+                  "selection_from": int(seed) + SELECTION_SEED_OFFSET},
+        "onnx": str(run_dir / ONNX_FILE)}
+    run = WalkerTrainingRun(
+        run_dir=run_dir, setup=setup, cfg=cfg, rates=rates, gain=trainer.econ_gain, weights=trainer.weights,
+        params=trainer.params, seed=int(seed), max_steps=int(max_steps), init=init,
+        max_wall_s=float(max_wall_s) if max_wall_s else math.inf, checkpoint_every_s=trainer.checkpoint_every_s,
+        selection=selection, metadata=_onnx_metadata(config),
+        kp=np.asarray(c.kp) if c else None, kd=np.asarray(c.kd) if c else None,
+        command_ranges=c.command_ranges if c else None, select_stress=nominal.stress)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    write_run_config(run_dir, {**config, "training": None}, "mujoco")  # an interrupted run can be resumed
+    config["training"] = run.train(resume=resume, progress=progress)
+    return config
+
+
+def _onnx_metadata(config: Mapping[str, Any]) -> dict[str, Any]:
+    keys = ("task_id", "objective", "overlay_factors", "econ_gain", "datapack_ids", "economics", "algorithm",
+            "seed", "robot", "trainer")
+    out = {k: config.get(k) for k in keys}
+    if config.get("init_policy"):
+        out["init_policy"] = {k: config["init_policy"][k] for k in ("policy", "sha256")}
+    return out
+
+
+#: held-out selection of a walker run: every 500k env steps at most, and at most 10% of the wall time
+WALKER_CADENCE = HeldOutCadence(every_steps=500_000, max_share=0.10)
+#: a held-out evaluation's first look (robots stepped together in the trainer's process)
+WALKER_SELECT_BATCH = 16
+
+
+def walker_curve(run_dir: Path) -> list[dict[str, Any]]:
+    """The run's training curve (``curve.jsonl``) with the registry's keys (``timesteps``, ``mean_return``:
+    the reward per control step of the iteration)."""
+    path = Path(run_dir) / CURVE_FILE
+    if not path.is_file():
+        return []
+    rows = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    return [{**r, "timesteps": float(r["env_steps"]),
+             "mean_return": float(r["reward_locomotion"] + r["reward_economic"])} for r in rows]

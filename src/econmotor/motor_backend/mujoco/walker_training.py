@@ -1,0 +1,280 @@
+"""The mujoco backend's CPU trainer of the card robots (G1, T1): PPO on the batched walker env.
+
+What a run does (:class:`WalkerTrainingRun`):
+
+1. builds the env that prices the robot (:class:`~econmotor.couriers.walker_env.WalkerBatch`: the same
+   model, course, stress, meter and fall rule) as a learner's env
+   (:class:`~econmotor.couriers.walker_train.WalkerLearningEnv`: random start points, the step reward);
+2. starts the actor from an ONNX walker's weights (``--init-policy``) or from scratch, with a fresh
+   privileged critic (:mod:`.walker_ppo`);
+3. iterates: ``steps_per_iteration`` control steps of every robot, then one PPO update; each
+   iteration's row goes to the training curve (``curve.jsonl``: legs per hour, Wh per leg and falls of
+   the episodes that ended, the reward's locomotion and economic parts, KL, learning rate, std);
+4. every ``checkpoint_every_s`` of wall time, and when interrupted, writes ``checkpoints/latest.pt``
+   (learner, iteration, env steps, next seed, the kept policy, the selection's record): ``--resume``
+   continues from it;
+5. held-out selection (:mod:`econmotor.motor_backend.selection`): at its cadence, the deterministic
+   actor walks held-out seeds of the priced course in this process under ``select_stress`` (the mujoco
+   backend passes the nominal conditions a report prices by default); the best by the buyer's verdict
+   and J is kept;
+6. stops at ``max_steps`` env steps or ``max_wall_s``, and exports the kept actor in Holosoma's ONNX
+   format (``policy.onnx``: holosoma_inference's loader and the sim-to-sim evaluator read it).
+
+Seeds: training episodes ``TRAIN_SEED_BASE + seed * 10**6 + i``; held-out selection's
+``seed + SELECTION_SEED_OFFSET + i`` (the selection module's); both ranges are recorded in
+``run_config.json`` so a comparison can stay apart from them.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from econmotor.couriers.onnx_actor import ImportedActor
+from econmotor.couriers.onnx_export import export_onnx
+from econmotor.couriers.policy_import import holosoma_export_metadata
+from econmotor.couriers.stress import Stress
+from econmotor.couriers.walker_env import WalkerBatch, run_episodes
+from econmotor.couriers.walker_model import WalkerModel
+from econmotor.couriers.walker_setup import WalkerSetup
+from econmotor.couriers.walker_train import PRIVILEGED_DIM, WalkerLearningEnv
+from econmotor.economics import courier_formulas as cf
+from econmotor.motor_backend.base import ProgressFn, no_progress
+from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, Rollout, WalkerPPO, WalkerPPOConfig
+from econmotor.motor_backend.selection import Selection
+
+#: training episodes are seeded from here on (apart from selection's and a report's seeds)
+TRAIN_SEED_BASE = 10_000_000
+CHECKPOINT_FILE = "checkpoints/latest.pt"
+CURVE_FILE = "curve.jsonl"
+ONNX_FILE = "policy.onnx"
+#: held-out selection runs this many robots together in the trainer's process
+SELECT_SLOTS = 16
+
+
+@dataclass
+class WalkerTrainingRun:
+    """One training run of a card robot (module docstring)."""
+
+    run_dir: Path
+    setup: WalkerSetup
+    cfg: WalkerPPOConfig
+    rates: cf.OverlayRates
+    gain: float
+    weights: Mapping[str, float]
+    params: Mapping[str, Mapping[str, Any]]
+    seed: int
+    max_steps: int
+    init: ImportedActor | None = None
+    max_wall_s: float = float("inf")
+    checkpoint_every_s: float = 300.0
+    selection: Selection | None = None
+    metadata: Mapping[str, Any] = field(default_factory=dict)
+    kp: np.ndarray | None = None
+    kd: np.ndarray | None = None
+    command_ranges: Mapping[str, Any] | None = None
+    #: the conditions held-out selection prices under (None: the training's stress)
+    select_stress: Stress | None = None
+
+    def __post_init__(self) -> None:
+        card = self.setup.card
+        self.kp = np.asarray(self.kp if self.kp is not None else card.kp, float)
+        self.kd = np.asarray(self.kd if self.kd is not None else card.kd, float)
+        self.command_ranges = dict(self.command_ranges or card.command_ranges)
+        self.walker = WalkerModel.build(card, self.kp, self.kd)
+
+    # ------------------------------------------------------------------ the pieces
+    def batch(self, slots: int, stress: Stress | None = None) -> WalkerBatch:
+        s = self.setup
+        return WalkerBatch(self.walker, s.course, s.meter, stress or s.stress, s.episode_s, slots, self.command_ranges)
+
+    def learner(self) -> WalkerPPO:
+        card = self.setup.card
+        if self.init is not None:
+            net = ActorCritic.from_actor(self.init, PRIVILEGED_DIM, self.cfg)
+        else:
+            net = ActorCritic(card.obs_dim, PRIVILEGED_DIM, card.num_dofs, self.cfg)
+        return WalkerPPO(net, self.cfg)
+
+    def deterministic_policy(self, learner: WalkerPPO) -> Callable[[np.ndarray], np.ndarray]:
+        return learner.mean_action
+
+    # ------------------------------------------------------------------ the loop
+    def train(self, resume: bool = False, progress: ProgressFn = no_progress) -> dict[str, Any]:
+        """Train to ``max_steps`` / ``max_wall_s``; write ``policy.onnx``; return the run's summary."""
+        torch.manual_seed(self.seed)
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        learner = self.learner()
+        state = {"iteration": 0, "env_steps": 0, "wall_s": 0.0,
+                 "next_seed": TRAIN_SEED_BASE + self.seed * 1_000_000, "kept": None}
+        if resume:
+            state = self._load(learner, state)
+        env = WalkerLearningEnv(self.batch(self.cfg.num_envs), self.rates, self.gain, self.weights, self.params,
+                                seed=state["next_seed"])
+        kept = state["kept"] or {"layers": learner.net.layers(), "env_steps": state["env_steps"], "why": "start"}
+        started, last_checkpoint = time.perf_counter() - state["wall_s"], time.perf_counter()
+        last_selected = state["env_steps"]
+        obs, priv = env.reset()
+        try:
+            while state["env_steps"] < self.max_steps and time.perf_counter() - started < self.max_wall_s:
+                t0 = time.perf_counter()
+                rollout, last_value, episodes, parts = self._collect(env, learner, obs, priv)
+                obs, priv = env._obs, env.privileged(env.slots)
+                stats = learner.update(rollout, last_value)
+                state["iteration"] += 1
+                state["env_steps"] += self.cfg.num_envs * self.cfg.steps_per_iteration
+                state["next_seed"] = env.next_seed
+                state["wall_s"] = time.perf_counter() - started
+                row = self._curve_row(state, stats, episodes, parts, time.perf_counter() - t0)
+                with (self.run_dir / CURVE_FILE).open("a") as f:
+                    f.write(json.dumps(row) + "\n")
+                progress(_status(row), min(state["env_steps"] / self.max_steps,
+                                           state["wall_s"] / self.max_wall_s), 1.0)
+                if self.selection is not None and self.selection.due(state["env_steps"], last_selected):
+                    kept = self._select(learner, state, kept, progress) or kept
+                    last_selected = state["env_steps"]
+                if time.perf_counter() - last_checkpoint >= self.checkpoint_every_s:
+                    self._save(learner, state, kept)
+                    last_checkpoint = time.perf_counter()
+            if self.selection is not None and last_selected < state["env_steps"]:
+                kept = self._select(learner, state, kept, progress) or kept
+        except BaseException:  # interrupted (Ctrl-C, SIGTERM): what was learned is kept for --resume
+            self._save(learner, state, kept)
+            raise
+        finally:
+            env.close()
+        if self.selection is None:
+            kept = {"layers": learner.net.layers(), "env_steps": state["env_steps"], "why": "the last update"}
+        self._save(learner, state, kept)
+        path = self.export(kept["layers"])
+        return {"onnx": str(path), "iterations": state["iteration"], "env_steps": state["env_steps"],
+                "wall_s": round(state["wall_s"], 1), "kept_at_env_steps": kept["env_steps"], "kept_why": kept["why"],
+                "selection": self.selection.record() if self.selection is not None else None}
+
+    def _collect(self, env: WalkerLearningEnv, learner: WalkerPPO, obs: np.ndarray, priv: np.ndarray
+                 ) -> tuple[Rollout, torch.Tensor, list[dict[str, Any]], dict[str, float]]:
+        """``steps_per_iteration`` control steps of every robot (truncations bootstrapped into the reward)."""
+        cfg = self.cfg
+        keys = ("obs", "privileged", "actions", "log_probs", "means", "values")
+        buf: dict[str, list[torch.Tensor]] = {k: [] for k in (*keys, "rewards", "dones")}
+        episodes: list[dict[str, Any]] = []
+        parts: dict[str, float] = {}
+        for _ in range(cfg.steps_per_iteration):
+            action, taken = learner.act(obs, priv)
+            out = env.step(action)
+            reward = out.reward.copy()
+            if out.truncated.any():
+                rows = np.flatnonzero(out.truncated)
+                reward[rows] += cfg.gamma * learner.value(out.terminal_obs[rows], out.terminal_privileged[rows])
+            for k in keys:
+                buf[k].append(taken[k])
+            buf["rewards"].append(torch.as_tensor(reward, dtype=torch.float32))
+            buf["dones"].append(torch.as_tensor(out.terminated | out.truncated, dtype=torch.float32))
+            episodes += out.episodes
+            for k, v in out.terms.items():
+                parts[k] = parts.get(k, 0.0) + v / cfg.steps_per_iteration
+            obs, priv = out.obs, out.privileged
+        last_value = torch.as_tensor(learner.value(obs, priv), dtype=torch.float32)
+        return Rollout(**{k: torch.stack(v) for k, v in buf.items()}), last_value, episodes, parts
+
+    def _curve_row(self, state: Mapping[str, Any], stats: Mapping[str, float], episodes: list[dict[str, Any]],
+                   parts: Mapping[str, float], iteration_s: float) -> dict[str, Any]:
+        units = sum(ep["units_completed"] for ep in episodes)
+        hours = sum(ep["episode_length_s"] for ep in episodes) / cf.SECONDS_PER_HOUR
+        energy = sum(ep["energy_wh"] for ep in episodes)
+        steps = self.cfg.num_envs * self.cfg.steps_per_iteration
+        return {"iteration": state["iteration"], "env_steps": state["env_steps"], "wall_s": round(state["wall_s"], 2),
+                "steps_per_s": round(steps / iteration_s, 1), "episodes": len(episodes),
+                "falls": sum(ep["errors"] for ep in episodes),
+                "legs_per_hour": units / hours if hours > 0 else None,
+                "wh_per_leg": energy / units if units > 0 else None,
+                "reward_locomotion": parts.get("locomotion", 0.0), "reward_economic": parts.get("economic", 0.0),
+                **{k: float(v) for k, v in stats.items()}}
+
+    # ------------------------------------------------------------------ selection
+    def evaluate(self, learner: WalkerPPO, num_episodes: int, first_seed: int,
+                 stop: Callable[[list[dict[str, Any]]], bool]) -> list[dict[str, Any]]:
+        """``num_episodes`` deterministic episodes of the priced course from the start (episode ``i`` seeded
+        ``first_seed + i``, as the evaluator seeds them), asking ``stop`` after every ``batch`` in order."""
+        batch = self.batch(min(SELECT_SLOTS, num_episodes), self.select_stress)
+        rows: dict[int, dict[str, Any]] = {}
+        ordered: list[dict[str, Any]] = []
+        decided: list[int] = []
+        look = self.selection.config.batch if self.selection is not None else num_episodes
+
+        def on_episode(index: int, metrics: dict[str, Any]) -> bool:
+            rows[index] = metrics
+            while not decided and len(ordered) in rows:
+                ordered.append(rows[len(ordered)])
+                if len(ordered) % look == 0 and stop(list(ordered)):
+                    decided.append(len(ordered))
+            return bool(decided)
+
+        try:
+            run_episodes(batch, self.deterministic_policy(learner),
+                         [(i, first_seed + i) for i in range(num_episodes)], on_episode)
+        finally:
+            batch.close()
+        return ordered[:decided[0]] if decided else ordered
+
+    def _select(self, learner: WalkerPPO, state: Mapping[str, Any], kept: dict[str, Any],
+                progress: ProgressFn) -> dict[str, Any] | None:
+        result, better = self.selection.consider(
+            state["env_steps"], lambda n, first, stop: self.evaluate(learner, n, first, stop))
+        progress(f"held-out {result.status()} J {result.j_mean:.3f} ({result.episodes} episodes, "
+                 f"{result.eval_s:.0f} s){' kept' if better else ''}", 1.0, 1.0)
+        if better:
+            return {"layers": learner.net.layers(), "env_steps": state["env_steps"],
+                    "why": self.selection.kept_reason()}
+        return None
+
+    # ------------------------------------------------------------------ files
+    def _save(self, learner: WalkerPPO, state: Mapping[str, Any], kept: Mapping[str, Any]) -> None:
+        path = self.run_dir / CHECKPOINT_FILE
+        path.parent.mkdir(parents=True, exist_ok=True)
+        record = {"learner": learner.state_dict(), "state": {**state, "kept": copy.deepcopy(dict(kept))},
+                  "selection": self.selection.record() if self.selection is not None else None}
+        tmp = path.with_suffix(".tmp")
+        torch.save(record, tmp)
+        tmp.replace(path)
+
+    def _load(self, learner: WalkerPPO, state: dict[str, Any]) -> dict[str, Any]:
+        path = self.run_dir / CHECKPOINT_FILE
+        if not path.is_file():
+            from econmotor.errors import ConfigError
+
+            raise ConfigError(str(self.run_dir), CHECKPOINT_FILE, "no checkpoint to resume from")
+        record = torch.load(path, weights_only=False)
+        learner.load_state_dict(record["learner"])
+        if self.selection is not None:
+            self.selection.restore(record.get("selection"))
+        return {**state, **record["state"]}
+
+    def export(self, layers: list[dict[str, np.ndarray]]) -> Path:
+        """``policy.onnx`` in Holosoma's format: the actor's mean, the robot's export metadata (its gains and
+        command ranges as this run's env applied them) and econmotor's entries."""
+        card = self.setup.card
+        holosoma = holosoma_export_metadata(card)
+        holosoma.update({"kp": [float(v) for v in self.kp], "kd": [float(v) for v in self.kd],
+                         "command_ranges": {k: [float(x) for x in v] for k, v in self.command_ranges.items()}})
+        bound = np.full(card.num_dofs, card.action_clip, np.float32)
+        return export_onnx({"policy": layers}, None, 0.0, -bound, bound, self.run_dir / ONNX_FILE,
+                           dict(self.metadata), activation=self.init.activation if self.init else self.cfg.activation,
+                           holosoma=holosoma)
+
+
+def _status(row: Mapping[str, Any]) -> str:
+    legs = row["legs_per_hour"]
+    wh = row["wh_per_leg"]
+    return (f"{row['env_steps'] / 1e6:.2f}M steps, {row['steps_per_s']:.0f}/s; episodes {row['episodes']} "
+            f"falls {row['falls']:g}; legs/h {legs:.1f}" if legs is not None else
+            f"{row['env_steps'] / 1e6:.2f}M steps, {row['steps_per_s']:.0f}/s; episodes {row['episodes']}") + \
+        (f", Wh/leg {wh:.2f}" if wh is not None else "") + f"; kl {row['kl']:.4f} lr {row['learning_rate']:.1e}"

@@ -1,0 +1,278 @@
+"""The mujoco backend's CPU trainer of the card robots (mujoco/walker_*.py, couriers/walker_train.py).
+
+- the actor started from an ONNX walker acts exactly as the ONNX before any update;
+- episodes start at random points of the course (legs, dwells, elapsed time) and, from the start,
+  span the whole course with its dwells; the runaway rule ends a training episode as a fall;
+- the minibatch size is the recipe's, the learning rate follows the KL, the anchor holds the reference;
+- the economic step reward sums to the overlay's J at the priced episode (hand-checked rates);
+- a tiny fine-tune end to end on the CLI: train (from the shipped G1 PPO), export in Holosoma's format,
+  price the export beside the shipped walker with ``compare``; a run resumes from its checkpoint.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from econmotor.couriers import course as crs
+from econmotor.couriers.onnx_actor import policy_file, read_actor
+from econmotor.couriers.policy_import import batched_onnx_policy, resolve_contract
+from econmotor.couriers.stress import Stress
+from econmotor.couriers.walker_env import WalkerBatch
+from econmotor.couriers.walker_model import WalkerModel
+from econmotor.couriers.walker_task import MeterSettings
+from econmotor.couriers.walker_train import PRIVILEGED_DIM, WalkerLearningEnv, start_point
+from econmotor.economics import courier_formulas as cf
+from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, Rollout, WalkerPPO, WalkerPPOConfig
+
+METER = MeterSettings(leg_distance_m=2.0, drivetrain_efficiency=0.8, idle_power_w=50.0, tilt_margin_rad=0.2,
+                      fall_tilt_rad=0.8)
+SHORT = crs.CourseSettings(leg_m=2.0, dwell_s=1.0, speed_m_per_s=0.8, legs=2)
+WEIGHTS = {"tracking_lin_vel": 2.0, "tracking_ang_vel": 1.5, "penalty_orientation": -10.0, "alive": 1.0}
+RATES = cf.OverlayRates(unit=1.0, wh=-0.1, error=-10.0, risk=-1e-3)
+
+
+@pytest.fixture(scope="module")
+def g1_ppo():
+    return resolve_contract("holosoma:g1_29dof/ppo")
+
+
+def _env(contract, n: int, course: crs.CourseSettings = SHORT, random_start: bool = True, episode_s: float = 30.0,
+         stress: Stress | None = None) -> WalkerLearningEnv:
+    walker = WalkerModel.build(contract.card, np.asarray(contract.kp), np.asarray(contract.kd))
+    batch = WalkerBatch(walker, course, METER, stress or Stress(), episode_s, n, contract.command_ranges)
+    return WalkerLearningEnv(batch, RATES, 2.0, WEIGHTS, seed=5, random_start=random_start)
+
+
+def test_initialised_actor_acts_as_the_onnx(g1_ppo) -> None:
+    actor = read_actor(policy_file("holosoma:g1_29dof/ppo"))
+    net = ActorCritic.from_actor(actor, PRIVILEGED_DIM, WalkerPPOConfig())
+    learner = WalkerPPO(net, WalkerPPOConfig())
+    env = _env(g1_ppo, 4)
+    obs, _ = env.reset()
+    onnx = batched_onnx_policy(g1_ppo)
+    for _ in range(5):  # a few steps of real walking observations
+        np.testing.assert_allclose(learner.mean_action(obs), onnx(obs), atol=2e-5)
+        obs = env.step(onnx(obs)).obs
+    env.close()
+
+
+def test_start_points_cover_the_course() -> None:
+    rng = np.random.default_rng(0)
+    points = [start_point(SHORT, rng, 0.02, 1500) for _ in range(400)]
+    legs = {int(s.leg) for _, s, _ in points}
+    dwelling = [p for p in points if p[1].dwell_left_s > 0]
+    walking = [p for p in points if p[1].dwell_left_s == 0]
+    assert legs == {0, 1}
+    # the dwell's share of a leg's nominal time: 1 s of 2 / 0.8 + 1 = 3.5 s
+    assert 0.2 < len(dwelling) / len(points) < 0.38
+    for x, s, elapsed in dwelling:  # at the leg's end, the leg counted, time spent walking it and part of the dwell
+        assert x == pytest.approx((s.leg + 1) * SHORT.leg_m) and s.legs_done == s.leg + 1
+        assert 0.0 < s.dwell_left_s <= SHORT.dwell_s
+        assert elapsed * 0.02 == pytest.approx(s.leg * 3.5 + 2.5 + 1.0 - s.dwell_left_s, abs=0.02)
+    for x, s, elapsed in walking:
+        assert s.leg * SHORT.leg_m <= x < (s.leg + 1) * SHORT.leg_m and s.legs_done == s.leg
+        assert elapsed * 0.02 == pytest.approx(s.leg * 3.5 + (x - s.leg * SHORT.leg_m) / 0.8, abs=0.02)
+
+
+def test_random_starts_place_robots_and_meter_from_there(g1_ppo) -> None:
+    env = _env(g1_ppo, 8)
+    env.reset()
+    b = env.batch
+    x = b._qpos(b.state)[:, 0]
+    assert len(np.unique(np.round(x, 3))) > 3  # robots placed along the course
+    np.testing.assert_allclose(b.sums.best_x, x)  # the meter's high-water mark starts where the robot stands
+    assert (b.steps > 0).any()  # and the time the course took so far counts against the limit
+    for s in range(b.n):
+        d = b.datas[s]
+        assert d.qpos[0] == pytest.approx(x[s])  # the physics moved, not only the record
+    env.close()
+
+
+def test_a_training_episode_from_the_start_spans_the_course(g1_ppo) -> None:
+    env = _env(g1_ppo, 2, random_start=False)
+    obs, _ = env.reset()
+    policy = batched_onnx_policy(g1_ppo)
+    episodes, truncated = [], 0
+    for _ in range(1500):
+        out = env.step(policy(obs))
+        obs = out.obs
+        truncated += int(out.truncated.sum())
+        episodes += out.episodes
+        if episodes:
+            break
+    assert episodes, "no episode ended in 30 s of a 2-leg course"
+    ep = episodes[0]
+    assert ep["legs_reached"] == SHORT.legs and ep["termination_reason"] == "course_done"
+    # both legs walked and both dwells stood: at least the legs at the command's speed plus the dwells
+    assert ep["episode_length_s"] >= SHORT.legs * (SHORT.leg_m / SHORT.speed_m_per_s + SHORT.dwell_s) * 0.9
+    assert truncated >= 1  # the course's end truncates (bootstrapped), it does not terminate
+    env.close()
+
+
+def test_runaway_ends_a_training_episode_as_a_fall(g1_ppo) -> None:
+    env = _env(g1_ppo, 2, random_start=False)
+    obs, _ = env.reset()
+    b = env.batch
+    qvel = b._qvel(b.state[0])
+    qvel[0] = 50.0  # a blow-up: the base at 50 m/s, upright
+    b.load_state(np.array([0]))
+    out = env.step(batched_onnx_policy(g1_ppo)(obs))
+    assert out.terminated[0] and not out.truncated[0]
+    assert out.episodes[0]["errors"] == 1.0
+    assert out.reward[0] < RATES.error * env.gain * 0.9  # the fall's price reached the learner
+    env.close()
+
+
+def test_economic_step_reward_sums_to_the_linearised_j(g1_ppo) -> None:
+    env = _env(g1_ppo, 2, random_start=False)
+    env.weights = {}  # the economic part only
+    obs, _ = env.reset()
+    policy = batched_onnx_policy(g1_ppo)
+    total = np.zeros(2)
+    for _ in range(200):
+        out = env.step(policy(obs))
+        obs, total = out.obs, total + out.reward
+    s = env.batch.sums
+    expected = env.gain * (RATES.unit * s.units + RATES.wh * s.energy_wh + RATES.error * s.errors
+                           + RATES.risk * s.risk_sum)
+    np.testing.assert_allclose(total, expected, rtol=1e-9)
+    env.close()
+
+
+def test_overlay_rates_hand_checked() -> None:
+    # energy_saver on the G1 task: f_mpl = 1 / 120 legs/h, f_energy = -3 / (50 W * 240 s / 3.6e6 kWh),
+    # f_err = -1 / 0.01, f_risk = -1; a 240 s episode of 3 legs at 200 Hz physics
+    factors = {"mpl_per_hour": 1 / 120, "energy_kwh": -3 / (50 * 240 / 3.6e6), "error_rate": -100.0,
+               "risk_score": -1.0}
+    r = cf.overlay_rates(factors, 240.0, 0.005, 3.0)
+    assert r.unit == pytest.approx(3600 / 240 / 120)  # one more leg in the episode: 15 legs/h more, / 120
+    assert r.wh == pytest.approx(-0.9)  # one Wh: 3 / 3.333 Wh
+    assert r.error == pytest.approx(-100 / 3)  # one fall in three legs: error rate 1/3, / 0.01
+    assert r.risk == pytest.approx(-0.005 / 240)  # risk 1 for one physics step of 48,000
+
+
+def _rollout(cfg: WalkerPPOConfig, obs_dim: int, act_dim: int, seed: int = 0) -> tuple[Rollout, torch.Tensor]:
+    g = torch.Generator().manual_seed(seed)
+    t, n = cfg.steps_per_iteration, cfg.num_envs
+    mean = torch.randn(t, n, act_dim, generator=g) * 0.1
+    actions = mean + 0.1 * torch.randn(t, n, act_dim, generator=g)
+    logp = torch.distributions.Normal(mean, 0.1).log_prob(actions).sum(-1)
+    priv = torch.randn(t, n, PRIVILEGED_DIM, generator=g)
+    return Rollout(obs=torch.randn(t, n, obs_dim, generator=g), privileged=priv,
+                   actions=actions, log_probs=logp, means=mean, values=torch.zeros(t, n),
+                   rewards=torch.randn(t, n, generator=g), dones=torch.zeros(t, n)), torch.zeros(n)
+
+
+def test_minibatches_are_the_recipes() -> None:
+    cfg = WalkerPPOConfig.from_mapping({"num_envs": 8, "steps_per_iteration": 32, "num_minibatches": 4,
+                                        "num_epochs": 3, "critic_warmup_iterations": 0, "hidden_sizes": [16],
+                                        "critic_hidden_sizes": [16]})
+    assert cfg.minibatch_size == 64
+    learner = WalkerPPO(ActorCritic(10, PRIVILEGED_DIM, 3, cfg), cfg)
+    seen: list[int] = []
+    learner.net.critic.register_forward_hook(lambda m, i, o: seen.append(i[0].shape[0]))
+    learner.update(*_rollout(cfg, 10, 3))
+    assert seen == [64] * 12  # 3 epochs x 4 minibatches of 64, every sample once an epoch
+
+
+def test_learning_rate_follows_the_kl_and_warmup_moves_only_the_critic() -> None:
+    cfg = WalkerPPOConfig.from_mapping({"num_envs": 8, "steps_per_iteration": 32, "critic_warmup_iterations": 1,
+                                        "hidden_sizes": [16], "critic_hidden_sizes": [16], "learning_rate": 1e-4})
+    learner = WalkerPPO(ActorCritic(10, PRIVILEGED_DIM, 3, cfg), cfg)
+    actor_before = [p.detach().clone() for p in learner.net.actor.parameters()]
+    stats = learner.update(*_rollout(cfg, 10, 3))
+    assert stats["critic_warmup"] == 1.0 and learner.learning_rate == 1e-4
+    assert all(torch.equal(a, b) for a, b in zip(actor_before, learner.net.actor.parameters(), strict=True))
+    learner._adapt(1.0)  # far above 2 x desired: divided by 1.5
+    assert learner.learning_rate == pytest.approx(1e-4 / 1.5)
+    learner._adapt(0.0)  # below half: multiplied by 1.5
+    assert learner.learning_rate == pytest.approx(1e-4)
+    assert learner.optimizer.param_groups[0]["lr"] == pytest.approx(1e-4)
+    learner.update(*_rollout(cfg, 10, 3, seed=1))
+    assert any(not torch.equal(a, b) for a, b in zip(actor_before, learner.net.actor.parameters(), strict=True))
+
+
+def test_the_anchor_pulls_towards_the_reference() -> None:
+    base = {"num_envs": 8, "steps_per_iteration": 32, "critic_warmup_iterations": 0, "hidden_sizes": [16],
+            "critic_hidden_sizes": [16], "learning_rate": 1e-3, "lr_bounds": [1e-3, 1e-3], "num_epochs": 8}
+    drift = {}
+    for coef in (0.0, 50.0):
+        torch.manual_seed(0)
+        cfg = WalkerPPOConfig.from_mapping({**base, "anchor_coef": coef})
+        learner = WalkerPPO(ActorCritic(10, PRIVILEGED_DIM, 3, cfg), cfg)
+        reference = [p.detach().clone() for p in learner.net.actor.parameters()]
+        for i in range(3):
+            learner.update(*_rollout(cfg, 10, 3, seed=i))
+        now = learner.net.actor.parameters()
+        drift[coef] = sum((a - b).detach().square().sum().item() for a, b in zip(reference, now, strict=True))
+    assert drift[50.0] < drift[0.0]
+
+
+def test_recipe_errors_name_the_key() -> None:
+    from econmotor.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="num_minibatches"):
+        WalkerPPOConfig.from_mapping({"num_envs": 3, "steps_per_iteration": 5, "num_minibatches": 2})
+    with pytest.raises(ConfigError, match="minibatch"):
+        WalkerPPOConfig.from_mapping({"minibatch": 3})
+
+
+def test_tiny_fine_tune_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """train (CLI) from the shipped G1 PPO -> policy.onnx in Holosoma's format -> compare beside the shipped walker;
+    then the run resumes from its checkpoint to a larger budget."""
+    from econmotor.cli import main
+
+    run = tmp_path / "run"
+    db = f"sqlite:///{tmp_path / 'reg.db'}"
+    train = ["train", "--motor-backend", "mujoco", "--task-id", "humanoid_locomotion_g1", "--objective-preset",
+             "energy_saver", "--num-envs", "4", "--select-every", "0", "--output-dir", str(run), "--db-url", db]
+    assert main([*train, "--init-policy", "holosoma:g1_29dof/ppo", "--max-steps", "200", "--eval-episodes", "2"]) == 0
+    assert "humanoid_locomotion_g1 on mujoco" in capsys.readouterr().out
+    config = json.loads((run / "run_config.json").read_text())
+    assert config["trainer"] == "walker" and config["init_policy"]["policy"] == "holosoma:g1_29dof/ppo"
+    per_iteration = 4 * config["hyperparameters"]["steps_per_iteration"]  # --num-envs 4 x the catalog's steps
+    assert config["hyperparameters"]["num_envs"] == 4
+    assert config["training"]["env_steps"] == per_iteration  # one iteration: the first past 200
+    exported = read_actor(run / "policy.onnx")
+    assert exported.input_name == "actor_obs" and exported.hidden_sizes == (512, 256, 128)
+    assert resolve_contract(str(run / "policy.onnx")).card.name == "g1_29dof"
+    assert main(["compare", "--task-id", "humanoid_locomotion_g1", "--policy", str(run / "policy.onnx"),
+                 "--policy", "holosoma:g1_29dof/ppo", "--eval-episodes", "2", "--db-url", db,
+                 "--output-dir", str(tmp_path / "cmp")]) == 0
+    result = json.loads((tmp_path / "cmp" / "compare.json").read_text())
+    assert len(json.dumps(result)) > 0 and str(run / "policy.onnx") in json.dumps(result)
+
+
+def test_an_interrupted_run_resumes_from_its_checkpoint(tmp_path: Path) -> None:
+    from econmotor.config.objective_profile import ObjectiveVector
+    from econmotor.motor_backend.mujoco.backend import MujocoBackend
+    from econmotor.objectives.loader import objective_from_vector
+
+    objective = objective_from_vector(ObjectiveVector.from_preset("throughput"), "throughput")
+    backend = MujocoBackend(runs_dir=tmp_path)
+    iterations = []
+
+    def interrupt_at_the_second(message: str, done: float, total: float) -> None:
+        if " steps, " in message:
+            iterations.append(message)
+            if len(iterations) == 2:
+                raise KeyboardInterrupt
+
+    run = tmp_path / "run"
+    kwargs = {"num_envs": 4, "seed": 3, "output_dir": run, "select_every_steps": 0, "eval_episodes": 0}
+    with pytest.raises(KeyboardInterrupt):
+        backend.train_policy("humanoid_locomotion_g1", objective, [], max_steps=10**6,
+                             init_policy="holosoma:g1_29dof/ppo", progress=interrupt_at_the_second, **kwargs)
+    assert not backend.is_complete_run(run)
+    per_iteration = 4 * json.loads((run / "run_config.json").read_text())["hyperparameters"]["steps_per_iteration"]
+    result = backend.train_policy("humanoid_locomotion_g1", objective, [], max_steps=3 * per_iteration, resume=True,
+                                  **kwargs)
+    rows = [json.loads(line) for line in (run / "curve.jsonl").read_text().splitlines()]
+    assert [r["iteration"] for r in rows] == [1, 2, 3]  # the two before the interruption, then one more
+    assert result.config["training"]["env_steps"] == 3 * per_iteration and backend.is_complete_run(run)
+    assert result.config["init_policy"]["policy"] == "holosoma:g1_29dof/ppo"
