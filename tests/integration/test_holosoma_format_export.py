@@ -83,3 +83,31 @@ def test_export_of_the_imported_g1_walker_loads_and_acts_in_holosoma_inference(t
     assert mine["contract"]["obs_dim"] == 100 and mine["contract"]["preset"] == "g1-29dof-loco"
     assert mine["contract"]["dof_names"] == theirs["contract"]["dof_names"] == list(G1_29DOF.dof_names)
     assert mine["contract"]["action_scale"] == G1_29DOF.action_scale
+
+
+def test_the_cpu_trainers_export_loads_and_acts_in_holosoma_inference(tmp_path: Path) -> None:
+    """The mujoco walker trainer's export (``walker_training.export_walker``) of the shipped actor acts as the shipped
+    file in holosoma_inference's loader; the fine-tuned G1 walkers committed under benchmarks/results load there
+    and act as onnxruntime runs them here."""
+    from econmotor.couriers.policy_import import batched_onnx_policy, resolve_contract
+    from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, WalkerPPOConfig
+    from econmotor.motor_backend.mujoco.walker_training import export_walker
+
+    shipped = shipped_policy_path("holosoma:g1_29dof/ppo", find_holosoma_python(REPO / ".venv-holosoma"))
+    actor = read_actor(shipped, "holosoma:g1_29dof/ppo")
+    layers = ActorCritic.from_actor(actor, 9, WalkerPPOConfig()).layers()
+    contract = resolve_contract(str(shipped))
+    ours = export_walker(layers, G1_29DOF, np.asarray(contract.kp), np.asarray(contract.kd), contract.command_ranges,
+                         actor.activation, tmp_path / "policy.onnx", {"task_id": "humanoid_locomotion_g1"})
+    obs = np.random.default_rng(1).normal(0.0, 0.5, size=(16, actor.obs_dim)).astype(np.float32)
+    np.save(tmp_path / "obs.npy", obs)
+    got = in_holosoma(LOAD, str(ours), str(shipped), str(tmp_path / "obs.npy"))
+    np.testing.assert_allclose(np.asarray(got["ours"]["actions"]), np.asarray(got["shipped"]["actions"]),
+                               rtol=1e-5, atol=1e-5)
+    assert got["ours"]["kp"] == got["shipped"]["kp"] and got["ours"]["contract"]["preset"] == "g1-29dof-loco"
+    committed = sorted((REPO / "benchmarks" / "results" / "g1_objectives").glob("*.onnx"))
+    for path in committed:
+        got = in_holosoma(LOAD, str(path), str(shipped), str(tmp_path / "obs.npy"))["ours"]
+        here = batched_onnx_policy(resolve_contract(str(path)))(obs)
+        np.testing.assert_allclose(np.asarray(got["actions"]), here, rtol=1e-5, atol=1e-5)
+        assert got["contract"]["dof_names"] == list(G1_29DOF.dof_names)

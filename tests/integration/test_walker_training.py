@@ -238,6 +238,14 @@ def test_tiny_fine_tune_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture
     per_iteration = 4 * config["hyperparameters"]["steps_per_iteration"]  # --num-envs 4 x the catalog's steps
     assert config["hyperparameters"]["num_envs"] == 4
     assert config["training"]["env_steps"] == per_iteration  # one iteration: the first past 200
+    assert main(["report", "--motor-backend", "none", "--task-id", "humanoid_locomotion_g1", "--run-id", "1",
+                 "--db-url", db, "--output-dir", str(tmp_path / "report")]) == 0
+    document = json.loads((tmp_path / "report" / "humanoid_locomotion_g1_run1.json").read_text())
+    seen = document["learned_with"]  # the report says what the learner saw
+    assert seen["econ_gain"] == config["econ_gain"] and seen["per_error"] < 0 < seen["per_unit"]
+    assert seen["per_wh"] < 0 and "tracking_lin_vel" in seen["locomotion"]
+    assert document["started_from"]["policy"] == "holosoma:g1_29dof/ppo"
+    assert "learned with" in (tmp_path / "report" / "humanoid_locomotion_g1_run1.md").read_text()
     exported = read_actor(run / "policy.onnx")
     assert exported.input_name == "actor_obs" and exported.hidden_sizes == (512, 256, 128)
     assert resolve_contract(str(run / "policy.onnx")).card.name == "g1_29dof"

@@ -42,9 +42,10 @@ BASE_TERMS = ("tracking_lin_vel", "tracking_ang_vel", "penalty_ang_vel_xy", "pen
 PRIVILEGED_DIM = 9
 
 
-def start_point(course: crs.CourseSettings, rng: np.random.Generator, control_dt_s: float,
-                limit_steps: int) -> tuple[float, crs.CourseState, int]:
-    """A random point of the course: ``(x_m, course state, elapsed control steps)``.
+def course_point(course: crs.CourseSettings, u: Any, control_dt_s: float, limit_steps: int,
+                 xp: Any) -> tuple[Any, crs.CourseState, Any]:
+    """The point of the course that three uniforms ``u[..., 0:3]`` in [0, 1) pick: ``(x_m, course state,
+    elapsed control steps)`` (pure; NumPy or JAX).
 
     A leg ``k`` uniform over the course's legs (1 for an endless course); then, with the dwell's share
     of a leg's nominal time (walking at the course speed), in the dwell at the leg's end with a uniform
@@ -52,18 +53,24 @@ def start_point(course: crs.CourseSettings, rng: np.random.Generator, control_dt
     capped a second short of the time limit.
     """
     legs = max(int(course.legs), 1)
-    k = int(rng.integers(0, legs))
+    k = xp.floor(u[..., 0] * legs)
     walk_s = course.leg_m / max(course.speed_m_per_s, 1e-6)
-    in_dwell = course.dwell_s > 0 and rng.uniform() < course.dwell_s / (walk_s + course.dwell_s)
-    if in_dwell:
-        left = float(rng.uniform(0.0, course.dwell_s))
-        x, state = (k + 1) * course.leg_m, crs.CourseState(float(k), left, float(k + 1))
-        elapsed_s = k * (walk_s + course.dwell_s) + walk_s + course.dwell_s - left
-    else:
-        f = float(rng.uniform())
-        x, state = (k + f) * course.leg_m, crs.CourseState(float(k), 0.0, float(k))
-        elapsed_s = k * (walk_s + course.dwell_s) + f * walk_s
-    return x, state, int(min(elapsed_s / control_dt_s, limit_steps - 1.0 / control_dt_s))
+    dwell_share = course.dwell_s / (walk_s + course.dwell_s) if course.dwell_s > 0 else 0.0
+    in_dwell = u[..., 1] < dwell_share
+    left = u[..., 2] * course.dwell_s
+    x = xp.where(in_dwell, (k + 1.0) * course.leg_m, (k + u[..., 2]) * course.leg_m)
+    state = crs.CourseState(k, xp.where(in_dwell, left, 0.0), xp.where(in_dwell, k + 1.0, k))
+    elapsed_s = k * (walk_s + course.dwell_s) + xp.where(in_dwell, walk_s + course.dwell_s - left,
+                                                          u[..., 2] * walk_s)
+    steps = xp.minimum(xp.floor(elapsed_s / control_dt_s), limit_steps - 1.0 / control_dt_s)
+    return x, state, steps
+
+
+def start_point(course: crs.CourseSettings, rng: np.random.Generator, control_dt_s: float,
+                limit_steps: int) -> tuple[float, crs.CourseState, int]:
+    """A random point of the course (:func:`course_point` of three uniforms drawn from ``rng``)."""
+    x, state, steps = course_point(course, rng.uniform(size=3), control_dt_s, limit_steps, np)
+    return float(x), crs.CourseState(*(float(v) for v in state)), int(steps)
 
 
 @dataclass

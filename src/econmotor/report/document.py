@@ -28,6 +28,10 @@ Schema ``econmotor.task_pricing_report`` version :data:`REPORT_SCHEMA_VERSION`::
     started_from: null, or what the training run's actor started from (``--init-policy``, the mjx
                  backend's ``init_policy`` record): {policy, sha256, hidden_sizes, activation,
                  critic_warmup_iterations}
+    learned_with: null, or the reward the training run's learner saw, where the backend records it (the
+                 mujoco backend's walker trainer): {econ_gain, per_unit, per_wh, per_error, locomotion
+                 {term: weight}, datapack_ids}: the objective's overlay in reward units per leg, Wh and
+                 fall, beside the locomotion terms
     evaluation:  how the episode count was chosen and why the evaluation stopped: {rule: sequential |
                  fixed | after training, episodes, and for a sequential one method, plan {batch, max_episodes,
                  max_wall_s, looks, look_confidence}, looks [{episodes, outcome, why, wall_s}], outcome
@@ -159,6 +163,18 @@ def started_from(train_run: Any) -> dict[str, Any] | None:
     return {k: init.get(k) for k in ("policy", "sha256", "hidden_sizes", "activation", "critic_warmup_iterations")}
 
 
+def learned_with(train_run: Any) -> dict[str, Any] | None:
+    """The document's ``learned_with`` (module docstring) from the training run's recorded config."""
+    config = (getattr(train_run, "config", None) or {}).get("backend_config") or {}
+    if "econ_gain" not in config or "overlay_rates" not in config:
+        return None
+    gain, rates = float(config["econ_gain"]), config["overlay_rates"]
+    return {"econ_gain": gain, "per_unit": gain * rates["unit"], "per_wh": gain * rates["wh"],
+            "per_error": gain * rates["error"],
+            "locomotion": {k: v.get("weight") for k, v in (config.get("locomotion_rewards") or {}).items()},
+            "datapack_ids": list(config.get("datapack_ids") or [])}
+
+
 def recommendation(verdict: Verdict, uncertainty: Uncertainty, spread_share: float) -> dict[str, Any] | None:
     """The price to charge, at the unfavourable end of the intervals; ``None`` when not deployable."""
     if not verdict.deployable:
@@ -250,6 +266,7 @@ def build_document(ctx: ReportContext, generated_at: dt.datetime | None = None) 
         "training_curve": list(ctx.training_curve),
         "selection": selection_facts(ctx.train_run, priced, len(ctx.episodes)),
         "started_from": started_from(ctx.train_run),
+        "learned_with": learned_with(ctx.train_run),
         "evaluation": evaluation_facts(priced, len(ctx.episodes)),
         "registry": {"db_url": ctx.db_url, "report_id": None},
     }

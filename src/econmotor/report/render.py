@@ -256,6 +256,17 @@ def started_from_text(start: Mapping[str, Any] | None) -> str | None:
             f"fine-tuned for this objective after {start.get('critic_warmup_iterations')} critic-only iterations")
 
 
+def learned_with_text(seen: Mapping[str, Any] | None) -> str | None:
+    """The reward the learner saw (the document's ``learned_with``), or None where the backend does not say."""
+    if not seen:
+        return None
+    terms = ", ".join(f"{k} {fmt(v)}" for k, v in seen["locomotion"].items()) or "none"
+    packs = ", ".join(seen["datapack_ids"]) or "nominal conditions"
+    return (f"the objective's overlay x {fmt(seen['econ_gain'])} (reward per unit {fmt(seen['per_unit'])}, per Wh "
+            f"{fmt(seen['per_wh'])}, per error {fmt(seen['per_error'])}) beside the locomotion terms ({terms}), "
+            f"under {packs}")
+
+
 def imported_policy_text(eval_run: Mapping[str, Any] | None) -> str:
     """How an evaluation's figures were made, from its recorded provenance (``MotorEvalResult.provenance``):
     imported or not, the evaluator, and on a commanded course the speed achieved against the speed commanded;
@@ -291,6 +302,9 @@ def _sections(doc: Mapping[str, Any]) -> dict[str, Any]:
     kept = selection_text(doc.get("selection"))
     if kept:
         facts.insert(facts.index(("training run", _run_line(doc["runs"]["train"]))) + 1, ("policy kept", kept))
+    seen = learned_with_text(doc.get("learned_with"))
+    if seen:
+        facts.insert(facts.index(("training run", _run_line(doc["runs"]["train"]))) + 1, ("learned with", seen))
     start = started_from_text(doc.get("started_from"))
     if start:
         facts.insert(facts.index(("training run", _run_line(doc["runs"]["train"]))) + 1, ("started from", start))

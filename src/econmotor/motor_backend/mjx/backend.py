@@ -193,16 +193,19 @@ class MjxBackend(MotorBackendBase):
         return parse_mjx_settings(self.catalog.get(task_id))
 
     def env(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str] = (),
-            datapack_configs: Sequence[DatapackConfig] | None = None) -> tuple[Any, dict[str, Any]]:
-        """The (memoised) env for a task, objective and datapacks, and a JSON-able description."""
+            datapack_configs: Sequence[DatapackConfig] | None = None,
+            random_start: bool = False) -> tuple[Any, dict[str, Any]]:
+        """The (memoised) env for a task, objective and datapacks, and a JSON-able description;
+        ``random_start``: a robot card's episodes start at random points of the course (training)."""
         configs = list(datapack_configs or ())
         bundle = self.provider.resolve(task_id, datapack_ids, configs)
-        memo = json.dumps([task_id, objective.to_dict(), [p.to_dict() for p in configs], list(bundle.datapack_ids)],
-                          sort_keys=True, default=str)
+        memo = json.dumps([task_id, objective.to_dict(), [p.to_dict() for p in configs], list(bundle.datapack_ids),
+                           random_start], sort_keys=True, default=str)
         if memo not in self._envs:
             self._envs[memo] = env_class(self.settings(task_id))(
                 task_id, objective=objective, datapacks=[bundle] if configs or bundle.datapack_ids else [],
-                catalog=self.catalog, keep_task_reward=self.keep_task_reward)
+                catalog=self.catalog, keep_task_reward=self.keep_task_reward,
+                **({"random_start": True} if random_start else {}))
         env = self._envs[memo]
         spec = self.catalog.get(task_id)
         described = {
@@ -285,6 +288,9 @@ class MjxBackend(MotorBackendBase):
             raise ConfigError("<train>", "max_steps", "must be >= 1")
         settings = self.settings(task_id)
         env, described = self.env(task_id, objective, datapack_ids, datapack_configs)
+        # the card robots train from random points of the course (held-out and final evaluations from its start)
+        train_env = self.env(task_id, objective, datapack_ids, datapack_configs, random_start=True)[0] \
+            if settings.robot is not None else env
         cfg = self.ppo_config(settings, hyperparameters)
         used_envs, note = self.resolve_num_envs(settings, int(num_envs))
         cfg, note = self.fit_minibatches(cfg, used_envs, note, hyperparameters)
@@ -306,7 +312,7 @@ class MjxBackend(MotorBackendBase):
             extra["init_policy"] = {**actor.describe(), "init_log_std": cfg.init_log_std,
                                     "critic_warmup_iterations": cfg.critic_warmup_iterations, "notes": notes}
         run = MjxTrainingRun(
-            run_dir=self.run_dir(output_dir, task_id, seed), env=env, described=described, cfg=cfg,
+            run_dir=self.run_dir(output_dir, task_id, seed), env=train_env, described=described, cfg=cfg,
             requested_hyperparameters=hyperparameters, num_envs=used_envs, max_steps=int(max_steps), seed=int(seed),
             checkpoint_every_steps=int(checkpoint_every_steps or settings.checkpoint_every_steps),
             extra_config=extra, initial=initial,

@@ -57,6 +57,7 @@ from econmotor.couriers.locomotion_rewards import TERMS, LocomotionReading, loco
 from econmotor.couriers.overlay import human_baseline_references, overlay_term_factors
 from econmotor.couriers.physics import has_fallen, root_tilt_rad
 from econmotor.couriers.stress import Stress
+from econmotor.couriers.walker_train import course_point
 from econmotor.economics import courier_formulas as cf
 from econmotor.economics.termination import TerminationReason
 from econmotor.errors import ConfigError
@@ -169,8 +170,10 @@ class MjxHumanoidCourierEnv:
 
     def __init__(self, task_id: str, *, objective: EconomicObjectiveSpec | None = None,
                  datapacks: Sequence[Any] = (), seed: int = 0, catalog: Any = None,
-                 keep_task_reward: bool = True, economics: bool = True) -> None:
+                 keep_task_reward: bool = True, economics: bool = True, random_start: bool = False) -> None:
         spec, self.settings, where = task_settings(task_id, catalog)
+        #: start every episode at a random point of the course (training; :func:`couriers.walker_train.course_point`)
+        self.random_start = bool(random_start)
         s = self.settings
         self.task_id, self.seed = task_id, int(seed)
         self.card = c = robot_card(s.robot, where)
@@ -257,7 +260,7 @@ class MjxHumanoidCourierEnv:
     # ------------------------------------------------------------------ one env
     def _reset_one(self, key: jax.Array):
         st, n = self.stress, self.card.num_dofs
-        k_q, k_mu, k_pay, k_kp, k_kd, k_push = jax.random.split(key, 6)
+        k_q, k_mu, k_pay, k_kp, k_kd, k_push, k_start = jax.random.split(key, 7)
         qpos = self._qpos0
         if st.initial_joint_noise_rad > 0:
             noise = st.initial_joint_noise_rad
@@ -276,9 +279,16 @@ class MjxHumanoidCourierEnv:
                  "last_action": jnp.zeros(n, jnp.float32), "command": jnp.zeros(3, jnp.float32),
                  **{k: zero + v for k, v in start._asdict().items()}, "time_s": zero,
                  "next_push_s": self._draw(k_push, st.push_interval_s) if st.push_interval_s else jnp.full((), jnp.inf)}
-        obs, observed = self._observe(data, robot)
         episode = {k: zero for k in EPISODE_KEYS}
-        episode["best_x"] = episode["x0"] = qpos[0]
+        if self.random_start:  # a random point of the course: the base there, the course's time so far spent
+            x, point, steps = course_point(self.course, jax.random.uniform(k_start, (3,)), self.control_dt_s,
+                                           self.max_episode_steps, jnp)
+            data = data.replace(qpos=data.qpos.at[0].set(x))
+            robot = {**robot, **{k: zero + v for k, v in point._asdict().items()}, "time_s": steps * self.control_dt_s,
+                     "next_push_s": robot["next_push_s"] + steps * self.control_dt_s}
+            episode["control_steps"] = zero + steps
+        obs, observed = self._observe(data, robot)
+        episode["best_x"] = episode["x0"] = data.qpos[0]
         return data, obs, _like(observed, robot), episode, dr
 
     def _step_one(self, data: Any, robot: dict[str, jax.Array], ep: dict[str, jax.Array],

@@ -22,6 +22,8 @@ per run. This module jits plain functions on one device instead, so each compile
    (1; 0 during a critic warm-up, ``cfg.critic_warmup_iterations``: the actor's gradients are then
    exactly zero, so an actor started from a walker that exists (``--init-policy``) does not move
    while the fresh critic learns its values; the host loop then starts Adam afresh, ``training.py``).
+   With ``cfg.desired_kl`` the rate follows the KL between the rollout's policy and the updated one
+   after every minibatch (:func:`adapt_learning_rate`).
 
 ``metrics`` holds the losses and, over the episodes that ended during the rollout, the count
 and the sums of every raw metric the env reports in ``finished`` (returns, overlay terms, ...).
@@ -69,6 +71,10 @@ class PPOConfig:
         clip_obs: clip of the normalised observations.
         normalize_advantages: standardise advantages per minibatch.
         reward_scaling: rewards are multiplied by this for learning only (metrics stay in task units).
+        desired_kl: > 0: the learning rate follows the KL between the rollout's policy and the updated one
+            after every minibatch (rsl_rl's rule, as the mujoco walker trainer's: above twice this divide
+            by 1.5, below half of it multiply by 1.5, within ``lr_bounds``); 0: a fixed rate.
+        lr_bounds: the adaptive rate's range.
     """
 
     learning_rate: float = 3e-4
@@ -89,6 +95,8 @@ class PPOConfig:
     clip_obs: float = 10.0
     normalize_advantages: bool = True
     reward_scaling: float = 1.0
+    desired_kl: float = 0.0
+    lr_bounds: tuple[float, float] = (1e-6, 1e-3)
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, Any] | None, source: str = "<hyperparameters>") -> PPOConfig:
@@ -108,6 +116,10 @@ class PPOConfig:
                     if raw not in nets.ACTIVATIONS:
                         raise ValueError(f"expected one of {', '.join(nets.ACTIVATIONS)}")
                     kw[key] = raw
+                elif key == "lr_bounds":
+                    kw[key] = tuple(float(v) for v in raw)
+                    if len(kw[key]) != 2 or not 0 < kw[key][0] <= kw[key][1]:
+                        raise ValueError("expected [low, high] with 0 < low <= high")
                 elif isinstance(default, tuple):
                     kw[key] = tuple(int(v) for v in raw)
                     if not kw[key] or min(kw[key]) < 1:
@@ -126,6 +138,7 @@ class PPOConfig:
     def to_dict(self) -> dict[str, Any]:
         out = asdict(self)
         out["hidden_sizes"] = list(self.hidden_sizes)
+        out["lr_bounds"] = list(self.lr_bounds)
         return out
 
 
@@ -159,7 +172,27 @@ class Transition(NamedTuple):
 
 
 def make_optimizer(cfg: PPOConfig) -> optax.GradientTransformation:
-    return optax.chain(optax.clip_by_global_norm(cfg.max_grad_norm), optax.adam(cfg.learning_rate, eps=1e-5))
+    """Adam after a global-norm clip; with ``desired_kl`` its rate is a state the update adapts
+    (:func:`adapt_learning_rate`)."""
+    adam = optax.inject_hyperparams(optax.adam)(learning_rate=cfg.learning_rate, eps=1e-5) if cfg.desired_kl > 0 \
+        else optax.adam(cfg.learning_rate, eps=1e-5)
+    return optax.chain(optax.clip_by_global_norm(cfg.max_grad_norm), adam)
+
+
+def adapt_learning_rate(opt_state: Any, kl: jax.Array, cfg: PPOConfig) -> Any:
+    """The optimizer state with its rate adapted to ``kl`` (rsl_rl's rule, :class:`PPOConfig`'s ``desired_kl``)."""
+    clip_state, adam_state = opt_state
+    lr = adam_state.hyperparams["learning_rate"]
+    lr = jnp.where(kl > 2.0 * cfg.desired_kl, lr / 1.5, jnp.where(kl < 0.5 * cfg.desired_kl, lr * 1.5, lr))
+    lr = jnp.clip(lr, cfg.lr_bounds[0], cfg.lr_bounds[1])
+    return clip_state, adam_state._replace(hyperparams={**adam_state.hyperparams, "learning_rate": lr})
+
+
+def gaussian_kl(mean0: jax.Array, mean1: jax.Array, log_std0: jax.Array, log_std1: jax.Array) -> jax.Array:
+    """Mean over rows of ``KL(N(mean0, e^log_std0) || N(mean1, e^log_std1))``, summed over the action."""
+    var0, var1 = jnp.exp(2.0 * log_std0), jnp.exp(2.0 * log_std1)
+    kl = log_std1 - log_std0 + (var0 + (mean0 - mean1) ** 2) / (2.0 * var1) - 0.5
+    return jnp.mean(jnp.sum(kl, axis=-1))
 
 
 def init_learner(key: jax.Array, obs_size: int, action_size: int, cfg: PPOConfig) -> Learner:
@@ -253,18 +286,27 @@ def make_train_iteration(env: Any, cfg: PPOConfig, num_envs: int):
         return (learner, nxt, key), (tr, ended)
 
     def update_minibatch(carry, batch):
-        params, opt_state, actor_weight = carry
+        params, opt_state, actor_weight, old_log_std = carry
+        batch, old_mean = batch[:-1], batch[-1]
         (_, info), grads = jax.value_and_grad(ppo_loss, has_aux=True)(params, batch, cfg, actor_weight)
         updates, opt_state = optimizer.update(grads, opt_state, params)
-        return (optax.apply_updates(params, updates), opt_state, actor_weight), info
+        params = optax.apply_updates(params, updates)
+        if cfg.desired_kl > 0:  # the KL of this minibatch's rollout policy to the updated one sets the next rate
+            kl = gaussian_kl(old_mean, nets.policy_mean(params, batch[0], cfg.activation), old_log_std,
+                             params["log_std"])
+            opt_state = jax.lax.cond(actor_weight > 0, lambda o: adapt_learning_rate(o, kl, cfg), lambda o: o,
+                                     opt_state)
+            info = {**info, "kl": kl, "learning_rate": opt_state[1].hyperparams["learning_rate"]}
+        return (params, opt_state, actor_weight, old_log_std), info
 
     def update_epoch(carry, key):
-        params, opt_state, flat, actor_weight = carry
+        params, opt_state, flat, actor_weight, old_log_std = carry
         perm = jax.random.permutation(key, batch_size)
         shuffled = jax.tree_util.tree_map(lambda a: a[perm].reshape(cfg.num_minibatches, minibatch, *a.shape[1:]),
                                           flat)
-        (params, opt_state, _), info = jax.lax.scan(update_minibatch, (params, opt_state, actor_weight), shuffled)
-        return (params, opt_state, flat, actor_weight), info
+        (params, opt_state, _, _), info = jax.lax.scan(update_minibatch,
+                                                       (params, opt_state, actor_weight, old_log_std), shuffled)
+        return (params, opt_state, flat, actor_weight, old_log_std), info
 
     def iteration(state: TrainState, actor_weight: jax.Array | float = 1.0) -> tuple[TrainState, dict[str, jax.Array]]:
         learner = state.learner
@@ -274,12 +316,14 @@ def make_train_iteration(env: Any, cfg: PPOConfig, num_envs: int):
         advantage, target = gae(tr, last_value, cfg.gamma, cfg.gae_lambda)
         stats = nets.update_stats(learner.stats, tr.raw_obs) if cfg.normalize_obs else learner.stats
         mask = 1.0 - tr.truncated
+        old_mean = nets.policy_mean(learner.params, tr.x, cfg.activation)  # the rollout's policy (for the KL)
         flat = jax.tree_util.tree_map(lambda a: a.reshape(batch_size, *a.shape[2:]),
-                                      (tr.x, tr.action, tr.log_prob, advantage, target, mask))
+                                      (tr.x, tr.action, tr.log_prob, advantage, target, mask, old_mean))
         key, k_epochs = jax.random.split(key)
         weight = jnp.asarray(actor_weight, jnp.float32)
-        (params, opt_state, _, _), info = jax.lax.scan(update_epoch, (learner.params, learner.opt_state, flat, weight),
-                                                       jax.random.split(k_epochs, cfg.num_epochs))
+        carry = (learner.params, learner.opt_state, flat, weight, learner.params["log_std"])
+        (params, opt_state, _, _, _), info = jax.lax.scan(update_epoch, carry,
+                                                          jax.random.split(k_epochs, cfg.num_epochs))
         metrics = {k: jnp.mean(v) for k, v in info.items()}
         metrics["episodes"] = jnp.sum(tr.done)
         metrics.update({f"sum/{k}": jnp.sum(v) for k, v in ended.items()})

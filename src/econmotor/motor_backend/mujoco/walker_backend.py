@@ -134,8 +134,9 @@ def train_walker(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[An
         "course": asdict(setup.course), "meter": asdict(setup.meter), "episode_s": setup.episode_s,
         "stress": asdict(setup.stress), "selection_stress": asdict(nominal.stress),
         "datapack_ids": list(setup.datapack_ids), "notes": list(setup.notes),
-        "init_policy": init.describe() if init else None, "economics": {r["name"]: r["value"]
-                                                                        for r in spec.economics.parameters()},
+        "init_policy": {**init.describe(), "critic_warmup_iterations": cfg.critic_warmup_iterations}
+        if init else None,
+        "economics": {r["name"]: r["value"] for r in spec.economics.parameters()},
         "seeds": {"training_from": TRAIN_SEED_BASE + int(seed) * 1_000_000,
                   "selection_from": int(seed) + SELECTION_SEED_OFFSET},
         "onnx": str(run_dir / ONNX_FILE)}

@@ -259,16 +259,24 @@ class WalkerTrainingRun:
         return {**state, **record["state"]}
 
     def export(self, layers: list[dict[str, np.ndarray]]) -> Path:
-        """``policy.onnx`` in Holosoma's format: the actor's mean, the robot's export metadata (its gains and
-        command ranges as this run's env applied them) and econmotor's entries."""
-        card = self.setup.card
-        holosoma = holosoma_export_metadata(card)
-        holosoma.update({"kp": [float(v) for v in self.kp], "kd": [float(v) for v in self.kd],
-                         "command_ranges": {k: [float(x) for x in v] for k, v in self.command_ranges.items()}})
-        bound = np.full(card.num_dofs, card.action_clip, np.float32)
-        return export_onnx({"policy": layers}, None, 0.0, -bound, bound, self.run_dir / ONNX_FILE,
-                           dict(self.metadata), activation=self.init.activation if self.init else self.cfg.activation,
-                           holosoma=holosoma)
+        """``policy.onnx`` of ``layers`` (:func:`export_walker`) with this run's gains and command ranges."""
+        return export_walker(layers, self.setup.card, self.kp, self.kd, self.command_ranges,
+                             self.init.activation if self.init else self.cfg.activation, self.run_dir / ONNX_FILE,
+                             self.metadata)
+
+
+def export_walker(layers: list[dict[str, np.ndarray]], card: Any, kp: np.ndarray, kd: np.ndarray,
+                  command_ranges: Mapping[str, Any], activation: str, path: Path,
+                  metadata: Mapping[str, Any]) -> Path:
+    """A walker's actor (``layers``: its mean) in Holosoma's ONNX format: input ``actor_obs``, output ``action``
+    clipped to the card's bounds, the robot's export metadata with the gains and command ranges the env
+    applied, and econmotor's entries (``metadata``)."""
+    holosoma = holosoma_export_metadata(card)
+    holosoma.update({"kp": [float(v) for v in kp], "kd": [float(v) for v in kd],
+                     "command_ranges": {k: [float(x) for x in v] for k, v in command_ranges.items()}})
+    bound = np.full(card.num_dofs, card.action_clip, np.float32)
+    return export_onnx({"policy": layers}, None, 0.0, -bound, bound, path, dict(metadata), activation=activation,
+                       holosoma=holosoma)
 
 
 def _status(row: Mapping[str, Any]) -> str:

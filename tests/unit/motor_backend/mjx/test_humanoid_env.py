@@ -235,3 +235,26 @@ def test_holosomas_shipped_g1_walker_walks_in_the_mjx_env() -> None:
     print(f"G1 PPO walker: MJX {speed:.3f} m/s, sim-to-sim {expected:.3f} m/s")
     assert expected > 0.3  # the walker walks in the evaluator ...
     assert abs(speed - expected) <= 0.15 * expected  # ... and as fast in the MJX env
+
+
+def test_training_episodes_start_at_random_points_of_the_course() -> None:
+    """``random_start``: the base placed along the course (in a dwell at a leg's end, or part-way along a leg),
+    the course's state and the time spent so far set as :func:`couriers.walker_train.course_point` says."""
+    from econmotor.motor_backend.mjx.humanoid_env import MjxHumanoidCourierEnv
+
+    env = MjxHumanoidCourierEnv("humanoid_locomotion_g1", random_start=True)
+    state = jax.jit(env.reset, static_argnums=1)(jax.random.PRNGKey(3), 64)
+    x = np.asarray(state.data.qpos[:, 0])
+    leg, dwell, done = (np.asarray(state.robot[k]) for k in ("leg", "dwell_left_s", "legs_done"))
+    steps = np.asarray(state.episode["control_steps"])
+    course = env.course
+    assert set(leg.astype(int)) == set(range(course.legs))
+    assert (dwell > 0).any() and (dwell == 0).any()
+    np.testing.assert_allclose(x[dwell > 0], (leg[dwell > 0] + 1) * course.leg_m, rtol=1e-6)
+    walking = dwell == 0
+    assert ((x[walking] >= leg[walking] * course.leg_m) & (x[walking] < (leg[walking] + 1) * course.leg_m)).all()
+    np.testing.assert_array_equal(done, np.where(dwell > 0, leg + 1, leg))
+    np.testing.assert_allclose(np.asarray(state.episode["best_x"]), x)  # the meter counts from where it stands
+    assert (steps > 0).mean() > 0.9 and steps.max() < env.max_episode_steps
+    fixed = jax.jit(MjxHumanoidCourierEnv("humanoid_locomotion_g1").reset, static_argnums=1)(jax.random.PRNGKey(3), 4)
+    assert np.all(np.asarray(fixed.episode["control_steps"]) == 0)  # evaluation starts at the course's start
