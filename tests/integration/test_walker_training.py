@@ -48,13 +48,15 @@ def _env(contract, n: int, course: crs.CourseSettings = SHORT, random_start: boo
     return WalkerLearningEnv(batch, RATES, 2.0, WEIGHTS, seed=5, random_start=random_start)
 
 
-def test_initialised_actor_acts_as_the_onnx(g1_ppo) -> None:
-    actor = read_actor(policy_file("holosoma:g1_29dof/ppo"))
+@pytest.mark.parametrize("policy", ["holosoma:g1_29dof/ppo", "holosoma:t1_29dof/ppo"])
+def test_initialised_actor_acts_as_the_onnx(policy: str) -> None:
+    actor = read_actor(policy_file(policy))
     net = ActorCritic.from_actor(actor, PRIVILEGED_DIM, WalkerPPOConfig())
     learner = WalkerPPO(net, WalkerPPOConfig())
-    env = _env(g1_ppo, 4)
+    contract = resolve_contract(policy)
+    env = _env(contract, 4)
     obs, _ = env.reset()
-    onnx = batched_onnx_policy(g1_ppo)
+    onnx = batched_onnx_policy(contract)
     for _ in range(5):  # a few steps of real walking observations
         np.testing.assert_allclose(learner.mean_action(obs), onnx(obs), atol=2e-5)
         obs = env.step(onnx(obs)).obs

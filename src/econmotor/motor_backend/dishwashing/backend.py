@@ -235,6 +235,40 @@ class DishwashingBackend(MotorBackendBase):
         return make
 
     # ------------------------------------------------------------- training
+    def _learn(self, make: Callable[[], gym.Env], task_id: str, num_envs: int, max_steps: int, seed: int,
+               progress: ProgressFn) -> tuple[Any, Any, float]:
+        """SAC on ``num_envs`` envs of ``make`` (rewards times the SAC settings' scale, SB3 ``DummyVecEnv``) for
+        ``max_steps`` steps: ``(model, its curve callback, wall seconds)``."""
+        from stable_baselines3 import SAC
+        from stable_baselines3.common.callbacks import CallbackList
+        from stable_baselines3.common.monitor import Monitor
+        from stable_baselines3.common.vec_env import DummyVecEnv
+
+        from econmotor.motor_backend.sb3_callbacks import ProgressFnCallback, TrainingCurveCallback, quiet_logger
+
+        hp = self.sac
+        build = lambda: Monitor(gym.wrappers.TransformReward(make(), lambda r: r * hp.reward_scale))
+        vec = DummyVecEnv([build for _ in range(num_envs)])
+        vec.seed(seed)
+        model = SAC(
+            "MlpPolicy", vec, seed=seed, device="cpu", verbose=0,
+            learning_rate=hp.learning_rate, buffer_size=min(hp.buffer_size, max(max_steps, 1000)),
+            learning_starts=min(hp.learning_starts, max_steps // 2), batch_size=hp.batch_size, tau=hp.tau,
+            gamma=hp.gamma, train_freq=hp.train_freq, gradient_steps=hp.gradient_steps, ent_coef=hp.ent_coef,
+            policy_kwargs={"net_arch": list(hp.net_arch)},
+        )
+        model.set_logger(quiet_logger())
+        curve = TrainingCurveCallback(hp.curve_every_steps)
+        started = time.perf_counter()
+        try:
+            model.learn(total_timesteps=max_steps,
+                        callback=CallbackList([ProgressFnCallback(progress, max_steps, f"train {task_id}"), curve]))
+        except (ValueError, RuntimeError) as exc:
+            raise BackendError(f"SAC training on '{task_id}' failed: {exc}") from exc
+        finally:
+            vec.close()
+        return model, curve, time.perf_counter() - started
+
     def train_policy(
         self,
         task_id: str,
@@ -255,20 +289,12 @@ class DishwashingBackend(MotorBackendBase):
             task_id: a catalog task with a ``dishwashing`` entry.
             objective: compiled into the overlay reward.
             datapack_ids / datapack_configs: domain randomization and curriculum of EconParams.
-            num_envs: environments stepped together (SB3 ``DummyVecEnv``, in-process).
-            max_steps: total environment steps.
-            seed: seeds SAC, torch and the environments (env ``i`` gets ``seed + i``).
+            num_envs / max_steps: environments stepped together (SB3 ``DummyVecEnv``); total env steps.
+            seed: seeds SAC, torch and the environments.
             output_dir: the run directory (default: a new one under ``runs_dir``); it must not hold a run.
-            eval_episodes: deterministic episodes evaluated after training.
-            progress: ``progress(label, done, total)``.
+            eval_episodes / progress: deterministic episodes after training; ``progress(label, done, total)``.
         """
         import torch
-        from stable_baselines3 import SAC
-        from stable_baselines3.common.callbacks import CallbackList
-        from stable_baselines3.common.monitor import Monitor
-        from stable_baselines3.common.vec_env import DummyVecEnv
-
-        from econmotor.motor_backend.sb3_callbacks import ProgressFnCallback, TrainingCurveCallback, quiet_logger
 
         if num_envs < 1 or max_steps < 1:
             raise ConfigError("<train>", "num_envs" if num_envs < 1 else "max_steps", "must be >= 1")
@@ -278,36 +304,8 @@ class DishwashingBackend(MotorBackendBase):
         spec, params, norm = self._task(task_id)
         randomization = self._randomization(task_id, datapack_ids, datapack_configs)
         make = self._env_factory(spec, params, norm, objective, randomization)
-        scale = self.sac.reward_scale
-
-        def build(i: int) -> Callable[[], gym.Env]:
-            def thunk() -> gym.Env:
-                env = gym.wrappers.TransformReward(make(), lambda r: r * scale)
-                return Monitor(env)
-            return thunk
-
         torch.set_num_threads(self.torch_threads)
-        vec = DummyVecEnv([build(i) for i in range(num_envs)])
-        vec.seed(seed)
-        hp = self.sac
-        model = SAC(
-            "MlpPolicy", vec, seed=seed, device="cpu", verbose=0,
-            learning_rate=hp.learning_rate, buffer_size=min(hp.buffer_size, max(max_steps, 1000)),
-            learning_starts=min(hp.learning_starts, max_steps // 2), batch_size=hp.batch_size, tau=hp.tau,
-            gamma=hp.gamma, train_freq=hp.train_freq, gradient_steps=hp.gradient_steps, ent_coef=hp.ent_coef,
-            policy_kwargs={"net_arch": list(hp.net_arch)},
-        )
-        model.set_logger(quiet_logger())
-        curve = TrainingCurveCallback(hp.curve_every_steps)
-        started = time.perf_counter()
-        try:
-            model.learn(total_timesteps=max_steps,
-                        callback=CallbackList([ProgressFnCallback(progress, max_steps, f"train {task_id}"), curve]))
-        except (ValueError, RuntimeError) as exc:
-            raise BackendError(f"SAC training on '{task_id}' failed: {exc}") from exc
-        train_s = time.perf_counter() - started
-        vec.close()
-
+        model, curve, train_s = self._learn(make, task_id, num_envs, max_steps, seed, progress)
         run_dir.mkdir(parents=True, exist_ok=True)
         policy_path = run_dir / self.final_policy_file
         model.save(policy_path)

@@ -302,15 +302,8 @@ class MjxBackend(MotorBackendBase):
             extra["robot"] = card.name  # exported in Holosoma's format (_export)
         initial = None
         if init_policy is not None:
-            if resume:
-                raise ConfigError("<train>", "init_policy", "--init-policy starts a new run; --resume continues one "
-                                  "from its checkpoints (the run records what it started from)")
-            actor = read_actor(policy_file(init_policy, self.holosoma_venv), init_policy)
-            cfg, initial, notes = warm_start(actor, env, cfg, hyperparameters, seed)
-            for text in notes:
-                progress(f"mjx: {text}", 1.0, 1.0)
-            extra["init_policy"] = {**actor.describe(), "init_log_std": cfg.init_log_std,
-                                    "critic_warmup_iterations": cfg.critic_warmup_iterations, "notes": notes}
+            cfg, initial, extra["init_policy"] = self._warm_start(init_policy, resume, env, cfg, hyperparameters,
+                                                                  seed, progress)
         run = MjxTrainingRun(
             run_dir=self.run_dir(output_dir, task_id, seed), env=train_env, described=described, cfg=cfg,
             requested_hyperparameters=hyperparameters, num_envs=used_envs, max_steps=int(max_steps), seed=int(seed),
@@ -333,6 +326,20 @@ class MjxBackend(MotorBackendBase):
                                                   datapack_configs=datapack_configs, progress=progress,
                                                   datapack_ids=datapack_ids)
         return self.training_result(run.run_dir, task_id, evaluation, curve, config, artifacts)
+
+    def _warm_start(self, init_policy: str, resume: bool, env: Any, cfg: ppo.PPOConfig,
+                    hyperparameters: dict[str, Any] | None, seed: int,
+                    progress: ProgressFn) -> tuple[ppo.PPOConfig, ppo.Learner, dict[str, Any]]:
+        """``(cfg, learner, record)`` of a run started from ``init_policy`` (``onnx_import.warm_start``)."""
+        if resume:
+            raise ConfigError("<train>", "init_policy", "--init-policy starts a new run; --resume continues one "
+                              "from its checkpoints (the run records what it started from)")
+        actor = read_actor(policy_file(init_policy, self.holosoma_venv), init_policy)
+        cfg, initial, notes = warm_start(actor, env, cfg, hyperparameters, seed)
+        for text in notes:
+            progress(f"mjx: {text}", 1.0, 1.0)
+        return cfg, initial, {**actor.describe(), "init_log_std": cfg.init_log_std,
+                              "critic_warmup_iterations": cfg.critic_warmup_iterations, "notes": notes}
 
     def evaluate_policy(self, policy_id: str, task_id: str, objective: EconomicObjectiveSpec, num_episodes: int,
                         seed: int, *, datapack_configs: Sequence[DatapackConfig] | None = None,

@@ -258,15 +258,10 @@ def ppo_loss(params: nets.Params, batch: tuple[jax.Array, ...], cfg: PPOConfig,
                   "clip_fraction": clip_fraction}
 
 
-def make_train_iteration(env: Any, cfg: PPOConfig, num_envs: int):
-    """The jitted ``iteration(state) -> (state, metrics)`` (one rollout + the PPO update)."""
+def _make_env_step(env: Any, cfg: PPOConfig):
+    """``env_step(carry, _)`` of a rollout scan: the Gaussian's sample, its log-probability and value, the env's
+    step, and the raw metrics of the episodes it ended (summed)."""
     low, high = jnp.asarray(env.action_low, jnp.float32), jnp.asarray(env.action_high, jnp.float32)
-    optimizer = make_optimizer(cfg)
-    batch_size = num_envs * cfg.unroll_length
-    if batch_size % cfg.num_minibatches:
-        raise ConfigError("<hyperparameters>", "num_minibatches",
-                          f"num_envs * unroll_length = {batch_size} must be divisible by {cfg.num_minibatches}")
-    minibatch = batch_size // cfg.num_minibatches
     metric_keys = tuple(env.metric_keys)
 
     def env_step(carry, _):
@@ -284,6 +279,15 @@ def make_train_iteration(env: Any, cfg: PPOConfig, num_envs: int):
                         nxt.truncated.astype(jnp.float32))
         ended = {k: jnp.sum(jnp.where(done > 0, nxt.finished[k].astype(jnp.float32), 0.0)) for k in metric_keys}
         return (learner, nxt, key), (tr, ended)
+
+    return env_step
+
+
+def _make_update_epoch(cfg: PPOConfig, batch_size: int):
+    """``update_epoch(carry, key)`` of the update scan: ``cfg.num_minibatches`` shuffled minibatches, each an Adam
+    step on :func:`ppo_loss` (and, with ``desired_kl``, the rate adapted to the minibatch's KL)."""
+    optimizer = make_optimizer(cfg)
+    minibatch = batch_size // cfg.num_minibatches
 
     def update_minibatch(carry, batch):
         params, opt_state, actor_weight, old_log_std = carry
@@ -307,6 +311,17 @@ def make_train_iteration(env: Any, cfg: PPOConfig, num_envs: int):
         (params, opt_state, _, _), info = jax.lax.scan(update_minibatch,
                                                        (params, opt_state, actor_weight, old_log_std), shuffled)
         return (params, opt_state, flat, actor_weight, old_log_std), info
+
+    return update_epoch
+
+
+def make_train_iteration(env: Any, cfg: PPOConfig, num_envs: int):
+    """The jitted ``iteration(state) -> (state, metrics)`` (one rollout + the PPO update)."""
+    batch_size = num_envs * cfg.unroll_length
+    if batch_size % cfg.num_minibatches:
+        raise ConfigError("<hyperparameters>", "num_minibatches",
+                          f"num_envs * unroll_length = {batch_size} must be divisible by {cfg.num_minibatches}")
+    env_step, update_epoch = _make_env_step(env, cfg), _make_update_epoch(cfg, batch_size)
 
     def iteration(state: TrainState, actor_weight: jax.Array | float = 1.0) -> tuple[TrainState, dict[str, jax.Array]]:
         learner = state.learner

@@ -153,6 +153,8 @@ class WalkerTrainingRun:
             env.close()
         if self.selection is None:
             kept = {"layers": learner.net.layers(), "env_steps": state["env_steps"], "why": "the last update"}
+        elif self.selection.best is not None:
+            kept = {**kept, "why": self.selection.kept_reason()}  # over every held-out evaluation of the run
         self._save(learner, state, kept)
         path = self.export(kept["layers"])
         return {"onnx": str(path), "iterations": state["iteration"], "env_steps": state["env_steps"],

@@ -104,6 +104,15 @@ def attach_econmotor_metadata(onnx_path: str | Path, metadata: dict[str, Any]) -
     tmp.replace(onnx_path)
 
 
+def _training_log(outcome: Any, result: Mapping[str, Any]) -> dict[str, Any]:
+    """What a training job's protocol logged: the econ terms, reward terms, wall time and iteration times."""
+    return {"econ_term_log": {k: v for c in outcome.curve for k, v in c.get("econ", {}).items()},
+            "reward_terms": result["reward_terms"], "train_wall_s": outcome.wall_s,
+            "econ_term_seconds": result.get("econ_term_seconds", 0.0),
+            "iteration_times_s": [{"collection_s": c.get("collection_s"), "learn_s": c.get("learn_s")}
+                                  for c in outcome.curve]}
+
+
 class HolosomaBackend(MotorBackendBase):
     """Holosoma through its own interpreter (module docstring).
 
@@ -255,31 +264,33 @@ class HolosomaBackend(MotorBackendBase):
         ours = {"task_id": task_id, "objective": objective.to_dict(), "overlay_weights": weights,
                 "overlay_gain": settings["overlay_gain"], "task_economics": spec.economics.to_dict(),
                 "settings": settings}
+        policy_onnx = self._record_run(run_dir, ours, result, {"simulator": plan.simulator, "algo": algo,
+                                                                 "seed": int(seed)})
+        curve = [{"timesteps": float(c["timesteps"]), "mean_return": float(c["mean_return"])}
+                 for c in outcome.curve if c.get("mean_return") is not None]
+        config: dict[str, Any] = {
+            "seed": seed, "objective": objective.to_dict(), "datapacks": list(bundle.datapack_ids),
+            "overrides": overrides.to_dict(), "plan": {**plan.__dict__, "messages": list(plan.messages)},
+            "overlay_weights": weights, "messages": messages, **_training_log(outcome, result)}
+        evaluation = self.evaluate_after_training(run_dir, task_id, objective, eval_episodes, seed,
+                                                  datapack_configs=datapack_configs, progress=progress)
+        artifacts = {"policy": str(run_dir), "checkpoint": result["checkpoint"], "onnx": str(policy_onnx),
+                     "tensorboard": result["experiment_dir"], "train_log": outcome.log_path}
+        return self.training_result(run_dir, task_id, evaluation, curve, config, artifacts)
+
+    def _record_run(self, run_dir: Path, ours: dict[str, Any], result: dict[str, Any],
+                    extra: dict[str, Any]) -> Path:
+        """The run's ``policy.onnx`` (Holosoma's export with econmotor's metadata ``ours`` attached) and its
+        ``run_config.json``; returns the ONNX's path."""
         attach_econmotor_metadata(result["onnx"], ours)
         policy_onnx = run_dir / self.final_policy_file  # the run's policy, where every backend keeps its final one
         shutil.copyfile(result["onnx"], policy_onnx)
         write_run_config(run_dir, {
             **ours, "checkpoint": result["checkpoint"], "onnx": str(policy_onnx),
             "holosoma_onnx": result["onnx"], "experiment_dir": result["experiment_dir"],
-            "episode_length_s": result["episode_length_s"], "control_dt_s": result["control_dt_s"],
-            "simulator": plan.simulator, "algo": algo, "seed": int(seed)}, self.name)
-        curve = [{"timesteps": float(c["timesteps"]), "mean_return": float(c["mean_return"])}
-                 for c in outcome.curve if c.get("mean_return") is not None]
-        econ_log = {k: v for c in outcome.curve for k, v in c.get("econ", {}).items()}
-        config: dict[str, Any] = {
-            "seed": seed, "objective": objective.to_dict(), "datapacks": list(bundle.datapack_ids),
-            "overrides": overrides.to_dict(), "plan": {**plan.__dict__, "messages": list(plan.messages)},
-            "overlay_weights": weights, "messages": messages, "econ_term_log": econ_log,
-            "reward_terms": result["reward_terms"], "train_wall_s": outcome.wall_s,
-            "econ_term_seconds": result.get("econ_term_seconds", 0.0),
-            "iteration_times_s": [{"collection_s": c.get("collection_s"), "learn_s": c.get("learn_s")}
-                                  for c in outcome.curve],
-        }
-        evaluation = self.evaluate_after_training(run_dir, task_id, objective, eval_episodes, seed,
-                                                  datapack_configs=datapack_configs, progress=progress)
-        artifacts = {"policy": str(run_dir), "checkpoint": result["checkpoint"], "onnx": str(policy_onnx),
-                     "tensorboard": result["experiment_dir"], "train_log": outcome.log_path}
-        return self.training_result(run_dir, task_id, evaluation, curve, config, artifacts)
+            "episode_length_s": result["episode_length_s"], "control_dt_s": result["control_dt_s"], **extra},
+            self.name)
+        return policy_onnx
 
     def evaluate_policy(
         self,

@@ -118,13 +118,16 @@ def run_job(
                 proc.kill()
                 proc.wait()
     if rc != 0 or result is None:
-        if error is not None and error.get("config_error"):  # the job's bad input: the same ConfigError here
-            raise ConfigError(*error["config_error"])
-        if error is not None:
-            text = f"{error['text']}\n{error.get('traceback', '')}".strip()
-        else:
-            text = holosoma_error_text(list(tail))
-        raise BackendError(f"Holosoma {action} failed (exit code {rc}):\n{text}\nfull log: {log_path}")
+        raise_failure(action, rc, error, list(tail), log_path)
     return JobOutcome(result, tuple(messages), tuple(curve), str(log_path), time.monotonic() - start)
+
+
+def raise_failure(action: str, rc: int, error: dict[str, Any] | None, tail: list[str], log_path: Path) -> None:
+    """The error of a failed job: its ConfigError (the job's bad input) as the same ConfigError here, else a
+    BackendError with the job's error or the log's Holosoma error and the log's path."""
+    if error is not None and error.get("config_error"):
+        raise ConfigError(*error["config_error"])
+    text = f"{error['text']}\n{error.get('traceback', '')}".strip() if error is not None else holosoma_error_text(tail)
+    raise BackendError(f"Holosoma {action} failed (exit code {rc}):\n{text}\nfull log: {log_path}")
 
 
