@@ -276,11 +276,9 @@ class MjxBackend(MotorBackendBase):
                      until_deployable: bool = False, init_policy: str | None = None) -> MotorTrainingResult:
         """Train with JAX PPO, export ONNX, evaluate ``eval_episodes`` deterministic episodes.
 
-        ``num_envs <= 0`` uses the catalog's default (capped on a CPU); ``resume=True`` continues
-        the run in ``output_dir`` from its newest checkpoint up to ``max_steps`` total env steps.
-        Evaluation-driven training and ``until_deployable`` as the mujoco backend's
-        (``motor_backend/selection.py``; held-out episodes ``eval_batch`` at a time).
-        ``init_policy``: start the actor from this ONNX file or shipped name (module docstring).
+        ``num_envs <= 0``: the catalog's default (capped on a CPU); ``resume=True`` continues the run in
+        ``output_dir`` to ``max_steps``; selection and ``until_deployable`` as the mujoco backend's
+        (``motor_backend/selection.py``); ``init_policy``: an ONNX file or shipped name (module docstring).
         """
         if algorithm not in (None, "ppo"):
             raise ConfigError("<train>", "algorithm", f"the mjx backend trains PPO only, not '{algorithm}'", ["ppo"])

@@ -123,6 +123,19 @@ def episode_scalars(metrics: dict[str, Any], factors: dict[str, float]) -> dict[
     return out
 
 
+def with_fresh_optimizer(state: ppo.TrainState, cfg: ppo.PPOConfig) -> ppo.TrainState:
+    """``state`` with Adam started afresh on its parameters (the end of a critic warm-up)."""
+    return state._replace(learner=state.learner._replace(opt_state=ppo.make_optimizer(cfg).init(state.learner.params)))
+
+
+def log_scalars(writer: Any, metrics: dict[str, Any], factors: dict[str, float], steps: int) -> None:
+    """An iteration's TensorBoard scalars: the ended episodes' economics and the losses."""
+    for name, value in episode_scalars(metrics, factors).items():
+        writer.add_scalar(name, value, steps)
+    for name in ("policy_loss", "value_loss", "entropy", "clip_fraction", "reward_mean"):
+        writer.add_scalar(f"train/{name}", float(metrics[name]), steps)
+
+
 class ScalarWriter:
     """TensorBoard scalars through tensorboard's own event writer (no torch: the JAX backend imports none).
 
@@ -187,11 +200,9 @@ class MjxTrainingRun:
         """As the mujoco backend: a resumed run keeps its recorded hyperparameters; asking for others fails."""
         check_resume_request(self.run_dir, previous, self.described["task_id"], self.requested_hyperparameters)
 
-    def train(self, resume: bool = False, progress: ProgressFn = no_progress
-              ) -> tuple[ppo.Learner, list[dict[str, float]], dict[str, Any]]:
-        """Train to ``max_steps``; returns (learner, training curve, timing)."""
-        started = time.perf_counter()
-        watch = CacheWatch()
+    def _start(self, resume: bool) -> tuple[ppo.Learner | None, Any, int]:
+        """The run's starting point (``(learner, key, env steps)``: a resumed run's newest checkpoint, else the
+        initial learner) and its ``run_config.json``."""
         self.run_dir.mkdir(parents=True, exist_ok=True)
         found = None
         if resume:
@@ -217,64 +228,11 @@ class MjxTrainingRun:
             self.config["selection"] = self.selection.record()  # a resumed run's selection so far
         run_dirs.write_run_config(self.run_dir, self.config, "mjx")
 
-        state = ppo.init_train_state(env, cfg, self.num_envs, self.seed, learner=learner, key=key)
-        iteration = ppo.make_train_iteration(env, cfg, self.num_envs)
-        per_iteration = self.num_envs * cfg.unroll_length
-        writer = ScalarWriter(self.run_dir / "tb" / "run")
-        curve: list[dict[str, float]] = []
-        every_curve = max(per_iteration, self.max_steps // 50)
-        next_curve = (steps // every_curve + 1) * every_curve
-        next_ckpt = (steps // self.checkpoint_every_steps + 1) * self.checkpoint_every_steps
-        window: list[tuple[float, float, float]] = []  # (return sum, length sum, count) of recent iterations
-        def report(done: int) -> None:
-            said = self.selection.status() if self.selection is not None else ""
-            progress(f"train · {said}" if said else "train", min(done, self.max_steps), self.max_steps)
+        return learner, key, steps
 
-        report(steps)
-        if self.selection is not None:
-            self.selection.started = started
-        last_held_out = steps
-        first_done, t_loop = None, time.perf_counter()
-        warmup_steps = cfg.critic_warmup_iterations * per_iteration
-        try:
-            while steps < self.max_steps and not (self.selection is not None and self.selection.should_stop):
-                warming = steps < warmup_steps
-                state, metrics = iteration(state, 0.0 if warming else 1.0)
-                metrics = jax.device_get(metrics)
-                steps += per_iteration
-                if warming and steps >= warmup_steps:  # the actor moves from now on, with a fresh Adam
-                    params = state.learner.params
-                    state = state._replace(learner=state.learner._replace(
-                        opt_state=ppo.make_optimizer(cfg).init(params)))
-                if first_done is None:  # the first iteration includes XLA compilation
-                    first_done, t_loop = time.perf_counter() - started, time.perf_counter()
-                    if watch.hits:
-                        progress(f"mjx: compilation cache warm: {watch.hits} compiled program(s) loaded from "
-                                 f"{self.cache_dir or 'the cache'} (about {watch.saved_s:.0f} s of XLA compilation "
-                                 f"saved); first iteration {first_done:.1f} s", 1.0, 1.0)
-                for name, value in episode_scalars(metrics, env.factors).items():
-                    writer.add_scalar(name, value, steps)
-                for name in ("policy_loss", "value_loss", "entropy", "clip_fraction", "reward_mean"):
-                    writer.add_scalar(f"train/{name}", float(metrics[name]), steps)
-                window = [*window[-9:], (float(metrics["sum/return"]), float(metrics["sum/length_steps"]),
-                                         float(metrics["episodes"]))]
-                if steps >= next_curve or steps >= self.max_steps:
-                    next_curve = (steps // every_curve + 1) * every_curve
-                    count = sum(w[2] for w in window)
-                    if count > 0:
-                        curve.append({"timesteps": float(steps), "mean_return": sum(w[0] for w in window) / count,
-                                      "mean_length": sum(w[1] for w in window) / count})
-                if steps >= next_ckpt:
-                    next_ckpt = (steps // self.checkpoint_every_steps + 1) * self.checkpoint_every_steps
-                    ckpt.save_tree(ckpt.checkpoint_path(self.run_dir, steps), state.learner, state.key, steps)
-                if self.selection is not None and self.selection.due(steps, last_held_out):
-                    last_held_out = steps
-                    self._consider(state.learner, state.key, steps, writer)
-                report(steps)
-            if self.selection is not None and first_done is not None and self.selection.final_due(steps, last_held_out):
-                self._consider(state.learner, state.key, steps, writer)  # the last weights are a candidate too
-        finally:
-            writer.close()
+    def _finish(self, state: Any, steps: int, started: float, watch: CacheWatch, first_done: float | None,
+                t_loop: float, per_iteration: int) -> tuple[ppo.Learner, dict[str, Any]]:
+        """The last checkpoint, the selection's record, ``policy.npz`` (the kept learner) and the run's timing."""
         if first_done is not None:
             ckpt.save_tree(ckpt.checkpoint_path(self.run_dir, steps), state.learner, state.key, steps)
         learner = state.learner
@@ -294,4 +252,65 @@ class MjxTrainingRun:
                   "compile_s_saved": round(watch.saved_s, 3),
                   "env_steps_per_s_after_compile": (trained - per_iteration) / loop_s
                   if trained > per_iteration and loop_s > 0 else None}
+        return learner, timing
+
+    def train(self, resume: bool = False, progress: ProgressFn = no_progress
+              ) -> tuple[ppo.Learner, list[dict[str, float]], dict[str, Any]]:
+        """Train to ``max_steps``; returns (learner, training curve, timing)."""
+        started = time.perf_counter()
+        watch = CacheWatch()
+        learner, key, steps = self._start(resume)
+        env, cfg = self.env, self.cfg
+        state = ppo.init_train_state(env, cfg, self.num_envs, self.seed, learner=learner, key=key)
+        iteration = ppo.make_train_iteration(env, cfg, self.num_envs)
+        per_iteration = self.num_envs * cfg.unroll_length
+        writer, curve = ScalarWriter(self.run_dir / "tb" / "run"), []
+        every_curve = max(per_iteration, self.max_steps // 50)
+        next_curve = (steps // every_curve + 1) * every_curve
+        next_ckpt = (steps // self.checkpoint_every_steps + 1) * self.checkpoint_every_steps
+        window: list[tuple[float, float, float]] = []  # (return sum, length sum, count) of recent iterations
+        report = lambda done: progress(f"train · {self.selection.status()}" if self.selection is not None
+                                       and self.selection.status() else "train", min(done, self.max_steps),
+                                       self.max_steps)
+        report(steps)
+        if self.selection is not None:
+            self.selection.started = started
+        last_held_out = steps
+        first_done, t_loop = None, time.perf_counter()
+        warmup_steps = cfg.critic_warmup_iterations * per_iteration
+        try:
+            while steps < self.max_steps and not (self.selection is not None and self.selection.should_stop):
+                warming = steps < warmup_steps
+                state, metrics = iteration(state, 0.0 if warming else 1.0)
+                metrics = jax.device_get(metrics)
+                steps += per_iteration
+                if warming and steps >= warmup_steps:  # the actor moves from now on, with a fresh Adam
+                    state = with_fresh_optimizer(state, cfg)
+                if first_done is None:  # the first iteration includes XLA compilation
+                    first_done, t_loop = time.perf_counter() - started, time.perf_counter()
+                    if watch.hits:
+                        progress(f"mjx: compilation cache warm: {watch.hits} compiled program(s) loaded from "
+                                 f"{self.cache_dir or 'the cache'} (about {watch.saved_s:.0f} s of XLA compilation "
+                                 f"saved); first iteration {first_done:.1f} s", 1.0, 1.0)
+                log_scalars(writer, metrics, env.factors, steps)
+                window = [*window[-9:], (float(metrics["sum/return"]), float(metrics["sum/length_steps"]),
+                                         float(metrics["episodes"]))]
+                if steps >= next_curve or steps >= self.max_steps:
+                    next_curve = (steps // every_curve + 1) * every_curve
+                    count = sum(w[2] for w in window)
+                    if count > 0:
+                        curve.append({"timesteps": float(steps), "mean_return": sum(w[0] for w in window) / count,
+                                      "mean_length": sum(w[1] for w in window) / count})
+                if steps >= next_ckpt:
+                    next_ckpt = (steps // self.checkpoint_every_steps + 1) * self.checkpoint_every_steps
+                    ckpt.save_tree(ckpt.checkpoint_path(self.run_dir, steps), state.learner, state.key, steps)
+                if self.selection is not None and self.selection.due(steps, last_held_out):
+                    last_held_out = steps
+                    self._consider(state.learner, state.key, steps, writer)
+                report(steps)
+            if self.selection is not None and first_done is not None and self.selection.final_due(steps, last_held_out):
+                self._consider(state.learner, state.key, steps, writer)  # the last weights are a candidate too
+        finally:
+            writer.close()
+        learner, timing = self._finish(state, steps, started, watch, first_done, t_loop, per_iteration)
         return learner, curve, timing
