@@ -197,6 +197,12 @@ def test_learning_rate_follows_the_kl_and_warmup_moves_only_the_critic() -> None
     assert learner.optimizer.param_groups[0]["lr"] == pytest.approx(1e-4)
     learner.update(*_rollout(cfg, 10, 3, seed=1))
     assert any(not torch.equal(a, b) for a, b in zip(actor_before, learner.net.actor.parameters(), strict=True))
+    # in an update the rate follows the KL it measures: any step is far above a target of 1e-9, so it falls
+    strict = WalkerPPOConfig.from_mapping({**cfg.to_dict(), "critic_warmup_iterations": 0, "desired_kl": 1e-9})
+    tight = WalkerPPO(ActorCritic(10, PRIVILEGED_DIM, 3, strict), strict)
+    stats = tight.update(*_rollout(strict, 10, 3, seed=2))
+    assert stats["kl"] > 2e-9 and tight.learning_rate < 1e-4
+    assert tight.optimizer.param_groups[0]["lr"] == pytest.approx(tight.learning_rate)
 
 
 def test_the_anchor_pulls_towards_the_reference() -> None:
