@@ -45,7 +45,7 @@ from econmotor.motor_backend.selection import Selection, SelectionConfig
 from econmotor.motor_backend.sequential import evaluate_sequentially
 from econmotor.objectives import load_objective_spec
 
-REPORT_EVAL_OFFSET = 1_000  # the report's evaluation run: seed + 1000 + i (pipeline.train_and_record)
+REPORT_EVAL_OFFSET = 1_000  # the report's evaluation run: seed + 1000 + i (recording.train_and_record)
 #: the smallest run (tests/integration/test_benchmarks.py): one seed; ``until`` one PPO iteration of 4 x 16
 #: steps, ``fixed`` one of the catalog's (4 x 512: --hp is the until arm's only)
 SMOKE_ARGS: list[str] = ["--seeds", "0", "--max-steps", "64", "--baseline-steps", "64", "--select-every", "64",

@@ -245,7 +245,7 @@ def test_tiny_fine_tune_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture
     assert config["trainer"] == "walker" and config["init_policy"]["policy"] == "holosoma:g1_29dof/ppo"
     per_iteration = 4 * config["hyperparameters"]["steps_per_iteration"]  # --num-envs 4 x the catalog's steps
     assert config["hyperparameters"]["num_envs"] == 4
-    assert config["training"]["env_steps"] == per_iteration  # one iteration: the first past 200
+    assert config["trained_steps"] == per_iteration  # one iteration: the first past 200
     assert main(["report", "--motor-backend", "none", "--task-id", "humanoid_locomotion_g1", "--run-id", "1",
                  "--db-url", db, "--output-dir", str(tmp_path / "report")]) == 0
     document = json.loads((tmp_path / "report" / "humanoid_locomotion_g1_run1.json").read_text())
@@ -290,5 +290,51 @@ def test_an_interrupted_run_resumes_from_its_checkpoint(tmp_path: Path) -> None:
                                   **kwargs)
     rows = [json.loads(line) for line in (run / "curve.jsonl").read_text().splitlines()]
     assert [r["iteration"] for r in rows] == [1, 2, 3]  # the two before the interruption, then one more
-    assert result.config["training"]["env_steps"] == 3 * per_iteration and backend.is_complete_run(run)
+    assert result.config["trained_steps"] == 3 * per_iteration and backend.is_complete_run(run)
     assert result.config["init_policy"]["policy"] == "holosoma:g1_29dof/ppo"
+
+
+def _g1_episode(legs: float, fell: bool) -> dict:
+    """One priced G1 course episode's raw metrics (a fall ends it and counts as an attempted leg)."""
+    return {"units_completed": legs, "units_attempted": legs + (1.0 if fell else 0.0), "errors": 1.0 if fell else 0.0,
+            "episode_length_s": 240.0, "energy_wh": 6.0, "risk_score": 0.0, "novelty_score": 0.0,
+            "return": 10.0 * legs, "length_steps": 12_000.0, "termination_reason": "fall" if fell else "max_steps"}
+
+
+def test_the_walker_run_keeps_the_mid_run_policy_its_evaluations_selected(tmp_path: Path,
+                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """Held-out evaluations scripted as falling, then safe (acceptable), then fast but falling (the highest J, not
+    acceptable): the run's policy.onnx is the actor the middle evaluation saw, not the last."""
+    from econmotor.motor_backend.mujoco import walker_training
+    from econmotor.motor_backend.mujoco.backend import MujocoBackend
+    from econmotor.objectives import EconomicObjectiveSpec
+
+    episodes = 80
+    script = ([_g1_episode(2.0, i % 2 == 0) for i in range(episodes)], [_g1_episode(6.0, False)] * episodes,
+              [_g1_episode(9.0, i % 3 == 0) for i in range(episodes)])
+    seen: list[list[np.ndarray]] = []
+
+    def scripted(self, learner, num_episodes, first_seed, stop):
+        seen.append([layer["w"].copy() for layer in learner.net.layers()])
+        rows = script[len(seen) - 1][:num_episodes]
+        for done in range(16, len(rows) + 16, 16):  # asked after every batch, as the walker batch does
+            if stop(rows[:done]):
+                return rows[:done]
+        return rows
+
+    monkeypatch.setattr(walker_training.WalkerTrainingRun, "evaluate", scripted)
+    per_iteration = 2 * 16
+    result = MujocoBackend(runs_dir=tmp_path).train_policy(
+        "humanoid_locomotion_g1", EconomicObjectiveSpec(), [], num_envs=2, max_steps=3 * per_iteration, seed=4,
+        output_dir=tmp_path / "run", init_policy="holosoma:g1_29dof/ppo", eval_episodes=0,
+        select_every_steps=per_iteration, select_episodes=episodes,
+        hyperparameters={"steps_per_iteration": 16, "num_minibatches": 1, "critic_warmup_iterations": 0,
+                         "learning_rate": 1e-3})
+    assert len(seen) == 3 and not np.array_equal(seen[1][0], seen[2][0])  # PPO moved between the evaluations
+    record = result.config["selection"]
+    assert [e["deployable"] for e in record["evaluations"]] == [False, True, False]
+    assert record["kept"]["env_steps"] == 2 * per_iteration
+    kept = read_actor(tmp_path / "run" / "policy.onnx")
+    for layer, weights in zip(kept.layers, seen[1], strict=True):
+        np.testing.assert_allclose(layer["w"], weights, rtol=0, atol=1e-6,
+                                   err_msg="policy.onnx is not the actor the held-out evaluations selected")

@@ -52,14 +52,8 @@ from econmotor.errors import ConfigError, UnknownNameError
 from econmotor.motor_backend.datapacks import DatapackConfig
 from econmotor.motor_backend.factory import DEFAULT_BACKEND, backend_class, known_backends, load_checked_catalog
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
-from econmotor.report.pipeline import (
-    ReportOutcome,
-    TrainRequest,
-    evaluate_and_record,
-    pick_runs,
-    report_after_training,
-    report_from_registry,
-)
+from econmotor.recording import TrainRequest, evaluate_and_record
+from econmotor.report.pipeline import ReportOutcome, pick_runs, report_after_training, report_from_registry
 from econmotor.report.render import (
     INTERVAL_COLUMN,
     headline,

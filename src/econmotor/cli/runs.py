@@ -13,7 +13,7 @@ import typer
 from econmotor.cli._app import err_console, progress_bars
 from econmotor.cli._interrupts import set_deadline_note
 from econmotor.motor_backend.factory import backend_class
-from econmotor.report.pipeline import TrainRequest, train_and_record
+from econmotor.recording import TrainRequest, train_and_record
 from econmotor.store.registry import Registry
 
 
@@ -31,7 +31,7 @@ def interrupted_note(backend: str, task: str, run_dir: Path, max_steps: int, com
 
 def train_with_bars(request: TrainRequest, backend: Any, url: str,
                     note: Callable[[], str]) -> tuple[Registry, int, int | None]:
-    """:func:`~econmotor.report.pipeline.train_and_record` under progress bars; returns ``(registry, train run id,
+    """:func:`~econmotor.recording.train_and_record` under progress bars; returns ``(registry, train run id,
     eval run id or None)``. ``note()`` says what an interruption keeps: printed on Ctrl-C (then ``typer.Abort``)
     and by the interrupt deadline."""
     set_deadline_note(note)

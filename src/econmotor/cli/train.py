@@ -43,7 +43,7 @@ from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import MotorBackendBase
 from econmotor.motor_backend.datapacks import load_datapack_configs
 from econmotor.motor_backend.factory import DEFAULT_BACKEND, backend_class, known_backends
-from econmotor.report.pipeline import TrainRequest
+from econmotor.recording import TrainRequest
 from econmotor.store.registry import Registry
 from econmotor.tasks import load_catalog
 

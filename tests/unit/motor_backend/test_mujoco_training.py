@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import shutil
+from pathlib import Path
+
 import gymnasium as gym
 import pytest
 from stable_baselines3 import PPO
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-from econmotor.motor_backend.mujoco.training import POLICY_FILE, VECNORM_FILE, install_policy, save_final
+from econmotor.motor_backend.mujoco.training import POLICY_FILE, VECNORM_FILE, save_final
+from econmotor.motor_backend.training_loop import install
 
 
 @pytest.fixture
@@ -44,8 +48,12 @@ def test_the_statistics_are_written_before_the_policy(model, tmp_path, monkeypat
     assert (tmp_path / POLICY_FILE).is_file() and (tmp_path / VECNORM_FILE).is_file()
 
 
-def test_install_policy_copies_the_kept_policy_statistics_first(model, tmp_path):
+def test_install_copies_the_kept_policy_statistics_first(model, tmp_path, monkeypatch):
     save_final(model, tmp_path / "best")
-    install_policy(tmp_path / "best", tmp_path / "run")
+    copied: list[str] = []
+    real_copy = shutil.copyfile
+    monkeypatch.setattr(shutil, "copyfile", lambda src, dst: (copied.append(Path(src).name), real_copy(src, dst))[1])
+    install(tmp_path / "best", tmp_path / "run", last=POLICY_FILE)
+    assert copied == [VECNORM_FILE, POLICY_FILE]  # the file that marks a complete run last
     for name in (POLICY_FILE, VECNORM_FILE):
         assert (tmp_path / "run" / name).read_bytes() == (tmp_path / "best" / name).read_bytes()

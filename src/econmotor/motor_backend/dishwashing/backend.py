@@ -24,8 +24,6 @@ saved ``policy.zip`` and ``run_config.json``, everything needed to reproduce the
 
 from __future__ import annotations
 
-import json
-import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -51,7 +49,8 @@ from econmotor.motor_backend.results import (
     evaluation_result,
     mean_power_w,
 )
-from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, read_run_config, write_run_config
+from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, read_run_config
+from econmotor.motor_backend.training_loop import CURVE_FILE, TrainingLoop
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.tasks.catalog import TaskCatalog, TaskSpec
 
@@ -235,39 +234,32 @@ class DishwashingBackend(MotorBackendBase):
         return make
 
     # ------------------------------------------------------------- training
-    def _learn(self, make: Callable[[], gym.Env], task_id: str, num_envs: int, max_steps: int, seed: int,
-               progress: ProgressFn) -> tuple[Any, Any, float]:
-        """SAC on ``num_envs`` envs of ``make`` (rewards times the SAC settings' scale, SB3 ``DummyVecEnv``) for
-        ``max_steps`` steps: ``(model, its curve callback, wall seconds)``."""
+    def _model(self, make: Callable[[], gym.Env], num_envs: int, max_steps: int, seed: int) -> Any:
+        """SAC on ``num_envs`` envs of ``make`` (rewards times the SAC settings' scale, SB3 ``DummyVecEnv``)."""
         from stable_baselines3 import SAC
-        from stable_baselines3.common.callbacks import CallbackList
         from stable_baselines3.common.monitor import Monitor
         from stable_baselines3.common.vec_env import DummyVecEnv
-
-        from econmotor.motor_backend.sb3_callbacks import ProgressFnCallback, TrainingCurveCallback, quiet_logger
 
         hp = self.sac
         build = lambda: Monitor(gym.wrappers.TransformReward(make(), lambda r: r * hp.reward_scale))
         vec = DummyVecEnv([build for _ in range(num_envs)])
         vec.seed(seed)
-        model = SAC(
+        return SAC(
             "MlpPolicy", vec, seed=seed, device="cpu", verbose=0,
             learning_rate=hp.learning_rate, buffer_size=min(hp.buffer_size, max(max_steps, 1000)),
             learning_starts=min(hp.learning_starts, max_steps // 2), batch_size=hp.batch_size, tau=hp.tau,
             gamma=hp.gamma, train_freq=hp.train_freq, gradient_steps=hp.gradient_steps, ent_coef=hp.ent_coef,
             policy_kwargs={"net_arch": list(hp.net_arch)},
         )
-        model.set_logger(quiet_logger())
-        curve = TrainingCurveCallback(hp.curve_every_steps)
-        started = time.perf_counter()
-        try:
-            model.learn(total_timesteps=max_steps,
-                        callback=CallbackList([ProgressFnCallback(progress, max_steps, f"train {task_id}"), curve]))
-        except (ValueError, RuntimeError) as exc:
-            raise BackendError(f"SAC training on '{task_id}' failed: {exc}") from exc
-        finally:
-            vec.close()
-        return model, curve, time.perf_counter() - started
+
+    def _described(self, spec: TaskSpec, params: EconParams, norm: str, objective: EconomicObjectiveSpec,
+                   randomization: EconRandomization, make: Callable[[], gym.Env]) -> dict[str, Any]:
+        """What the run's config records of the learner, the workcell and the overlay."""
+        return {"sac": asdict(self.sac), "torch_threads": self.torch_threads, "econ_params": params.to_dict(),
+                "overlay_normalization": norm,
+                "term_references": term_references(params, spec.economics) if norm != "none" else {},
+                "training_objective": training_objective(objective, norm).to_dict(),
+                "overlay_keys_ignored": list(make().ignored_overlay_keys), "randomization": randomization.to_dict()}
 
     def train_policy(
         self,
@@ -305,30 +297,25 @@ class DishwashingBackend(MotorBackendBase):
         randomization = self._randomization(task_id, datapack_ids, datapack_configs)
         make = self._env_factory(spec, params, norm, objective, randomization)
         torch.set_num_threads(self.torch_threads)
-        model, curve, train_s = self._learn(make, task_id, num_envs, max_steps, seed, progress)
-        run_dir.mkdir(parents=True, exist_ok=True)
-        policy_path = run_dir / self.final_policy_file
-        model.save(policy_path)
-        config = {
-            "task_id": task_id, "objective": objective.to_dict(),
-            "datapack_ids": list(datapack_ids),
-            "datapack_configs": [c.to_dict() for c in (datapack_configs or ()) if hasattr(c, "to_dict")],
-            "num_envs": num_envs, "max_steps": max_steps, "seed": seed, "eval_episodes": eval_episodes,
-            "sac": asdict(self.sac), "torch_threads": self.torch_threads, "econ_params": params.to_dict(),
-            "overlay_normalization": norm,
-            "term_references": term_references(params, spec.economics) if norm != "none" else {},
-            "training_objective": training_objective(objective, norm).to_dict(),
-            "overlay_keys_ignored": list(make().ignored_overlay_keys),
-            "randomization": randomization.to_dict(), "train_seconds": train_s,
-        }
-        write_run_config(run_dir, config, self.name)
-        _write_json(run_dir / "training_curve.json", curve.curve)
+        config = {"task_id": task_id, "objective": objective.to_dict(), "datapack_ids": list(datapack_ids),
+                  "datapack_configs": [c.to_dict() for c in (datapack_configs or ()) if hasattr(c, "to_dict")],
+                  "num_envs": num_envs, "seed": seed, "eval_episodes": eval_episodes,
+                  **self._described(spec, params, norm, objective, randomization, make)}
+        from econmotor.motor_backend.dishwashing.learner import SACLearner
+
+        loop = TrainingLoop(run_dir, self.name, config, max_steps, curve_every_steps=self.sac.curve_every_steps,
+                            progress=progress, label=f"train {task_id}")
+        try:
+            outcome = loop.run(SACLearner(self._model(make, num_envs, max_steps, seed), max_steps))
+        except (ValueError, RuntimeError) as exc:
+            raise BackendError(f"SAC training on '{task_id}' failed: {exc}") from exc
+        config, curve = outcome.config, outcome.curve
         evaluation = self.evaluate_after_training(run_dir, task_id, objective, eval_episodes, seed,
                                                   datapack_configs=datapack_configs, progress=progress,
                                                   datapack_ids=datapack_ids)
-        return self.training_result(run_dir, task_id, evaluation, curve.curve, config,
-                                    {"policy": str(policy_path), "run_config": str(run_dir / RUN_CONFIG_FILE),
-                                     "training_curve": str(run_dir / "training_curve.json")})
+        return self.training_result(run_dir, task_id, evaluation, curve, config,
+                                    {"policy": str(run_dir / self.final_policy_file),
+                                     "run_config": str(run_dir / RUN_CONFIG_FILE), "curve": str(run_dir / CURVE_FILE)})
 
     # ----------------------------------------------------------- evaluation
     def _evaluate(self, model: Any, spec: TaskSpec, params: EconParams, norm: str,
@@ -408,9 +395,3 @@ class DishwashingBackend(MotorBackendBase):
         except Exception as exc:  # SB3 raises many types for a bad zip
             raise BackendError(f"cannot load SAC policy '{policy_id}': {exc}") from exc
         return SACPolicyHandle(model, str(path))
-
-
-def _write_json(path: Path, data: Any) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2, default=str), encoding="utf-8")
-    tmp.replace(path)

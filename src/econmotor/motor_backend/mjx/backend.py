@@ -64,6 +64,7 @@ from econmotor.motor_backend.results import (
     walking_speed_m_per_s,
 )
 from econmotor.motor_backend.selection import selection_for
+from econmotor.motor_backend.training_loop import CURVE_FILE
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.robots import card as robot_card
 from econmotor.robots.gym_couriers import robot_name
@@ -314,11 +315,12 @@ class MjxBackend(MotorBackendBase):
             self._evaluator(env, cfg, ahead=True)  # compiles while training starts
         run.held_out = lambda learner, n, first_seed, stop: evaluate_episodes(
             self._evaluator(env, run.cfg), self.eval_batch, env, learner, n, first_seed, stop=stop)
-        learner, curve, timing = run.train(resume=resume, progress=progress)
-        config = {**run.config, "timing": timing}
+        run.export = lambda run_dir, learner: self._export(run_dir, learner, run.cfg, run.config)
+        curve, _ = run.train(resume=resume, progress=progress)
+        config = run.config
         artifacts = {"policy": str(run.run_dir / "policy.npz"), "tensorboard": str(run.run_dir / "tb"),
-                     "run_config": str(run.run_dir / RUN_CONFIG_FILE),
-                     "onnx": str(self._export(run.run_dir, learner, run.cfg, config))}
+                     "run_config": str(run.run_dir / RUN_CONFIG_FILE), "onnx": str(run.onnx),
+                     "curve": str(run.run_dir / CURVE_FILE)}
         # the same env and compiled evaluator (memoised), the learner train saved as policy.npz
         evaluation = self.evaluate_after_training(run.run_dir, task_id, objective, eval_episodes, seed,
                                                   datapack_configs=datapack_configs, progress=progress,

@@ -10,9 +10,10 @@ Run directory (``policy_id``), as the mujoco backend's::
     best/policy.npz                     # the best held-out learner so far (while training)
     policy.onnx                         # the deployed actor (export.py)
 
-The host loop calls the one jitted iteration (``ppo.make_train_iteration``) until ``max_steps``
-env steps (rounded up to whole iterations of ``num_envs * unroll_length``), reporting progress,
-writing TensorBoard scalars of the episodes that ended, the training curve and checkpoints.
+The run around the learner is the shared :class:`~econmotor.motor_backend.training_loop.TrainingLoop`
+(``run_config.json``, ``curve.jsonl``, checkpoints, held-out selection, the kept policy, timing);
+:class:`MjxLearner` supplies its chunks: the one jitted iteration (``ppo.make_train_iteration``) of
+``num_envs * unroll_length`` env steps, with TensorBoard scalars of the episodes that ended.
 
 A run may start from a given learner (``initial``: an actor imported from a walker that exists,
 ``onnx_import.py``) instead of a fresh one. Its first ``cfg.critic_warmup_iterations`` iterations
@@ -24,7 +25,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -38,11 +39,12 @@ from econmotor.motor_backend.base import ProgressFn, no_progress
 from econmotor.motor_backend.mjx import checkpoint as ckpt
 from econmotor.motor_backend.mjx import ppo
 from econmotor.motor_backend.mjx.compile import CacheWatch
-from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, check_resume_request
+from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE
 from econmotor.motor_backend.selection import Selection
+from econmotor.motor_backend.training_loop import Learner as LoopLearner
+from econmotor.motor_backend.training_loop import StopFn, TrainingLoop
 
 POLICY_FILE = "policy.npz"
-BEST_DIR = "best"
 
 
 def read_run_config(run_dir: str | Path, task_id: str | None = None) -> dict[str, Any]:
@@ -161,6 +163,113 @@ class ScalarWriter:
         self._writer.close()
 
 
+class MjxLearner(LoopLearner):
+    """JAX PPO's jitted iterations as the loop's learner (module docstring)."""
+
+    policy_file = POLICY_FILE
+
+    def __init__(self, run: MjxTrainingRun, progress: ProgressFn) -> None:
+        self.run, self.progress = run, progress
+        self.chunk_steps = run.num_envs * run.cfg.unroll_length
+        self.env_steps, self.learner, self.key = 0, run.initial, None
+        self.resumed_from = 0
+        self.state: Any = None
+        self.iteration: Any = None
+        self.watch, self.started = CacheWatch(), time.perf_counter()
+        self.first_done: float | None = None
+        self.t_loop = self.started
+        self.window: list[tuple[float, float, float]] = []  # (return sum, length sum, count) of recent iterations
+        self.writer = ScalarWriter(run.run_dir / "tb" / "run")
+
+    def _template(self) -> ppo.Learner:
+        env, cfg = self.run.env, self.run.cfg
+        return ppo.init_learner(jax.random.PRNGKey(self.run.seed), env.observation_size, env.action_size, cfg)
+
+    def _ready(self) -> Any:
+        """The train state (built at the first chunk, from the start or the restored checkpoint)."""
+        if self.state is None:
+            run = self.run
+            self.state = ppo.init_train_state(run.env, run.cfg, run.num_envs, run.seed, learner=self.learner,
+                                              key=self.key)
+            self.iteration = ppo.make_train_iteration(run.env, run.cfg, run.num_envs)
+        return self.state
+
+    def learn(self, until_steps: int) -> dict[str, float] | None:
+        cfg, warmup_steps = self.run.cfg, self.run.cfg.critic_warmup_iterations * self.chunk_steps
+        state = self._ready()
+        while True:
+            warming = self.env_steps < warmup_steps
+            state, metrics = self.iteration(state, 0.0 if warming else 1.0)
+            metrics = jax.device_get(metrics)
+            self.env_steps += self.chunk_steps
+            if warming and self.env_steps >= warmup_steps:  # the actor moves from now on, with a fresh Adam
+                state = with_fresh_optimizer(state, cfg)
+            if self.first_done is None:
+                self._first_iteration_done()
+            log_scalars(self.writer, metrics, self.run.env.factors, self.env_steps)
+            self.window = [*self.window[-9:], (float(metrics["sum/return"]), float(metrics["sum/length_steps"]),
+                                               float(metrics["episodes"]))]
+            if self.env_steps >= until_steps:
+                break
+        self.state = state
+        count = sum(w[2] for w in self.window)
+        if count <= 0:
+            return None
+        return {"mean_return": sum(w[0] for w in self.window) / count,
+                "mean_length": sum(w[1] for w in self.window) / count}
+
+    def _first_iteration_done(self) -> None:
+        """The first iteration includes XLA compilation: timed apart, and a warm cache said."""
+        self.first_done, self.t_loop = time.perf_counter() - self.started, time.perf_counter()
+        watch = self.watch
+        if watch.hits:
+            self.progress(f"mjx: compilation cache warm: {watch.hits} compiled program(s) loaded from "
+                          f"{self.run.cache_dir or 'the cache'} (about {watch.saved_s:.0f} s of XLA compilation "
+                          f"saved); first iteration {self.first_done:.1f} s", 1.0, 1.0)
+
+    def evaluate(self, num_episodes: int, first_seed: int, stop: StopFn) -> list[dict[str, Any]]:
+        return self.run.held_out(self._ready().learner, num_episodes, first_seed, stop)
+
+    def save_checkpoint(self, run_dir: Path) -> None:
+        if self.state is not None:
+            ckpt.save_tree(ckpt.checkpoint_path(run_dir, self.env_steps), self.state.learner, self.state.key,
+                           self.env_steps)
+
+    def load_checkpoint(self, run_dir: Path) -> int:
+        found = ckpt.latest_checkpoint(run_dir)
+        if found:
+            self.learner, self.key, self.env_steps, _ = ckpt.load_tree(found[0], self._template())
+        self.resumed_from = self.env_steps
+        return self.env_steps
+
+    def save_policy(self, directory: Path) -> None:
+        state = self._ready()
+        ckpt.save_tree(directory / POLICY_FILE, state.learner, state.key, self.env_steps)
+
+    def load_policy(self, directory: Path) -> None:
+        state = self._ready()
+        learner, _, _, _ = ckpt.load_tree(directory / POLICY_FILE, state.learner)
+        self.state = state._replace(learner=learner)
+
+    def export(self, run_dir: Path) -> Path | None:
+        return self.run.export(run_dir, self._ready().learner) if self.run.export is not None else None
+
+    def log_scalars(self, scalars: Mapping[str, float]) -> None:
+        for name, value in scalars.items():
+            self.writer.add_scalar(name, value, self.env_steps)
+
+    def timing(self) -> dict[str, Any]:
+        trained = self.env_steps - self.resumed_from
+        loop_s = time.perf_counter() - self.t_loop
+        return {"first_iteration_s": self.first_done or 0.0, "compile_cache_hits": self.watch.hits,
+                "compile_s_saved": round(self.watch.saved_s, 3),
+                "env_steps_per_s_after_compile": (trained - self.chunk_steps) / loop_s
+                if trained > self.chunk_steps and loop_s > 0 else None}
+
+    def close(self) -> None:
+        self.writer.close()
+
+
 @dataclass
 class MjxTrainingRun:
     """One training run (fields are the run's configuration; ``config`` is filled by ``train``)."""
@@ -184,133 +293,24 @@ class MjxTrainingRun:
     initial: ppo.Learner | None = None
     #: JAX's persistent compilation cache (said when a run starts warm from it)
     cache_dir: str | None = None
+    #: ``export(run_dir, learner) -> policy.onnx`` of the kept learner (None: no export)
+    export: Callable[[Path, ppo.Learner], Path] | None = None
+    onnx: Path | None = None
 
-    def _consider(self, learner: ppo.Learner, key: Any, steps: int, writer: Any) -> None:
-        """One held-out evaluation of ``learner``; saved to ``best/`` when the best so far; TensorBoard."""
-        result, better = self.selection.consider(
-            steps, lambda n, seed, stop: self.held_out(learner, n, seed, stop))
-        if better:
-            ckpt.save_tree(self.run_dir / BEST_DIR / POLICY_FILE, learner, key, steps)
-        self.config = {**self.config, "selection": self.selection.record()}
-        run_dirs.write_run_config(self.run_dir, self.config, "mjx")
-        for name, value in result.scalars().items():
-            writer.add_scalar(name, value, steps)
-
-    def _check_resume_request(self, previous: dict[str, Any]) -> None:
-        """As the mujoco backend: a resumed run keeps its recorded hyperparameters; asking for others fails."""
-        check_resume_request(self.run_dir, previous, self.described["task_id"], self.requested_hyperparameters)
-
-    def _start(self, resume: bool) -> tuple[ppo.Learner | None, Any, int]:
-        """The run's starting point (``(learner, key, env steps)``: a resumed run's newest checkpoint, else the
-        initial learner) and its ``run_config.json``."""
-        self.run_dir.mkdir(parents=True, exist_ok=True)
-        found = None
+    def train(self, resume: bool = False, progress: ProgressFn = no_progress) -> tuple[list[dict[str, float]], Any]:
+        """Train to ``max_steps`` (the shared loop); returns (training curve, the kept learner)."""
+        loop = TrainingLoop(self.run_dir, "mjx", {**self.described}, self.max_steps,
+                            checkpoint_every_steps=self.checkpoint_every_steps, selection=self.selection,
+                            requested_hyperparameters=self.requested_hyperparameters, progress=progress)
         if resume:
-            previous = read_run_config(self.run_dir)
-            self._check_resume_request(previous)
+            previous = loop.previous()
             self.cfg = ppo.PPOConfig.from_mapping(previous["hyperparameters"], str(self.run_dir / RUN_CONFIG_FILE))
-            found = ckpt.latest_checkpoint(self.run_dir)
-            if self.selection is not None and (self.run_dir / BEST_DIR / POLICY_FILE).is_file():
-                self.selection.restore(previous.get("selection"))
-        env, cfg = self.env, self.cfg
-        template = ppo.init_learner(jax.random.PRNGKey(self.seed), env.observation_size, env.action_size, cfg)
-        learner, key, steps = self.initial, None, 0
-        if found:
-            learner, key, steps, _ = ckpt.load_tree(found[0], template)
-        obs_layout, action_layout = env_layout(env, cfg.normalize_obs)
-        self.config = {
-            **self.described, "backend": "mjx", "algorithm": "ppo", "hyperparameters": cfg.to_dict(),
-            "num_envs": self.num_envs, "max_steps": self.max_steps, "seed": self.seed,
-            "checkpoint_every_steps": self.checkpoint_every_steps, "obs_layout": obs_layout,
-            "action_layout": action_layout, "resumed_from_steps": steps, **self.extra_config,
-        }
-        if self.selection is not None and self.selection.history:
-            self.config["selection"] = self.selection.record()  # a resumed run's selection so far
-        run_dirs.write_run_config(self.run_dir, self.config, "mjx")
-
-        return learner, key, steps
-
-    def _finish(self, state: Any, steps: int, started: float, watch: CacheWatch, first_done: float | None,
-                t_loop: float, per_iteration: int) -> tuple[ppo.Learner, dict[str, Any]]:
-        """The last checkpoint, the selection's record, ``policy.npz`` (the kept learner) and the run's timing."""
-        if first_done is not None:
-            ckpt.save_tree(ckpt.checkpoint_path(self.run_dir, steps), state.learner, state.key, steps)
-        learner = state.learner
-        if self.selection is not None:  # the record first: policy.npz marks a complete run
-            self.config = {**self.config, "trained_steps": steps, "selection": self.selection.record()}
-            run_dirs.write_run_config(self.run_dir, self.config, "mjx")
-        if self.selection is not None and self.selection.best is not None:
-            best = self.run_dir / BEST_DIR / POLICY_FILE
-            learner, _, _, _ = ckpt.load_tree(best, state.learner)
-            ckpt.save_tree(self.run_dir / POLICY_FILE, learner, state.key, steps)
-        else:
-            ckpt.save_tree(self.run_dir / POLICY_FILE, state.learner, state.key, steps)
-        trained = steps - int(self.config["resumed_from_steps"])
-        loop_s = time.perf_counter() - t_loop
-        timing = {"total_steps": steps, "first_iteration_s": first_done or 0.0, "train_wall_s":
-                  time.perf_counter() - started, "compile_cache_hits": watch.hits,
-                  "compile_s_saved": round(watch.saved_s, 3),
-                  "env_steps_per_s_after_compile": (trained - per_iteration) / loop_s
-                  if trained > per_iteration and loop_s > 0 else None}
-        return learner, timing
-
-    def train(self, resume: bool = False, progress: ProgressFn = no_progress
-              ) -> tuple[ppo.Learner, list[dict[str, float]], dict[str, Any]]:
-        """Train to ``max_steps``; returns (learner, training curve, timing)."""
-        started = time.perf_counter()
-        watch = CacheWatch()
-        learner, key, steps = self._start(resume)
-        env, cfg = self.env, self.cfg
-        state = ppo.init_train_state(env, cfg, self.num_envs, self.seed, learner=learner, key=key)
-        iteration = ppo.make_train_iteration(env, cfg, self.num_envs)
-        per_iteration = self.num_envs * cfg.unroll_length
-        writer, curve = ScalarWriter(self.run_dir / "tb" / "run"), []
-        every_curve = max(per_iteration, self.max_steps // 50)
-        next_curve = (steps // every_curve + 1) * every_curve
-        next_ckpt = (steps // self.checkpoint_every_steps + 1) * self.checkpoint_every_steps
-        window: list[tuple[float, float, float]] = []  # (return sum, length sum, count) of recent iterations
-        report = lambda done: progress(f"train · {self.selection.status()}" if self.selection is not None
-                                       and self.selection.status() else "train", min(done, self.max_steps),
-                                       self.max_steps)
-        report(steps)
-        if self.selection is not None:
-            self.selection.started = started
-        last_held_out = steps
-        first_done, t_loop = None, time.perf_counter()
-        warmup_steps = cfg.critic_warmup_iterations * per_iteration
-        try:
-            while steps < self.max_steps and not (self.selection is not None and self.selection.should_stop):
-                warming = steps < warmup_steps
-                state, metrics = iteration(state, 0.0 if warming else 1.0)
-                metrics = jax.device_get(metrics)
-                steps += per_iteration
-                if warming and steps >= warmup_steps:  # the actor moves from now on, with a fresh Adam
-                    state = with_fresh_optimizer(state, cfg)
-                if first_done is None:  # the first iteration includes XLA compilation
-                    first_done, t_loop = time.perf_counter() - started, time.perf_counter()
-                    if watch.hits:
-                        progress(f"mjx: compilation cache warm: {watch.hits} compiled program(s) loaded from "
-                                 f"{self.cache_dir or 'the cache'} (about {watch.saved_s:.0f} s of XLA compilation "
-                                 f"saved); first iteration {first_done:.1f} s", 1.0, 1.0)
-                log_scalars(writer, metrics, env.factors, steps)
-                window = [*window[-9:], (float(metrics["sum/return"]), float(metrics["sum/length_steps"]),
-                                         float(metrics["episodes"]))]
-                if steps >= next_curve or steps >= self.max_steps:
-                    next_curve = (steps // every_curve + 1) * every_curve
-                    count = sum(w[2] for w in window)
-                    if count > 0:
-                        curve.append({"timesteps": float(steps), "mean_return": sum(w[0] for w in window) / count,
-                                      "mean_length": sum(w[1] for w in window) / count})
-                if steps >= next_ckpt:
-                    next_ckpt = (steps // self.checkpoint_every_steps + 1) * self.checkpoint_every_steps
-                    ckpt.save_tree(ckpt.checkpoint_path(self.run_dir, steps), state.learner, state.key, steps)
-                if self.selection is not None and self.selection.due(steps, last_held_out):
-                    last_held_out = steps
-                    self._consider(state.learner, state.key, steps, writer)
-                report(steps)
-            if self.selection is not None and first_done is not None and self.selection.final_due(steps, last_held_out):
-                self._consider(state.learner, state.key, steps, writer)  # the last weights are a candidate too
-        finally:
-            writer.close()
-        learner, timing = self._finish(state, steps, started, watch, first_done, t_loop, per_iteration)
-        return learner, curve, timing
+        obs_layout, action_layout = env_layout(self.env, self.cfg.normalize_obs)
+        self.config = loop.config = {
+            **self.described, "algorithm": "ppo", "hyperparameters": self.cfg.to_dict(), "num_envs": self.num_envs,
+            "seed": self.seed, "checkpoint_every_steps": self.checkpoint_every_steps, "obs_layout": obs_layout,
+            "action_layout": action_layout, **self.extra_config}
+        learner = MjxLearner(self, progress)
+        outcome = loop.run(learner, resume)
+        self.config, self.onnx = outcome.config, outcome.export
+        return outcome.curve, learner.state.learner

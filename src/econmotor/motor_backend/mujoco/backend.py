@@ -49,7 +49,6 @@ from econmotor.motor_backend.mujoco.walker_backend import (
     holosoma_settings,
     is_walker_task,
     train_walker,
-    walker_curve,
     walker_train_settings,
 )
 from econmotor.motor_backend.results import (
@@ -60,8 +59,9 @@ from econmotor.motor_backend.results import (
     evaluation_result,
     mean_power_w,
 )
-from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, read_run_config, write_run_config
+from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, read_run_config
 from econmotor.motor_backend.selection import selection_for
+from econmotor.motor_backend.training_loop import CURVE_FILE
 from econmotor.motor_backend.walker_pricing import WalkerPricing, price_walker
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
 from econmotor.robots.gym_couriers import robot_name
@@ -88,7 +88,7 @@ class MujocoBackend(MotorBackendBase):
                                        records_clips=True, evaluation_driven=True, shadow_env=True,
                                        init_policies=True, time_budget=True)
     defaults = RunSize(num_envs=0, max_steps=100_000)
-    smoke_run = RunSize(num_envs=1, max_steps=64, task_id="hopper_courier")
+    smoke_run = RunSize(num_envs=1, max_steps=1024, task_id="hopper_courier")  # two PPO rollouts of 512
     max_num_envs = 256  # SB3 vector envs: one process (subproc) or one env object (dummy) each
     final_policy_file = "policy.zip"
     checkpoint_glob = "*.zip"
@@ -195,16 +195,14 @@ class MujocoBackend(MotorBackendBase):
             algorithm=algorithm or settings.algorithm, hyperparameters=hyperparameters,
             num_envs=num_envs if num_envs > 0 else settings.num_envs, max_steps=int(max_steps), seed=int(seed),
             vec_env=self.vec_env, checkpoint_every_steps=checkpoint_every_steps or settings.checkpoint_every_steps,
-            requested_algorithm=algorithm, eval_recipe=self._eval_recipe(recipe),
+            requested_algorithm=algorithm, eval_recipe=self._eval_recipe(recipe), onnx_metadata=self._onnx_metadata,
             selection=selection_for(self.catalog.get(task_id), objective, select_every_steps, select_episodes,
                                     until_deployable, seed, self.held_out_cadence, self.evaluation_batch(task_id)),
         )
-        model, curve = run.train(resume=resume, progress=progress)
+        _, curve = run.train(resume=resume, progress=progress)
         artifacts = {"policy": str(run.run_dir / "policy.zip"), "tensorboard": str(run.run_dir / "tb"),
-                     "run_config": str(run.run_dir / RUN_CONFIG_FILE)}
-        normalizer = obs_normalizer(run.run_dir)
-        artifacts["onnx"] = str(export_onnx(model, normalizer, run.run_dir / ONNX_FILE,
-                                            self._onnx_metadata(run.config)))
+                     "run_config": str(run.run_dir / RUN_CONFIG_FILE), "onnx": str(run.onnx),
+                     "curve": str(run.run_dir / CURVE_FILE)}
         evaluation = self.evaluate_after_training(run.run_dir, task_id, objective, eval_episodes, seed,
                                                   datapack_configs=datapack_configs, progress=progress,
                                                   datapack_ids=datapack_ids)
@@ -340,17 +338,15 @@ class MujocoBackend(MotorBackendBase):
             init_policy = (read_run_config(run_dir).get("init_policy") or {}).get("policy")
         selection = selection_for(spec, objective, select_every_steps, select_episodes, until_deployable, seed,
                                   WALKER_CADENCE, WALKER_SELECT_BATCH)
-        config = train_walker(spec, objective, packs, run_dir, num_envs=num_envs, max_steps=max_steps, seed=seed,
-                              init_policy=init_policy, hyperparameters=hyperparameters, selection=selection,
-                              resume=resume, max_wall_s=max_wall_s, progress=progress,
-                              described={"datapacks": [p.to_dict() for p in packs]})
-        write_run_config(run_dir, config, self.name)
-        curve = walker_curve(run_dir)
+        config, curve = train_walker(spec, objective, packs, run_dir, num_envs=num_envs, max_steps=max_steps,
+                                     seed=seed, init_policy=init_policy, hyperparameters=hyperparameters,
+                                     selection=selection, resume=resume, max_wall_s=max_wall_s, progress=progress,
+                                     described={"datapacks": [p.to_dict() for p in packs]})
         evaluation = self.evaluate_after_training(run_dir, spec.task_id, objective, eval_episodes, seed,
                                                   datapack_configs=packs, progress=progress)
         artifacts = {"policy": str(run_dir), "onnx": str(run_dir / ONNX_FILE), "run_config": str(run_dir /
                                                                                               RUN_CONFIG_FILE),
-                     "curve": str(run_dir / "curve.jsonl"), "checkpoint": str(run_dir / "checkpoints" / "latest.pt")}
+                     "curve": str(run_dir / CURVE_FILE), "checkpoint": str(run_dir / "checkpoints" / "latest.pt")}
         return self.training_result(run_dir, spec.task_id, evaluation, curve, config, artifacts)
 
     # --- extras ------------------------------------------------------------------------------

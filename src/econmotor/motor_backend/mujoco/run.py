@@ -1,16 +1,16 @@
 """TrainingRun: one SB3 training run in a run directory, fresh or resumed from a checkpoint.
 
-``train()`` writes ``run_config.json`` first (so an interrupted run can be resumed and
-its policy read by any process), trains with progress, curve, checkpoint, curriculum and
-TensorBoard callbacks, and saves the final policy atomically. With a :class:`Selection`
-(evaluation-driven training, ``motor_backend/selection.py``) the held-out evaluations run in
-:class:`HeldOutSelectionCallback`; the best policy so far is saved to ``best/`` and becomes the
-run's ``policy.zip`` at the end, and ``run_config.json`` records the selection.
+The run around the model is the shared :class:`~econmotor.motor_backend.training_loop.TrainingLoop`
+(``run_config.json``, the curve, checkpoints, held-out selection, the kept policy, timing); this module
+supplies the SB3 model as its :class:`MujocoLearner`: chunks of ``model.learn`` with the curriculum and
+the economics' TensorBoard callbacks, SB3-format checkpoints (``mujoco/training.py``), ``policy.zip`` with
+its ``vecnormalize.pkl``, the held-out evaluation (``HELD_OUT_BATCH`` envs stepped together) and the ONNX
+export.
 """
 
 from __future__ import annotations
 
-import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -21,28 +21,32 @@ from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import ProgressFn, no_progress
 from econmotor.motor_backend.mujoco.env_factory import EnvRecipe, make_env, make_vec_env
 from econmotor.motor_backend.mujoco.evaluation import rollout_batched, torch_act_fn
+from econmotor.motor_backend.mujoco.export import export_onnx
 from econmotor.motor_backend.mujoco.settings import merge_hyperparameters
 from econmotor.motor_backend.mujoco.training import (
+    POLICY_FILE,
     CurriculumCallback,
     EconEpisodeLogCallback,
     algorithm_class,
     build_model,
-    checkpoint_callback,
     checkpoint_vecnormalize,
     find_checkpoint,
-    install_policy,
     load_checkpoint,
     log,
+    obs_normalizer,
+    save_checkpoint,
     save_final,
     wrap_normalize,
 )
-from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, check_resume_request, read_run_config, write_run_config
-from econmotor.motor_backend.sb3_callbacks import HeldOutSelectionCallback, ProgressFnCallback, TrainingCurveCallback
+from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE
+from econmotor.motor_backend.sb3_learner import SB3Learner
 from econmotor.motor_backend.selection import Selection
+from econmotor.motor_backend.training_loop import StopFn, TrainingLoop
+
+ONNX_FILE = "policy.onnx"
 
 #: envs stepped together in a held-out evaluation (one batched forward pass per step)
 HELD_OUT_BATCH = 16
-BEST_DIR = "best"
 
 
 def current_normalizer(model: Any) -> tuple[Any, Any, float, float] | None:
@@ -67,6 +71,38 @@ def env_layout(venv: Any) -> tuple[dict[str, Any], dict[str, Any]]:
     return obs, action
 
 
+class MujocoLearner(SB3Learner):
+    """An SB3 model on the mujoco backend's envs as the loop's learner (module docstring)."""
+
+    policy_file = POLICY_FILE
+
+    def __init__(self, model: Any, run: TrainingRun, resumed_at: int, callbacks: list[Any],
+                 metadata: Mapping[str, Any]) -> None:
+        super().__init__(model, run.max_steps, callbacks, str(run.run_dir / "tb"), resumed=resumed_at > 0)
+        self.run, self.resumed_at, self.metadata = run, resumed_at, metadata
+
+    def evaluate(self, num_episodes: int, first_seed: int, stop: StopFn) -> list[dict[str, Any]]:
+        return self.run._held_out(self.model, num_episodes, first_seed, stop)
+
+    def save_checkpoint(self, run_dir: Path) -> None:
+        save_checkpoint(self.model, run_dir, save_replay_buffer=self.run.algorithm == "sac")
+
+    def load_checkpoint(self, run_dir: Path) -> int:
+        return self.resumed_at  # loaded with its VecNormalize statistics when the env was built (TrainingRun)
+
+    def save_policy(self, directory: Path) -> None:
+        save_final(self.model, directory)
+
+    def load_policy(self, directory: Path) -> None:
+        self.model = algorithm_class(self.run.algorithm).load(str(directory / POLICY_FILE), device="cpu")
+
+    def export(self, run_dir: Path) -> Path:
+        return export_onnx(self.model, obs_normalizer(run_dir), run_dir / ONNX_FILE, dict(self.metadata))
+
+    def close(self) -> None:
+        self.run.venv.close()
+
+
 @dataclass
 class TrainingRun:
     """One training run (fields are the run's configuration)."""
@@ -84,7 +120,10 @@ class TrainingRun:
     requested_algorithm: str | None = None
     selection: Selection | None = None
     eval_recipe: EnvRecipe | None = None
+    #: the ONNX export's metadata from the run config (None: the config's own keys are not described)
+    onnx_metadata: Callable[[dict[str, Any]], dict[str, Any]] | None = None
     config: dict[str, Any] = field(default_factory=dict)
+    venv: Any = None
 
     def _held_out(self, model: Any, num_episodes: int, first_seed: int, stop: Any) -> list[dict[str, Any]]:
         """Deterministic held-out episodes of the model as it is now (selection.EvaluateFn)."""
@@ -97,85 +136,57 @@ class TrainingRun:
             for env in envs:
                 env.close()
 
-    def _save_best(self, model: Any) -> None:
-        save_final(model, self.run_dir / BEST_DIR)
-
-    def _record_selection(self) -> None:
-        self.config = {**self.config, "selection": self.selection.record()}
-        write_run_config(self.run_dir, self.config, "mujoco")
-
     def _hyperparameters(self) -> dict[str, Any]:
         hp = merge_hyperparameters(self.recipe.settings.algo_hyperparameters(self.algorithm), self.hyperparameters)
         if self.algorithm == "sac":  # a replay buffer larger than the run only costs memory and checkpoints
             hp["buffer_size"] = int(min(hp.get("buffer_size", 1_000_000), max(self.max_steps, 1000)))
         return hp
 
-    def _check_resume_request(self, previous: dict[str, Any]) -> None:
-        """A resumed run continues with its recorded task, algorithm and hyperparameters; an explicit
-        request for different ones is an error (start a new run directory to change them)."""
-        check_resume_request(self.run_dir, previous, self.described["task_id"], self.hyperparameters)
+    def _check_algorithm(self, previous: dict[str, Any]) -> None:
+        """A resumed run continues with its recorded algorithm (start a new run directory to change it)."""
         if self.requested_algorithm and self.requested_algorithm != previous.get("algorithm"):
             raise ConfigError(str(self.run_dir / RUN_CONFIG_FILE), "algorithm",
                               f"the run was trained with {previous.get('algorithm')!r}; resume cannot switch to "
                               f"{self.requested_algorithm!r} (use a new --output-dir)")
 
+    def _model(self, hp: dict[str, Any], ckpt: tuple[Path, int] | None) -> Any:
+        """The model on a fresh vector env: from the checkpoint (with its VecNormalize statistics) or new."""
+        self.venv = make_vec_env(self.recipe, self.num_envs, self.seed, self.vec_env)
+        stats = checkpoint_vecnormalize(*ckpt) if ckpt else None
+        self.venv = wrap_normalize(self.venv, self.recipe.settings.normalize_obs,
+                                   stats if stats and stats.is_file() else None)
+        if ckpt:
+            return load_checkpoint(self.algorithm, ckpt[0], ckpt[1], self.venv)
+        return build_model(self.algorithm, self.venv, hp, self.seed, None)
+
     def train(self, resume: bool = False, progress: ProgressFn = no_progress) -> tuple[Any, list[dict[str, float]]]:
         """Train to ``max_steps`` total environment steps; returns (model, training curve)."""
-        self.run_dir.mkdir(parents=True, exist_ok=True)
-        if self.selection is not None:
-            self.selection.started = time.perf_counter()  # "deployable after N wall seconds" counts from here
-        ckpt, skipped = find_checkpoint(self.run_dir, self.recipe.settings.normalize_obs) if resume else (None, [])
-        for problem in skipped:
-            log.warning("skipped a damaged checkpoint: %s; resuming from %s", problem,
-                        f"{ckpt[0].name}" if ckpt else "the start (no intact checkpoint)")
+        loop = TrainingLoop(self.run_dir, "mujoco", {**self.described}, self.max_steps,
+                            checkpoint_every_steps=self.checkpoint_every_steps, selection=self.selection,
+                            curve_every_steps=max(1000, self.max_steps // 50),
+                            requested_hyperparameters=self.hyperparameters, progress=progress)
+        ckpt, skipped = None, []
         if resume:
-            previous = read_run_config(self.run_dir, "mujoco")
-            self._check_resume_request(previous)
+            previous = loop.previous()
+            self._check_algorithm(previous)
             self.algorithm = previous["algorithm"]
-            if self.selection is not None and (self.run_dir / BEST_DIR / "policy.zip").is_file():
-                self.selection.restore(previous.get("selection"))
+            ckpt, skipped = find_checkpoint(self.run_dir, self.recipe.settings.normalize_obs)
+            for problem in skipped:
+                log.warning("skipped a damaged checkpoint: %s; resuming from %s", problem,
+                            f"{ckpt[0].name}" if ckpt else "the start (no intact checkpoint)")
         hp = previous["hyperparameters"] if resume else self._hyperparameters()
-        venv = make_vec_env(self.recipe, self.num_envs, self.seed, self.vec_env)
-        stats = checkpoint_vecnormalize(*ckpt) if ckpt else None
-        venv = wrap_normalize(venv, self.recipe.settings.normalize_obs, stats if stats and stats.is_file() else None)
-        obs_layout, action_layout = env_layout(venv.venv if hasattr(venv, "venv") else venv)
-        self.config = {
+        model = self._model(hp, ckpt)
+        obs_layout, action_layout = env_layout(self.venv.venv if hasattr(self.venv, "venv") else self.venv)
+        loop.config = {
             **self.described, "algorithm": self.algorithm, "hyperparameters": hp, "num_envs": self.num_envs,
-            "max_steps": self.max_steps, "seed": self.seed, "vec_env": self.vec_env,
-            "checkpoint_every_steps": self.checkpoint_every_steps, "obs_layout": obs_layout,
-            "action_layout": action_layout, "resumed_from_steps": ckpt[1] if ckpt else 0,
-            "skipped_checkpoints": skipped,
+            "seed": self.seed, "vec_env": self.vec_env, "checkpoint_every_steps": self.checkpoint_every_steps,
+            "obs_layout": obs_layout, "action_layout": action_layout, "skipped_checkpoints": skipped,
         }
-        if self.selection is not None and self.selection.history:
-            self.config["selection"] = self.selection.record()  # a resumed run's selection so far
-        write_run_config(self.run_dir, self.config, "mujoco")
-        tb_dir = str(self.run_dir / "tb")
-        if ckpt:
-            model = load_checkpoint(self.algorithm, ckpt[0], ckpt[1], venv)
-            model.tensorboard_log = tb_dir
-        else:
-            model = build_model(self.algorithm, venv, hp, self.seed, tb_dir)
-        curve = TrainingCurveCallback(every_steps=max(1000, self.max_steps // 50))
-        callbacks = [ProgressFnCallback(progress, self.max_steps), curve, EconEpisodeLogCallback(),
-                     checkpoint_callback(self.run_dir, self.checkpoint_every_steps, self.num_envs,
-                                         save_replay_buffer=self.algorithm == "sac")]
+        callbacks = [EconEpisodeLogCallback()]
         if self.recipe.curriculum.ramp_steps > 0:
             callbacks.append(CurriculumCallback(self.recipe.curriculum))
-        if self.selection is not None:
-            callbacks[0].status = self.selection.status
-            callbacks.append(HeldOutSelectionCallback(self.selection, self._held_out, self._save_best,
-                                                      self._record_selection))
-        remaining = self.max_steps - model.num_timesteps
-        if remaining > 0:
-            model.learn(remaining, callback=callbacks, reset_num_timesteps=ckpt is None, tb_log_name="run")
-        if self.selection is not None:  # the record first: policy.zip marks a complete run
-            self.config = {**self.config, "trained_steps": int(model.num_timesteps),
-                           "selection": self.selection.record()}
-            write_run_config(self.run_dir, self.config, "mujoco")
-        if self.selection is not None and self.selection.best is not None:
-            install_policy(self.run_dir / BEST_DIR, self.run_dir)
-            model = algorithm_class(self.algorithm).load(str(self.run_dir / "policy.zip"), device="cpu")
-        else:
-            save_final(model, self.run_dir)
-        venv.close()
-        return model, curve.curve
+        metadata = self.onnx_metadata(loop.config) if self.onnx_metadata else {}
+        learner = MujocoLearner(model, self, ckpt[1] if ckpt else 0, callbacks, metadata)
+        outcome = loop.run(learner, resume)
+        self.config, self.onnx = outcome.config, outcome.export
+        return learner.model, outcome.curve

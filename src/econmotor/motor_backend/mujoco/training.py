@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from stable_baselines3 import PPO, SAC
 from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
+from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from econmotor.errors import BackendError, ConfigError
@@ -154,22 +154,21 @@ def load_checkpoint(algorithm: str, ckpt: Path, steps: int, venv: VecEnv) -> Bas
     return model
 
 
-class AtomicCheckpointCallback(CheckpointCallback):
-    """SB3's CheckpointCallback with every file written to a temporary name and renamed into
-    place, companions first and the policy zip last (module docstring)."""
-
-    def _on_step(self) -> bool:
-        if self.n_calls % self.save_freq != 0:
-            return True
-        Path(self.save_path).mkdir(parents=True, exist_ok=True)
-        buffer = getattr(self.model, "replay_buffer", None)
-        if self.save_replay_buffer and buffer is not None:
-            _atomic(self._checkpoint_path("replay_buffer_", extension="pkl"), self.model.save_replay_buffer)
-        normalizer = self.model.get_vec_normalize_env()
-        if self.save_vecnormalize and normalizer is not None:
-            _atomic(self._checkpoint_path("vecnormalize_", extension="pkl"), normalizer.save)
-        _atomic(self._checkpoint_path(extension="zip"), self.model.save)
-        return True
+def save_checkpoint(model: BaseAlgorithm, run_dir: Path, save_replay_buffer: bool) -> Path:
+    """``checkpoints/ckpt_<N>_steps.zip`` of ``model`` at its ``num_timesteps`` N, SB3's CheckpointCallback's
+    names, every file written atomically, companions first and the policy zip last (module docstring)."""
+    folder = Path(run_dir) / "checkpoints"
+    folder.mkdir(parents=True, exist_ok=True)
+    steps = int(model.num_timesteps)
+    zip_path = folder / f"{CHECKPOINT_PREFIX}_{steps}_steps.zip"
+    buffer = getattr(model, "replay_buffer", None)
+    if save_replay_buffer and buffer is not None:
+        _atomic(str(checkpoint_replay_buffer(zip_path, steps)), model.save_replay_buffer)
+    normalizer = model.get_vec_normalize_env()
+    if normalizer is not None:
+        _atomic(str(checkpoint_vecnormalize(zip_path, steps)), normalizer.save)
+    _atomic(str(zip_path), model.save)
+    return zip_path
 
 
 def _atomic(final: str, save: Any) -> None:
@@ -182,13 +181,6 @@ def _atomic(final: str, save: Any) -> None:
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
-
-
-def checkpoint_callback(run_dir: Path, every_steps: int, num_envs: int, save_replay_buffer: bool) -> BaseCallback:
-    """Atomic checkpoints every ``every_steps`` environment steps (all envs together)."""
-    return AtomicCheckpointCallback(save_freq=max(1, every_steps // num_envs), save_path=str(run_dir / "checkpoints"),
-                                    name_prefix=CHECKPOINT_PREFIX, save_replay_buffer=save_replay_buffer,
-                                    save_vecnormalize=True)
 
 
 class CurriculumCallback(BaseCallback):
@@ -243,18 +235,6 @@ def save_final(model: BaseAlgorithm, run_dir: Path) -> None:
     if isinstance(venv, VecNormalize):
         _atomic(str(run_dir / VECNORM_FILE), venv.save)
     _atomic(str(run_dir / POLICY_FILE), model.save)
-
-
-def install_policy(source_dir: Path, run_dir: Path) -> None:
-    """Copy a saved policy (``policy.zip`` and its ``vecnormalize.pkl`` when present) from
-    ``source_dir`` into ``run_dir`` as its final policy, statistics first, each atomically."""
-    import shutil
-
-    run_dir.mkdir(parents=True, exist_ok=True)
-    stats = source_dir / VECNORM_FILE
-    if stats.is_file():
-        _atomic(str(run_dir / VECNORM_FILE), lambda tmp: shutil.copyfile(stats, tmp))
-    _atomic(str(run_dir / POLICY_FILE), lambda tmp: shutil.copyfile(source_dir / POLICY_FILE, tmp))
 
 
 def obs_normalizer(run_dir: str | Path) -> tuple[np.ndarray, np.ndarray, float, float] | None:

@@ -18,7 +18,6 @@ evaluation is :func:`econmotor.motor_backend.walker_pricing.price_walker` on the
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
@@ -38,8 +37,8 @@ from econmotor.errors import ConfigError
 from econmotor.motor_backend.capabilities import HeldOutCadence
 from econmotor.motor_backend.datapacks import DatapackProvider
 from econmotor.motor_backend.mujoco.walker_ppo import WalkerPPOConfig
-from econmotor.motor_backend.mujoco.walker_training import CURVE_FILE, ONNX_FILE, TRAIN_SEED_BASE, WalkerTrainingRun
-from econmotor.motor_backend.run_dir import write_run_config
+from econmotor.motor_backend.mujoco.walker_training import ONNX_FILE, TRAIN_SEED_BASE, WalkerTrainingRun
+from econmotor.motor_backend.run_dir import read_run_config
 from econmotor.motor_backend.selection import SELECTION_SEED_OFFSET, Selection
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
 
@@ -109,8 +108,10 @@ def overlay(spec: Any, objective: EconomicObjectiveSpec, setup: WalkerSetup) -> 
 def train_walker(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[Any], run_dir: Path, *,
                  num_envs: int, max_steps: int, seed: int, init_policy: str | None,
                  hyperparameters: Mapping[str, Any] | None, selection: Selection | None, resume: bool,
-                 max_wall_s: float | None, progress: Any, described: Mapping[str, Any]) -> dict[str, Any]:
-    """Train a walker (module docstring) into ``run_dir``; the run's config (``run_config.json``'s content)."""
+                 max_wall_s: float | None, progress: Any, described: Mapping[str, Any]
+                 ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """Train a walker (module docstring) into ``run_dir``; the run's config (``run_config.json``'s content)
+    and its training curve."""
     trainer = walker_train_settings(spec)
     settings = holosoma_settings(spec)
     bundle = DatapackProvider().resolve(spec.task_id, [p.id for p in packs], list(packs))
@@ -122,6 +123,8 @@ def train_walker(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[An
     ppo = {**trainer.ppo, **dict(hyperparameters or {})}
     if num_envs > 0:
         ppo["num_envs"] = num_envs
+    if resume:  # a resumed run keeps its recorded recipe (the loop refuses a request for another)
+        ppo = dict(read_run_config(run_dir, "mujoco")["hyperparameters"])
     cfg = WalkerPPOConfig.from_mapping(ppo, "--hyperparameters")
     factors, rates = overlay(spec, objective, setup)
     c = setup.contract
@@ -147,10 +150,8 @@ def train_walker(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[An
         selection=selection, metadata=_onnx_metadata(config),
         kp=np.asarray(c.kp) if c else None, kd=np.asarray(c.kd) if c else None,
         command_ranges=c.command_ranges if c else None, select_stress=nominal.stress)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    write_run_config(run_dir, {**config, "training": None}, "mujoco")  # an interrupted run can be resumed
-    config["training"] = run.train(resume=resume, progress=progress)
-    return config
+    outcome = run.train(resume=resume, progress=progress, config=config, requested_hyperparameters=hyperparameters)
+    return outcome.config, outcome.curve
 
 
 def _onnx_metadata(config: Mapping[str, Any]) -> dict[str, Any]:
@@ -166,14 +167,3 @@ def _onnx_metadata(config: Mapping[str, Any]) -> dict[str, Any]:
 WALKER_CADENCE = HeldOutCadence(every_steps=500_000, max_share=0.10)
 #: a held-out evaluation's first look (robots stepped together in the trainer's process)
 WALKER_SELECT_BATCH = 16
-
-
-def walker_curve(run_dir: Path) -> list[dict[str, Any]]:
-    """The run's training curve (``curve.jsonl``) with the registry's keys (``timesteps``, ``mean_return``:
-    the reward per control step of the iteration)."""
-    path = Path(run_dir) / CURVE_FILE
-    if not path.is_file():
-        return []
-    rows = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-    return [{**r, "timesteps": float(r["env_steps"]),
-             "mean_return": float(r["reward_locomotion"] + r["reward_economic"])} for r in rows]

@@ -144,12 +144,16 @@ class ActorCritic(nn.Module):
         shaped = WalkerPPOConfig(**{**asdict(cfg), "hidden_sizes": actor.hidden_sizes,
                                     "activation": actor.activation})
         net = cls(actor.obs_dim, privileged_dim, actor.action_dim, shaped)
-        linears = [m for m in net.actor if isinstance(m, nn.Linear)]
+        net.load_actor(actor.layers)
+        return net
+
+    def load_actor(self, layers: Sequence[Mapping[str, np.ndarray]]) -> None:
+        """Set the actor's layers to ``layers`` (``[{"w": [in, out], "b": [out]}]``, :meth:`layers`'s form)."""
+        linears = [m for m in self.actor if isinstance(m, nn.Linear)]
         with torch.no_grad():
-            for lin, layer in zip(linears, actor.layers, strict=True):
+            for lin, layer in zip(linears, layers, strict=True):
                 lin.weight.copy_(torch.from_numpy(np.asarray(layer["w"], np.float32).T))
                 lin.bias.copy_(torch.from_numpy(np.asarray(layer["b"], np.float32)))
-        return net
 
     def layers(self) -> list[dict[str, np.ndarray]]:
         """The actor's layers as ``[{"w": [in, out], "b": [out]}]`` (what the ONNX export writes)."""

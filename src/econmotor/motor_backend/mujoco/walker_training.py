@@ -7,18 +7,18 @@ What a run does (:class:`WalkerTrainingRun`):
    (:class:`~econmotor.couriers.walker_train.WalkerLearningEnv`: random start points, the step reward);
 2. starts the actor from an ONNX walker's weights (``--init-policy``) or from scratch, with a fresh
    privileged critic (:mod:`.walker_ppo`);
-3. iterates: ``steps_per_iteration`` control steps of every robot, then one PPO update; each
-   iteration's row goes to the training curve (``curve.jsonl``: legs per hour, Wh per leg and falls of
-   the episodes that ended, the reward's locomotion and economic parts, KL, learning rate, std);
-4. every ``checkpoint_every_s`` of wall time, and when interrupted, writes ``checkpoints/latest.pt``
-   (learner, iteration, env steps, next seed, the kept policy, the selection's record): ``--resume``
-   continues from it;
+3. learns in the shared :class:`~econmotor.motor_backend.training_loop.TrainingLoop` as its
+   :class:`WalkerLearner`: each chunk is ``steps_per_iteration`` control steps of every robot, then one PPO
+   update; its row goes to the training curve (``curve.jsonl``: legs per hour, Wh per leg and falls of the
+   episodes that ended, the reward's locomotion and economic parts, KL, learning rate, std);
+4. checkpoints (``checkpoints/latest.pt``: learner, iteration, env steps, next seed) every
+   ``checkpoint_every_s`` of wall time, at the end and when interrupted: ``--resume`` continues from it;
 5. held-out selection (:mod:`econmotor.motor_backend.selection`): at its cadence, the deterministic
    actor walks held-out seeds of the priced course in this process under ``select_stress`` (the mujoco
    backend passes the nominal conditions a report prices by default); the best by the buyer's verdict
-   and J is kept;
-6. stops at ``max_steps`` env steps or ``max_wall_s``, and exports the kept actor in Holosoma's ONNX
-   format (``policy.onnx``: holosoma_inference's loader and the sim-to-sim evaluator read it).
+   and J is kept (``best/policy.onnx``);
+6. stops at ``max_steps`` env steps or ``max_wall_s``; the kept actor is the run's ``policy.onnx``, in
+   Holosoma's ONNX format (holosoma_inference's loader and the sim-to-sim evaluator read it).
 
 Seeds: training episodes ``TRAIN_SEED_BASE + seed * 10**6 + i``; held-out selection's
 ``seed + SELECTION_SEED_OFFSET + i`` (the selection module's); both ranges are recorded in
@@ -27,8 +27,6 @@ Seeds: training episodes ``TRAIN_SEED_BASE + seed * 10**6 + i``; held-out select
 
 from __future__ import annotations
 
-import copy
-import json
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -38,7 +36,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from econmotor.couriers.onnx_actor import ImportedActor
+from econmotor.couriers.onnx_actor import ImportedActor, read_actor
 from econmotor.couriers.onnx_export import export_onnx
 from econmotor.couriers.policy_import import holosoma_export_metadata
 from econmotor.couriers.stress import Stress
@@ -50,6 +48,8 @@ from econmotor.economics import courier_formulas as cf
 from econmotor.motor_backend.base import ProgressFn, no_progress
 from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, Rollout, WalkerPPO, WalkerPPOConfig
 from econmotor.motor_backend.selection import Selection
+from econmotor.motor_backend.training_loop import Learner as LoopLearner
+from econmotor.motor_backend.training_loop import StopFn, TrainingLoop, TrainingOutcome
 
 #: training episodes are seeded from here on (apart from selection's and a report's seeds)
 TRAIN_SEED_BASE = 10_000_000
@@ -107,59 +107,17 @@ class WalkerTrainingRun:
     def deterministic_policy(self, learner: WalkerPPO) -> Callable[[np.ndarray], np.ndarray]:
         return learner.mean_action
 
-    # ------------------------------------------------------------------ the loop
-    def train(self, resume: bool = False, progress: ProgressFn = no_progress) -> dict[str, Any]:
-        """Train to ``max_steps`` / ``max_wall_s``; write ``policy.onnx``; return the run's summary."""
-        torch.manual_seed(self.seed)
-        self.run_dir.mkdir(parents=True, exist_ok=True)
-        learner = self.learner()
-        state = {"iteration": 0, "env_steps": 0, "wall_s": 0.0,
-                 "next_seed": TRAIN_SEED_BASE + self.seed * 1_000_000, "kept": None}
-        if resume:
-            state = self._load(learner, state)
-        env = WalkerLearningEnv(self.batch(self.cfg.num_envs), self.rates, self.gain, self.weights, self.params,
-                                seed=state["next_seed"])
-        kept = state["kept"] or {"layers": learner.net.layers(), "env_steps": state["env_steps"], "why": "start"}
-        started, last_checkpoint = time.perf_counter() - state["wall_s"], time.perf_counter()
-        last_selected = state["env_steps"]
-        obs, priv = env.reset()
-        try:
-            while state["env_steps"] < self.max_steps and time.perf_counter() - started < self.max_wall_s:
-                t0 = time.perf_counter()
-                rollout, last_value, episodes, parts = self._collect(env, learner, obs, priv)
-                obs, priv = env._obs, env.privileged(env.slots)
-                stats = learner.update(rollout, last_value)
-                state["iteration"] += 1
-                state["env_steps"] += self.cfg.num_envs * self.cfg.steps_per_iteration
-                state["next_seed"] = env.next_seed
-                state["wall_s"] = time.perf_counter() - started
-                row = self._curve_row(state, stats, episodes, parts, time.perf_counter() - t0)
-                with (self.run_dir / CURVE_FILE).open("a") as f:
-                    f.write(json.dumps(row) + "\n")
-                progress(_status(row), min(state["env_steps"] / self.max_steps,
-                                           state["wall_s"] / self.max_wall_s), 1.0)
-                if self.selection is not None and self.selection.due(state["env_steps"], last_selected):
-                    kept = self._select(learner, state, kept, progress) or kept
-                    last_selected = state["env_steps"]
-                if time.perf_counter() - last_checkpoint >= self.checkpoint_every_s:
-                    self._save(learner, state, kept)
-                    last_checkpoint = time.perf_counter()
-            if self.selection is not None and last_selected < state["env_steps"]:
-                kept = self._select(learner, state, kept, progress) or kept
-        except BaseException:  # interrupted (Ctrl-C, SIGTERM): what was learned is kept for --resume
-            self._save(learner, state, kept)
-            raise
-        finally:
-            env.close()
-        if self.selection is None:
-            kept = {"layers": learner.net.layers(), "env_steps": state["env_steps"], "why": "the last update"}
-        elif self.selection.best is not None:
-            kept = {**kept, "why": self.selection.kept_reason()}  # over every held-out evaluation of the run
-        self._save(learner, state, kept)
-        path = self.export(kept["layers"])
-        return {"onnx": str(path), "iterations": state["iteration"], "env_steps": state["env_steps"],
-                "wall_s": round(state["wall_s"], 1), "kept_at_env_steps": kept["env_steps"], "kept_why": kept["why"],
-                "selection": self.selection.record() if self.selection is not None else None}
+    # ------------------------------------------------------------------ the run
+    def train(self, resume: bool = False, progress: ProgressFn = no_progress,
+              config: Mapping[str, Any] | None = None,
+              requested_hyperparameters: Mapping[str, Any] | None = None) -> TrainingOutcome:
+        """Train to ``max_steps`` / ``max_wall_s`` in the shared loop (``config``: the run's description for
+        ``run_config.json``); the kept actor is the run's ``policy.onnx``."""
+        loop = TrainingLoop(self.run_dir, "mujoco", dict(config or {}), self.max_steps, max_wall_s=self.max_wall_s,
+                            checkpoint_every_s=self.checkpoint_every_s, selection=self.selection,
+                            curve_every_steps=1, requested_hyperparameters=requested_hyperparameters,
+                            progress=progress)
+        return loop.run(WalkerLearner(self), resume)
 
     def _collect(self, env: WalkerLearningEnv, learner: WalkerPPO, obs: np.ndarray, priv: np.ndarray
                  ) -> tuple[Rollout, torch.Tensor, list[dict[str, Any]], dict[str, float]]:
@@ -187,18 +145,19 @@ class WalkerTrainingRun:
         last_value = torch.as_tensor(learner.value(obs, priv), dtype=torch.float32)
         return Rollout(**{k: torch.stack(v) for k, v in buf.items()}), last_value, episodes, parts
 
-    def _curve_row(self, state: Mapping[str, Any], stats: Mapping[str, float], episodes: list[dict[str, Any]],
+    def _curve_row(self, iteration: int, stats: Mapping[str, float], episodes: list[dict[str, Any]],
                    parts: Mapping[str, float], iteration_s: float) -> dict[str, Any]:
         units = sum(ep["units_completed"] for ep in episodes)
         hours = sum(ep["episode_length_s"] for ep in episodes) / cf.SECONDS_PER_HOUR
         energy = sum(ep["energy_wh"] for ep in episodes)
         steps = self.cfg.num_envs * self.cfg.steps_per_iteration
-        return {"iteration": state["iteration"], "env_steps": state["env_steps"], "wall_s": round(state["wall_s"], 2),
-                "steps_per_s": round(steps / iteration_s, 1), "episodes": len(episodes),
+        locomotion, economic = parts.get("locomotion", 0.0), parts.get("economic", 0.0)
+        return {"iteration": iteration, "steps_per_s": round(steps / iteration_s, 1), "episodes": len(episodes),
                 "falls": sum(ep["errors"] for ep in episodes),
                 "legs_per_hour": units / hours if hours > 0 else None,
                 "wh_per_leg": energy / units if units > 0 else None,
-                "reward_locomotion": parts.get("locomotion", 0.0), "reward_economic": parts.get("economic", 0.0),
+                "reward_locomotion": locomotion, "reward_economic": economic,
+                "mean_return": locomotion + economic,  # the reward per control step of the iteration
                 **{k: float(v) for k, v in stats.items()}}
 
     # ------------------------------------------------------------------ selection
@@ -227,44 +186,11 @@ class WalkerTrainingRun:
             batch.close()
         return ordered[:decided[0]] if decided else ordered
 
-    def _select(self, learner: WalkerPPO, state: Mapping[str, Any], kept: dict[str, Any],
-                progress: ProgressFn) -> dict[str, Any] | None:
-        result, better = self.selection.consider(
-            state["env_steps"], lambda n, first, stop: self.evaluate(learner, n, first, stop))
-        progress(f"held-out {result.status()} J {result.j_mean:.3f} ({result.episodes} episodes, "
-                 f"{result.eval_s:.0f} s){' kept' if better else ''}", 1.0, 1.0)
-        if better:
-            return {"layers": learner.net.layers(), "env_steps": state["env_steps"],
-                    "why": self.selection.kept_reason()}
-        return None
-
-    # ------------------------------------------------------------------ files
-    def _save(self, learner: WalkerPPO, state: Mapping[str, Any], kept: Mapping[str, Any]) -> None:
-        path = self.run_dir / CHECKPOINT_FILE
-        path.parent.mkdir(parents=True, exist_ok=True)
-        record = {"learner": learner.state_dict(), "state": {**state, "kept": copy.deepcopy(dict(kept))},
-                  "selection": self.selection.record() if self.selection is not None else None}
-        tmp = path.with_suffix(".tmp")
-        torch.save(record, tmp)
-        tmp.replace(path)
-
-    def _load(self, learner: WalkerPPO, state: dict[str, Any]) -> dict[str, Any]:
-        path = self.run_dir / CHECKPOINT_FILE
-        if not path.is_file():
-            from econmotor.errors import ConfigError
-
-            raise ConfigError(str(self.run_dir), CHECKPOINT_FILE, "no checkpoint to resume from")
-        record = torch.load(path, weights_only=False)
-        learner.load_state_dict(record["learner"])
-        if self.selection is not None:
-            self.selection.restore(record.get("selection"))
-        return {**state, **record["state"]}
-
-    def export(self, layers: list[dict[str, np.ndarray]]) -> Path:
-        """``policy.onnx`` of ``layers`` (:func:`export_walker`) with this run's gains and command ranges."""
+    def export(self, layers: list[dict[str, np.ndarray]], path: Path) -> Path:
+        """``path`` (a ``policy.onnx``) of ``layers`` (:func:`export_walker`) with this run's gains and command
+        ranges."""
         return export_walker(layers, self.setup.card, self.kp, self.kd, self.command_ranges,
-                             self.init.activation if self.init else self.cfg.activation, self.run_dir / ONNX_FILE,
-                             self.metadata)
+                             self.init.activation if self.init else self.cfg.activation, path, self.metadata)
 
 
 def export_walker(layers: list[dict[str, np.ndarray]], card: Any, kp: np.ndarray, kd: np.ndarray,
@@ -281,10 +207,86 @@ def export_walker(layers: list[dict[str, np.ndarray]], card: Any, kp: np.ndarray
                        holosoma=holosoma)
 
 
-def _status(row: Mapping[str, Any]) -> str:
-    legs = row["legs_per_hour"]
-    wh = row["wh_per_leg"]
-    return (f"{row['env_steps'] / 1e6:.2f}M steps, {row['steps_per_s']:.0f}/s; episodes {row['episodes']} "
-            f"falls {row['falls']:g}; legs/h {legs:.1f}" if legs is not None else
-            f"{row['env_steps'] / 1e6:.2f}M steps, {row['steps_per_s']:.0f}/s; episodes {row['episodes']}") + \
-        (f", Wh/leg {wh:.2f}" if wh is not None else "") + f"; kl {row['kl']:.4f} lr {row['learning_rate']:.1e}"
+def _status(env_steps: int, row: Mapping[str, Any]) -> str:
+    legs, wh = row["legs_per_hour"], row["wh_per_leg"]
+    said = f"{env_steps / 1e6:.2f}M steps, {row['steps_per_s']:.0f}/s; episodes {row['episodes']}"
+    if legs is not None:
+        said += f" falls {row['falls']:g}; legs/h {legs:.1f}"
+    if wh is not None:
+        said += f", Wh/leg {wh:.2f}"
+    return said + f"; kl {row['kl']:.4f} lr {row['learning_rate']:.1e}"
+
+
+class WalkerLearner(LoopLearner):
+    """The walker PPO on the learner's env as the loop's learner (module docstring)."""
+
+    policy_file = ONNX_FILE
+
+    def __init__(self, run: WalkerTrainingRun) -> None:
+        torch.manual_seed(run.seed)
+        self.run, self.ppo = run, run.learner()
+        self.chunk_steps = run.cfg.num_envs * run.cfg.steps_per_iteration
+        self.env_steps, self.iteration = 0, 0
+        self.next_seed = TRAIN_SEED_BASE + run.seed * 1_000_000
+        self.env: WalkerLearningEnv | None = None
+        self.obs: Any = None
+        self.last: dict[str, Any] | None = None
+
+    def learn(self, until_steps: int) -> dict[str, Any]:
+        run = self.run
+        if self.env is None:  # from the start, or from the restored checkpoint's next seed
+            self.env = WalkerLearningEnv(run.batch(run.cfg.num_envs), run.rates, run.gain, run.weights, run.params,
+                                         seed=self.next_seed)
+            self.obs = self.env.reset()
+        while True:
+            t0 = time.perf_counter()
+            rollout, last_value, episodes, parts = run._collect(self.env, self.ppo, *self.obs)
+            self.obs = (self.env._obs, self.env.privileged(self.env.slots))
+            stats = self.ppo.update(rollout, last_value)
+            self.iteration += 1
+            self.env_steps += self.chunk_steps
+            self.next_seed = self.env.next_seed
+            self.last = run._curve_row(self.iteration, stats, episodes, parts, time.perf_counter() - t0)
+            if self.env_steps >= until_steps:
+                return self.last
+
+    def status(self) -> str:
+        return _status(self.env_steps, self.last) if self.last is not None else ""
+
+    def evaluate(self, num_episodes: int, first_seed: int, stop: StopFn) -> list[dict[str, Any]]:
+        return self.run.evaluate(self.ppo, num_episodes, first_seed, stop)
+
+    def save_checkpoint(self, run_dir: Path) -> None:
+        path = run_dir / CHECKPOINT_FILE
+        path.parent.mkdir(parents=True, exist_ok=True)
+        record = {"learner": self.ppo.state_dict(),
+                  "state": {"iteration": self.iteration, "env_steps": self.env_steps, "next_seed": self.next_seed}}
+        tmp = path.with_suffix(".tmp")
+        torch.save(record, tmp)
+        tmp.replace(path)
+
+    def load_checkpoint(self, run_dir: Path) -> int:
+        path = run_dir / CHECKPOINT_FILE
+        if not path.is_file():
+            return 0
+        record = torch.load(path, weights_only=False)
+        self.ppo.load_state_dict(record["learner"])
+        state = record["state"]
+        self.iteration, self.env_steps, self.next_seed = state["iteration"], state["env_steps"], state["next_seed"]
+        return self.env_steps
+
+    def save_policy(self, directory: Path) -> None:
+        self.run.export(self.ppo.net.layers(), directory / ONNX_FILE)
+
+    def load_policy(self, directory: Path) -> None:
+        self.ppo.net.load_actor(read_actor(directory / ONNX_FILE).layers)
+
+    def export(self, run_dir: Path) -> Path:
+        return self.run.export(self.ppo.net.layers(), run_dir / ONNX_FILE)
+
+    def timing(self) -> dict[str, Any]:
+        return {"iterations": self.iteration}
+
+    def close(self) -> None:
+        if self.env is not None:
+            self.env.close()
