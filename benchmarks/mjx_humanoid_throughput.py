@@ -1,6 +1,6 @@
 """MJX G1 (or T1) courier env steps/s with and without the economics in the step, side by side.
 
-"With": ``MjxHumanoidCourierEnv`` as the mjx backend trains on it (metering every physics step,
+"With": the batched ``HumanoidWalkerEnv`` as the mjx backend trains on it (metering every physics step,
 the overlay of the default objective vector); "without": the same env built with
 ``economics=False`` (physics, PD loop, course, observation, locomotion reward, auto-reset only).
 Blocks of one jitted ``lax.scan`` run in A B B A rounds (``mjx_throughput.side_by_side``); the
@@ -39,12 +39,13 @@ def main() -> None:
     import numpy as np
 
     from econmotor.config.objective_profile import ObjectiveVector
-    from econmotor.motor_backend.mjx.humanoid_env import MjxHumanoidCourierEnv
+    from econmotor.motor_backend.mjx.humanoid_env import HumanoidWalkerEnv
+    from econmotor.motor_backend.mjx.wrappers import make_env
     from econmotor.objectives.loader import objective_from_vector
     from econmotor.valuation import default_objective_vector
 
     objective = objective_from_vector(ObjectiveVector.from_list(default_objective_vector()), "default")
-    envs = [MjxHumanoidCourierEnv(args.task, objective=objective, economics=e) for e in (True, False)]
+    envs = [make_env(HumanoidWalkerEnv, args.task, objective=objective, economics=e) for e in (True, False)]
     for env in envs:
         env.action_low, env.action_high = -np.ones(env.action_size, np.float32), np.ones(env.action_size, np.float32)
     side_by_side(args.task, *envs, ("with economics", "without"), args.envs, args.steps, args.rounds,

@@ -43,14 +43,16 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=3)
     args = parser.parse_args()
 
-    from econmotor.motor_backend.mjx.env import MjxCourierEnv
+    from econmotor.motor_backend.mjx.env import GymCourierEnv
+    from econmotor.motor_backend.mjx.wrappers import make_env
     from econmotor.objectives import EconomicObjectiveSpec
 
     objective = EconomicObjectiveSpec()
     for task_id in args.tasks:
         num_envs = args.num_envs or (16 if "humanoid" in task_id else 32)
-        catalog_env = MjxCourierEnv(task_id, objective=objective)
-        gymnasium_env = MjxCourierEnv(task_id, objective=objective, catalog=gymnasium_model_catalog(task_id))
+        catalog_env = make_env(GymCourierEnv, task_id, objective=objective)
+        gymnasium_env = make_env(GymCourierEnv, task_id, objective=objective,
+                                 catalog=gymnasium_model_catalog(task_id))
         side_by_side(task_id, catalog_env, gymnasium_env, ("catalog model_options", "Gymnasium's model"),
                      num_envs, args.steps, args.rounds)
 

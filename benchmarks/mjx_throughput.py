@@ -1,8 +1,9 @@
 """MJX throughput, measured side by side in one run.
 
 1. Env steps/s of ``jit(step)`` (batched MJX couriers) with and without the economics inside
-   the step (``env_step_throughput``; goal: ratio >= 0.98). "With": ``MjxCourierEnv`` as the
-   backend trains on it (metering, novelty table, overlay of the default objective vector);
+   the step (``env_step_throughput``; goal: ratio >= 0.98). "With": the batched
+   ``GymCourierEnv`` as the backend trains on it (``wrappers.make_env``: metering, novelty table,
+   overlay of the default objective vector);
    "without": the same env built with ``economics=False`` (physics, task reward, observation,
    auto-reset only). Each arm is one jitted ``lax.scan`` of ``--env-steps`` steps with random
    actions drawn inside it; blocks run in A B B A order per round (load drifting during a round
@@ -46,13 +47,14 @@ def env_step_throughput(task_id: str = TASK, num_envs: int = 0, steps_per_block:
     steps/s, the median round ratio (with economics / without) and its range.
     """
     from econmotor.config.objective_profile import ObjectiveVector
-    from econmotor.motor_backend.mjx.env import MjxCourierEnv
+    from econmotor.motor_backend.mjx.env import GymCourierEnv
+    from econmotor.motor_backend.mjx.wrappers import make_env
     from econmotor.objectives.loader import objective_from_vector
     from econmotor.valuation import default_objective_vector
 
     objective = objective_from_vector(ObjectiveVector.from_list(default_objective_vector()), "default")
-    econ = MjxCourierEnv(task_id, objective=objective)
-    bare = MjxCourierEnv(task_id, objective=objective, economics=False)
+    econ = make_env(GymCourierEnv, task_id, objective=objective)
+    bare = make_env(GymCourierEnv, task_id, objective=objective, economics=False)
     return side_by_side(task_id, econ, bare, ("with economics", "without"), num_envs, steps_per_block, rounds,
                         seed, print_fn, goal="goal >= 0.98")
 

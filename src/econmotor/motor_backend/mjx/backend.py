@@ -92,11 +92,12 @@ def enable_compilation_cache(path: str | Path | None) -> None:
 
 
 def env_class(settings: MjxTaskSettings) -> type:
-    """The env a task's mjx entry asks for: a robot card's courier (``robot:``) or a Gymnasium body's."""
-    from econmotor.motor_backend.mjx.env import MjxCourierEnv
-    from econmotor.motor_backend.mjx.humanoid_env import MjxHumanoidCourierEnv
+    """The thin env a task's mjx entry asks for: a robot card walking (``robot:``) or a Gymnasium body
+    (batched, auto-reset and metered by ``wrappers.make_env``)."""
+    from econmotor.motor_backend.mjx.env import GymCourierEnv
+    from econmotor.motor_backend.mjx.humanoid_env import HumanoidWalkerEnv
 
-    return MjxHumanoidCourierEnv if settings.robot is not None else MjxCourierEnv
+    return HumanoidWalkerEnv if settings.robot is not None else GymCourierEnv
 
 
 class MjxBackend(MotorBackendBase):
@@ -203,8 +204,11 @@ class MjxBackend(MotorBackendBase):
         memo = json.dumps([task_id, objective.to_dict(), [p.to_dict() for p in configs], list(bundle.datapack_ids),
                            random_start], sort_keys=True, default=str)
         if memo not in self._envs:
-            self._envs[memo] = env_class(self.settings(task_id))(
-                task_id, objective=objective, datapacks=[bundle] if configs or bundle.datapack_ids else [],
+            from econmotor.motor_backend.mjx.wrappers import make_env
+
+            self._envs[memo] = make_env(
+                env_class(self.settings(task_id)), task_id, objective=objective,
+                datapacks=[bundle] if configs or bundle.datapack_ids else [],
                 catalog=self.catalog, keep_task_reward=self.keep_task_reward,
                 **({"random_start": True} if random_start else {}))
         env = self._envs[memo]

@@ -1,10 +1,10 @@
-"""MjxHumanoidCourierEnv: a real robot (a robot card) walking the delivery course in MJX, economics in the step.
+"""HumanoidWalkerEnv: a real robot (a robot card: Unitree G1, Booster T1) walking the delivery course, one env in MJX.
 
-The same interface as :class:`~econmotor.motor_backend.mjx.env.MjxCourierEnv` (batched pure
-``reset(key, num_envs)`` / ``step(state, action)``, auto-reset, ``finished`` raw metrics), so the
-mjx backend trains, evaluates and exports it unchanged. A task runs here when its mjx entry names
-a robot card (``robot: g1_29dof``, ``tasks/mjx.yaml``); everything robot-specific is read from the
-card (:mod:`econmotor.robots`), never from the robot's name.
+A thin env of :mod:`econmotor.motor_backend.mjx.base_env` (``reset(key)`` / ``step(state, action)`` of one
+env), batched, auto-reset and economically metered by :func:`~econmotor.motor_backend.mjx.wrappers.make_env`
+as the Gymnasium couriers are, so the mjx backend trains, evaluates and exports it unchanged. A task runs
+here when its mjx entry names a robot card (``robot: g1_29dof``, ``tasks/mjx.yaml``); everything
+robot-specific is read from the card (:mod:`econmotor.robots`), never from the robot's name.
 
 - **the robot**: the card's MJCF with its maker's collision filter and feet-only contacts
   (:func:`econmotor.robots.model.load_model` with ``contacts="feet"``), the task's
@@ -19,13 +19,12 @@ card (:mod:`econmotor.robots`), never from the robot's name.
 - **the course** (:mod:`econmotor.couriers.course`): the sim-to-sim evaluator's,
   legs of ``leg_m`` at the course speed with a dwell at each end; the episode ends at its time
   limit (``locomotion.episode_s``), when the course is done, or at a fall.
-- **metering**: every physics step through :func:`econmotor.economics.courier_formulas.meter_step`
-  as the evaluator meters it (units on the forward high-water mark of x, energy
-  ``sum |qfrc_actuator qvel| / efficiency + idle``, tilt risk, a fall = one error, the card's fall
-  rule), frozen after a fall.
-- **reward**: ``keep_task_reward * locomotion + J(t) - J(t-1)``: the locomotion terms of
-  :mod:`.locomotion_rewards` with the catalog's weights, plus the economic overlay's potential
-  ``J`` (as the other mjx couriers: each term's episode sum is the episode metric of its key).
+- **metering**: every physics step is a reading (``State.readings``: x, ``sum |qfrc_actuator qvel|``,
+  tilt, the card's fall rule), metered by ``wrappers.EconomicMeter`` as the evaluator meters it
+  (frozen after a fall); the walker's own raw metrics (legs, speed, walking time, lateral drift,
+  mean power, course done) come from :meth:`HumanoidWalkerEnv.extra_metrics`.
+- **reward**: the locomotion terms of :mod:`.locomotion_rewards` with the catalog's weights (the
+  meter adds the economic overlay's ``J(t) - J(t-1)``).
 - **stress in the graph**, from the datapacks' Holosoma keys (``humanoid_stress.yaml``, read by
   :func:`~econmotor.couriers.datapack_mapping.map_datapacks` as for the evaluator):
   floor friction and torso payload per episode, base-velocity pushes at random intervals, kp/kd
@@ -34,13 +33,11 @@ card (:mod:`econmotor.robots`), never from the robot's name.
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping, Sequence
-from typing import Any, NamedTuple
+from typing import Any
 
 import jax
 import jax.numpy as jnp
-import mujoco
 import numpy as np
 
 from econmotor.config.loading import as_float, check_keys, require_mapping
@@ -54,50 +51,28 @@ from econmotor.couriers.course import (
 )
 from econmotor.couriers.datapack_mapping import map_datapacks
 from econmotor.couriers.locomotion_rewards import TERMS, LocomotionReading, locomotion_reward
-from econmotor.couriers.overlay import human_baseline_references, overlay_term_factors
 from econmotor.couriers.physics import has_fallen, root_tilt_rad
 from econmotor.couriers.stress import Stress
 from econmotor.couriers.walker_train import course_point
 from econmotor.economics import courier_formulas as cf
-from econmotor.economics.termination import TerminationReason
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.mjx._mjx import mjx
 from econmotor.motor_backend.mjx.assets import apply_model_options
-from econmotor.motor_backend.mjx.env import auto_reset, task_settings, with_overlay_columns
+from econmotor.motor_backend.mjx.base_env import Env, State, like, reading
 from econmotor.motor_backend.mjx.settings import MjxTaskSettings
-from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
 from econmotor.robots import card as robot_card
 from econmotor.robots.model import joint_indices, load_model
 from econmotor.robots.observation import advance_phase, build_observation, initial_phase, projected_gravity
 
-#: overlay keys a humanoid courier can weight (no novelty table, no pose tracking)
+#: overlay keys a walker can weight (no novelty table, no pose tracking)
 HUMANOID_TERMS = ("mpl_per_hour", "error_rate", "energy_kwh", "risk_score")
 #: ``locomotion`` keys of the mjx entry
 LOCOMOTION_KEYS = ("episode_s", "rewards")
-#: running sums of the episode kept on the device
-_METER_KEYS = tuple(f.name for f in dataclasses.fields(cf.MeterSums))
-EPISODE_KEYS = (*_METER_KEYS, "control_steps", "task_return", "overlay_j", "x0", "walk_s", "walk_m", "max_lateral_m",
-                "legs_done")
-BASE_METRIC_KEYS = ("units_completed", "units_attempted", "errors", "episode_length_s", "length_steps", "energy_wh",
-                    "risk_score", "novelty_score", "return", "forward_distance_m", "fell", "overlay_return",
-                    "legs_reached", "achieved_speed_m_per_s", "walking_s", "max_lateral_m", "mean_power_w",
-                    "course_done")
-
-
-class HumanoidEnvState(NamedTuple):
-    """The batched state (every array leads with ``num_envs``); ``robot`` holds the policy-side
-    state (gait phase, last action, command, course), ``randomization`` this episode's draws."""
-
-    data: Any
-    obs: jax.Array
-    reward: jax.Array
-    done: jax.Array
-    truncated: jax.Array
-    episode: dict[str, jax.Array]
-    finished: dict[str, jax.Array]
-    key: jax.Array
-    robot: dict[str, jax.Array]
-    randomization: dict[str, jax.Array]
+#: the walker's own running sums (besides the episode's and the meter's)
+WALKER_EPISODE_KEYS = ("walk_s", "walk_m", "max_lateral_m", "legs_done")
+#: the walker's own raw metrics of a finished episode
+WALKER_METRIC_KEYS = ("legs_reached", "achieved_speed_m_per_s", "walking_s", "max_lateral_m", "mean_power_w",
+                      "course_done")
 
 
 def parse_humanoid_stress(datapacks: Sequence[Any], push_preset: Mapping[str, Any],
@@ -148,74 +123,57 @@ def parse_locomotion(settings: MjxTaskSettings) -> tuple[float, dict[str, float]
     return episode_s, weights, params
 
 
-def _like(new: dict[str, jax.Array], old: dict[str, jax.Array]) -> dict[str, jax.Array]:
-    """``new`` with ``old``'s dtypes (strong), so the step's carry keeps one type (no recompilation)."""
-    return {k: jnp.asarray(v, jnp.asarray(old[k]).dtype) for k, v in new.items()}
-
-
 def _rotate_inverse(quat_wxyz: jax.Array, v: jax.Array) -> jax.Array:
     """``R(q)^T v``: a world vector in the body frame."""
     w, u = quat_wxyz[0], quat_wxyz[1:]
     return v * (2.0 * w * w - 1.0) - 2.0 * w * jnp.cross(u, v) + 2.0 * u * jnp.dot(u, v)
 
 
-class MjxHumanoidCourierEnv:
-    """A robot card's courier task as batched pure functions (module docstring).
+class HumanoidWalkerEnv(Env):
+    """A robot card walking a courier task's course (module docstring); batched by ``wrappers.make_env``.
 
-    Args: as :class:`~econmotor.motor_backend.mjx.env.MjxCourierEnv` (``task_id``: a catalog task
-    whose mjx entry names a ``robot``).
+    Args:
+        task_id: a catalog task whose mjx entry names a ``robot``.
+        datapacks: datapack bundles (their Holosoma keys: :func:`parse_humanoid_stress`).
+        seed, catalog, readings: as :class:`~econmotor.motor_backend.mjx.base_env.Env`.
+        random_start: start every episode at a random point of the course (training;
+            :func:`couriers.walker_train.course_point`).
     """
 
     obs_layout_note = "holosoma_inference actor_obs of the robot card (econmotor/robots)"
+    terms = HUMANOID_TERMS
+    extra_metric_keys = WALKER_METRIC_KEYS
 
-    def __init__(self, task_id: str, *, objective: EconomicObjectiveSpec | None = None,
-                 datapacks: Sequence[Any] = (), seed: int = 0, catalog: Any = None,
-                 keep_task_reward: bool = True, economics: bool = True, random_start: bool = False) -> None:
-        spec, self.settings, where = task_settings(task_id, catalog)
-        #: start every episode at a random point of the course (training; :func:`couriers.walker_train.course_point`)
+    def __init__(self, task_id: str, *, datapacks: Sequence[Any] = (), seed: int = 0, catalog: Any = None,
+                 readings: bool = True, random_start: bool = False) -> None:
+        super().__init__(task_id, seed=seed, catalog=catalog, readings=readings)
         self.random_start = bool(random_start)
-        s = self.settings
-        self.task_id, self.seed = task_id, int(seed)
+        s, where = self.settings, self.where
         self.card = c = robot_card(s.robot, where)
         self.episode_s, self.weights, self.reward_params = parse_locomotion(s)
         self.course = CourseSettings(**{"leg_m": s.leg_distance_m, **s.course})
         self.stress = parse_humanoid_stress(datapacks, c.push_preset, s.start_joint_noise_rad)
-        self.mj_model: mujoco.MjModel = load_model(c, contacts="feet")
-        apply_model_options(self.mj_model, s.model_options, where)
-        self.model = mjx.put_model(self.mj_model)
-        m = self.mj_model
+        m = load_model(c, contacts="feet")
+        apply_model_options(m, s.model_options, where)
+        self._use_model(m)
         qadr, dadr, act = joint_indices(m, c)
         self._qadr, self._dadr, self._act = (jnp.asarray(a) for a in (qadr, dadr, act))
         self._torso = m.body(c.torso_body).id
         self._feet = jnp.asarray([m.body(b).id for b in c.foot_bodies])
         self._contact_points = jnp.asarray([m.body(b).id for b in c.foot_contact_bodies])
         self._floor = m.geom("floor").id
-        self.physics_dt_s = float(m.opt.timestep)
+        self.physics_dt_s = self.meter_dt_s = float(m.opt.timestep)
         self.control_dt_s = c.control_dt_s
         if abs(self.physics_dt_s - c.physics_dt_s) > 1e-12:
             raise ConfigError(where, "model_options", "the physics step is the robot card's")
         self.max_episode_steps = round(self.episode_s / self.control_dt_s)
-        self.keep_task_reward, self.economics = bool(keep_task_reward), bool(economics)
+        self.readings_per_step = c.decimation
         self.action_size = c.num_dofs
         self.action_low = np.full(c.num_dofs, -c.action_clip, np.float32)
         self.action_high = np.full(c.num_dofs, c.action_clip, np.float32)
         self.observation_size = c.obs_dim
         ranges = c.command_ranges
         self._vx_max, self._yaw_range = float(ranges["lin_vel_x"][1]), tuple(float(v) for v in ranges["ang_vel_yaw"])
-        # the overlay, as the other mjx couriers compile it (metering at the physics step)
-        scales = dict(compile_economic_overlay(objective)) if objective is not None and economics else {}
-        econ = spec.economics
-        refs = human_baseline_references(econ.mp_human_units_per_hour, econ.error_rate_human, s.idle_power_w,
-                                         self.episode_s) if s.overlay_normalization == "human_baseline" else {}
-        self.scales = scales
-        self.references = {k: v for k, v in refs.items() if k in scales}
-        self.factors = overlay_term_factors(self.scales, self.references, terms=HUMANOID_TERMS, backend="mjx")
-        self._constants = cf.MeterConstants(s.leg_distance_m, s.drivetrain_efficiency, s.idle_power_w,
-                                            self.physics_dt_s, s.tilt_margin_rad, s.fall_tilt_rad)
-        self._coefficients = cf.overlay_coefficients(self.factors, self.physics_dt_s)
-        self.metric_keys: tuple[str, ...] = BASE_METRIC_KEYS + tuple(f"overlay_{k}_raw" for k in self.scales) \
-            if economics else ("length_steps", "return", "fell")
-        self._template = mjx.make_data(self.model)
         qpos0 = np.asarray(m.qpos0, np.float64).copy()
         qpos0[0:3], qpos0[3:7] = c.init_pos, (1.0, 0.0, 0.0, 0.0)
         qpos0[qadr] = c.default_dof_angles
@@ -229,14 +187,15 @@ class MjxHumanoidCourierEnv:
         """The card's fall rule with its runaway rule (:func:`econmotor.couriers.physics.has_fallen`)."""
         return has_fallen(self.card, qpos, qvel, jnp)
 
-    def _randomized_model(self, dr: Mapping[str, jax.Array]) -> Any:
+    def randomized_model(self, draws: Mapping[str, jax.Array]) -> Any:
+        """The card's model with the episode's floor friction and torso payload."""
         m = self.model
-        if "friction" in dr:
-            mu = dr["friction"]
+        if "friction" in draws:
+            mu = draws["friction"]
             m = m.replace(geom_friction=m.geom_friction.at[self._floor, 0].set(mu),
                           pair_friction=m.pair_friction.at[:, 0:2].set(mu))
-        if "payload_kg" in dr:
-            m = m.replace(body_mass=m.body_mass.at[self._torso].add(dr["payload_kg"]))
+        if "payload_kg" in draws:
+            m = m.replace(body_mass=m.body_mass.at[self._torso].add(draws["payload_kg"]))
         return m
 
     def _draw(self, key: jax.Array, rng: tuple[float, float], shape: tuple[int, ...] = ()) -> jax.Array:
@@ -258,13 +217,10 @@ class MjxHumanoidCourierEnv:
         return obs, robot
 
     # ------------------------------------------------------------------ one env
-    def _reset_one(self, key: jax.Array):
+    def _draw_stress(self, keys: Sequence[jax.Array]) -> dict[str, jax.Array]:
+        """The episode's friction, payload and kp/kd scales (from the reset's keys 1 to 4)."""
         st, n = self.stress, self.card.num_dofs
-        k_q, k_mu, k_pay, k_kp, k_kd, k_push, k_start = jax.random.split(key, 7)
-        qpos = self._qpos0
-        if st.initial_joint_noise_rad > 0:
-            noise = st.initial_joint_noise_rad
-            qpos = qpos.at[self._qadr].add(self._draw(k_q, (-noise, noise), (n,)))
+        k_mu, k_pay, k_kp, k_kd = keys
         dr: dict[str, jax.Array] = {}
         if st.friction_range is not None:
             dr["friction"] = self._draw(k_mu, st.friction_range)
@@ -272,14 +228,28 @@ class MjxHumanoidCourierEnv:
             dr["payload_kg"] = self._draw(k_pay, st.payload_kg_range)
         dr["kp_scale"] = self._draw(k_kp, st.kp_range, (n,)) if st.kp_range else jnp.ones(n)
         dr["kd_scale"] = self._draw(k_kd, st.kd_range, (n,)) if st.kd_range else jnp.ones(n)
+        return dr
+
+    def reset(self, key: jax.Array) -> State:
+        """The card's start (the default pose plus start noise, at the course's start or, with
+        ``random_start``, a random point of it) and the episode's stress draws."""
+        st, n = self.stress, self.card.num_dofs
+        keys = jax.random.split(key, 7)
+        k_q, k_push, k_start = keys[0], keys[5], keys[6]
+        qpos = self._qpos0
+        if st.initial_joint_noise_rad > 0:
+            noise = st.initial_joint_noise_rad
+            qpos = qpos.at[self._qadr].add(self._draw(k_q, (-noise, noise), (n,)))
+        dr = self._draw_stress(keys[1:5])
         data = self._template.replace(qpos=qpos, qvel=jnp.zeros_like(self._template.qvel))
         zero = jnp.zeros((), jnp.float32)
         start = course_start(jnp)
         robot = {"phase": jnp.asarray(initial_phase(np), jnp.float32), "standing": jnp.zeros((), bool),
                  "last_action": jnp.zeros(n, jnp.float32), "command": jnp.zeros(3, jnp.float32),
                  **{k: zero + v for k, v in start._asdict().items()}, "time_s": zero,
-                 "next_push_s": self._draw(k_push, st.push_interval_s) if st.push_interval_s else jnp.full((), jnp.inf)}
-        episode = {k: zero for k in EPISODE_KEYS}
+                 "next_push_s": self._draw(k_push, st.push_interval_s) if st.push_interval_s else jnp.full((), jnp.inf),
+                 "course_done": jnp.zeros((), bool)}
+        episode = dict.fromkeys(WALKER_EPISODE_KEYS, zero)
         if self.random_start:  # a random point of the course: the base there, the course's time so far spent
             x, point, steps = course_point(self.course, jax.random.uniform(k_start, (3,)), self.control_dt_s,
                                            self.max_episode_steps, jnp)
@@ -288,127 +258,73 @@ class MjxHumanoidCourierEnv:
                      "next_push_s": robot["next_push_s"] + steps * self.control_dt_s}
             episode["control_steps"] = zero + steps
         obs, observed = self._observe(data, robot)
-        episode["best_x"] = episode["x0"] = data.qpos[0]
-        return data, obs, _like(observed, robot), episode, dr
+        return self.first_state(data, obs, key, episode=episode, info=like(observed, robot), randomization=dr)
 
-    def _step_one(self, data: Any, robot: dict[str, jax.Array], ep: dict[str, jax.Array],
-                  dr: dict[str, jax.Array], action: jax.Array, key: jax.Array):
-        c, st = self.card, self.stress
-        robot_in = robot
-        m = self._randomized_model(dr)
-        action = jnp.clip(action, -c.action_clip, c.action_clip)
-        if st.push_interval_s is not None:  # Holosoma's push: a base velocity kick every few seconds
-            k_dir, k_next = jax.random.split(key)
-            push = robot["time_s"] >= robot["next_push_s"]
-            kick = jax.random.uniform(k_dir, (2,), minval=-1.0, maxval=1.0) * jnp.asarray(st.max_push_vel_m_per_s)
-            data = data.replace(qvel=data.qvel.at[0:2].add(jnp.where(push, kick, 0.0)))
-            robot = {**robot, "next_push_s": jnp.where(push, robot["time_s"] + self._draw(k_next, st.push_interval_s),
-                                                       robot["next_push_s"])}
-        x_before = data.qpos[0]
-        target = self._default + c.action_scale * action
+    def _push(self, data: Any, robot: dict[str, jax.Array], key: jax.Array) -> tuple[Any, dict[str, jax.Array]]:
+        """Holosoma's push: a base velocity kick every few seconds (the next one's time drawn)."""
+        st = self.stress
+        k_dir, k_next = jax.random.split(key)
+        push = robot["time_s"] >= robot["next_push_s"]
+        kick = jax.random.uniform(k_dir, (2,), minval=-1.0, maxval=1.0) * jnp.asarray(st.max_push_vel_m_per_s)
+        data = data.replace(qvel=data.qvel.at[0:2].add(jnp.where(push, kick, 0.0)))
+        return data, {**robot, "next_push_s": jnp.where(push, robot["time_s"] + self._draw(k_next, st.push_interval_s),
+                                                        robot["next_push_s"])}
+
+    def _physics(self, m: Any, data: Any, target: jax.Array, dr: Mapping[str, jax.Array]):
+        """``card.decimation`` physics steps of the PD loop: ``(data, fell, readings)`` (a reading per step)."""
         kp, kd = self._kp * dr["kp_scale"], self._kd * dr["kd_scale"]
-        sums0 = {k: ep[k] for k in _METER_KEYS}
 
-        def physics_step(_, carry):
-            d, sums, alive = carry
+        def physics_step(carry, _):
+            d, alive = carry
             q, qd = d.qpos[self._qadr], d.qvel[self._dadr]
             tau = jnp.clip(kp * (target - q) - kd * qd, -self._limit, self._limit)
             d = mjx.step(m, d.replace(ctrl=d.ctrl.at[self._act].set(tau)))
             fell = self.has_fallen(d.qpos, d.qvel)
-            if self.economics:  # the evaluator's meter, frozen once the robot is down
-                reading = cf.StepReading(x_m=d.qpos[0], mechanical_w=cf.mechanical_power_w(
-                    d.qfrc_actuator[self._dadr], d.qvel[self._dadr], jnp),
-                    tilt_rad=root_tilt_rad(d.qpos, True, jnp), fell=fell)
-                metered = cf.MeterSums(**sums)
-                cf.meter_step(metered, reading, self._constants, jnp)
-                sums = {k: jnp.where(alive, jnp.asarray(getattr(metered, k), jnp.float32), sums[k]) for k in sums}
-            return d, sums, alive & ~fell
+            now = reading(d.qpos[0], cf.mechanical_power_w(d.qfrc_actuator[self._dadr], d.qvel[self._dadr], jnp),
+                          root_tilt_rad(d.qpos, True, jnp), fell) if self.readings else {}
+            return (d, alive & ~fell), now
 
-        data, sums, alive = jax.lax.fori_loop(0, c.decimation, physics_step, (data, sums0, jnp.ones((), bool)))
-        fell = ~alive
+        (data, alive), readings = jax.lax.scan(physics_step, (data, jnp.ones((), bool)), None,
+                                               length=self.card.decimation)
+        return data, ~alive, readings
+
+    def step(self, state: State, action: jax.Array) -> State:
+        """Holosoma's PD loop on the clipped action (pushes, kp/kd draws), the locomotion reward, the course."""
+        c, robot, ep, data = self.card, state.info, state.episode, state.data
+        m = self.randomized_model(state.randomization)
+        action = jnp.clip(action, -c.action_clip, c.action_clip)
+        if self.stress.push_interval_s is not None:
+            data, robot = self._push(data, robot, state.key)
+        x_before = data.qpos[0]
+        data, fell, readings = self._physics(m, data, self._default + c.action_scale * action, state.randomization)
         qpos, qvel = data.qpos, data.qvel
         quat = qpos[3:7]
-        reading = LocomotionReading(
+        loco = LocomotionReading(
             command=robot["command"], lin_vel_body=_rotate_inverse(quat, qvel[0:3]), ang_vel_body=qvel[3:6],
             gravity_body=projected_gravity(quat, jnp), action=action, last_action=robot["last_action"],
             q=qpos[self._qadr], default_q=self._default, phase=robot["phase"],
             foot_z=data.xpos[self._contact_points, 2], feet_xy=data.xpos[self._feet, 0:2],
             feet_gravity_xy=-data.xmat[self._feet, 2, 0:2], base_yaw=heading_yaw(quat, jnp))
-        task_r, _ = locomotion_reward(reading, self.weights, self.reward_params, self.control_dt_s, jnp)
+        task_r, _ = locomotion_reward(loco, self.weights, self.reward_params, self.control_dt_s, jnp)
         course_done = course_finished(CourseState(robot["leg"], robot["dwell_left_s"], robot["legs_done"]),
                                       self.course, jnp)
         walking = robot["command"][0] > 0.0
-        new = {**ep, **sums, "control_steps": ep["control_steps"] + 1.0, "task_return": ep["task_return"] + task_r,
-               "walk_s": ep["walk_s"] + jnp.where(walking, self.control_dt_s, 0.0),
+        new = {**ep, "walk_s": ep["walk_s"] + jnp.where(walking, self.control_dt_s, 0.0),
                "walk_m": ep["walk_m"] + jnp.where(walking, qpos[0] - x_before, 0.0),
                "max_lateral_m": jnp.maximum(ep["max_lateral_m"], jnp.abs(qpos[1]))}
-        robot = {**robot, "last_action": action, "time_s": robot["time_s"] + self.control_dt_s}
+        robot = {**robot, "last_action": action, "time_s": robot["time_s"] + self.control_dt_s,
+                 "course_done": course_done}
         obs, robot = self._observe(data, robot)
         new["legs_done"] = robot["legs_done"]
-        reward = task_r if self.keep_task_reward else 0.0
-        if self.economics:
-            j = jnp.asarray(cf.overlay_potential(cf.MeterSums(**sums), self._coefficients, jnp), jnp.float32)
-            new["overlay_j"] = j
-            reward = reward + j - ep["overlay_j"]
-        return data, obs, _like(robot, robot_in), jnp.asarray(reward, jnp.float32), fell, course_done, _like(new, ep)
+        return state._replace(data=data, obs=obs, reward=jnp.asarray(task_r, jnp.float32),
+                              done=fell.astype(jnp.float32), truncated=course_done.astype(jnp.float32),
+                              episode=like(new, ep), info=like(robot, state.info), readings=readings)
 
-    def _episode_metrics(self, ep: dict[str, jax.Array], fell: jax.Array, course_done: jax.Array) -> dict[str, Any]:
-        if not self.economics:
-            return {"length_steps": ep["control_steps"], "return": ep["task_return"], "fell": fell.astype(jnp.float32)}
-        metrics = cf.running_metrics(cf.MeterSums(**{k: ep[k] for k in _METER_KEYS}), self.physics_dt_s, jnp)
+    def extra_metrics(self, state: State) -> dict[str, jax.Array]:
+        """Legs reached, speed while walking, walking time, lateral drift, mean power, course done."""
+        ep = state.episode
         length_s = ep["steps"] * self.physics_dt_s
-        out = {
-            "units_completed": ep["units"], "units_attempted": ep["units"] + ep["errors"], "errors": ep["errors"],
-            "episode_length_s": length_s, "length_steps": ep["control_steps"], "energy_wh": ep["energy_wh"],
-            "risk_score": metrics.risk_score, "novelty_score": jnp.zeros(()), "return": ep["task_return"],
-            "forward_distance_m": ep["best_x"] - ep["x0"], "fell": fell.astype(jnp.float32),
-            "overlay_return": ep["overlay_j"], "legs_reached": ep["legs_done"],
-            "achieved_speed_m_per_s": cf.safe_div(ep["walk_m"], ep["walk_s"], jnp), "walking_s": ep["walk_s"],
-            "max_lateral_m": ep["max_lateral_m"],
-            "mean_power_w": cf.safe_div(ep["energy_wh"] * cf.SECONDS_PER_HOUR, length_s, jnp),
-            "course_done": course_done.astype(jnp.float32),
-        }
-        for k in self.scales:
-            out[f"overlay_{k}_raw"] = jnp.asarray(getattr(metrics, k), jnp.float32)
-        return {k: jnp.asarray(v, jnp.float32) for k, v in out.items()}
-
-    # ------------------------------------------------------------------ the batched API
-    def reset(self, key: jax.Array, num_envs: int) -> HumanoidEnvState:
-        """``num_envs`` fresh episodes (pure; jit with ``num_envs`` static)."""
-        keys = jax.random.split(key, 2 * num_envs)
-        data, obs, robot, episode, dr = jax.vmap(self._reset_one)(keys[num_envs:])
-        zeros = jnp.zeros((num_envs,), jnp.float32)
-        finished = {k: zeros for k in self.metric_keys}
-        return HumanoidEnvState(data, obs, zeros, zeros, zeros, episode, finished, keys[:num_envs], robot, dr)
-
-    def step(self, state: HumanoidEnvState, action: jax.Array) -> HumanoidEnvState:
-        """One control step of every env, auto-resetting the ones whose episode ended (pure)."""
-        keys = jax.vmap(lambda k: jax.random.split(k, 3))(state.key)
-        env_keys, step_keys, reset_keys = keys[:, 0], keys[:, 1], keys[:, 2]
-        data, obs, robot, reward, fell, course_done, episode = jax.vmap(self._step_one)(
-            state.data, state.robot, state.episode, state.randomization, action, step_keys)
-        finished = jax.vmap(self._episode_metrics)(episode, fell, course_done)
-        truncated = (episode["control_steps"] >= self.max_episode_steps) | course_done
-        truncated = truncated & ~fell
-        done = fell | truncated
-
-        data, obs, robot, episode, dr = auto_reset(done, self._reset_one, reset_keys,
-                                                   (data, obs, robot, episode, state.randomization))
-        return HumanoidEnvState(data, obs, reward, done.astype(jnp.float32), truncated.astype(jnp.float32), episode,
-                                finished, env_keys, robot, dr)
-
-    # ------------------------------------------------------------------ host side
-    def finished_to_dicts(self, finished: Mapping[str, Any]) -> list[dict[str, Any]]:
-        """Rows of finished episodes -> raw-episode dicts (the sim-to-sim evaluator's keys, plus the overlay's)."""
-        if not self.economics:
-            raise ValueError("an env built with economics=False has no raw economic metrics")
-        cols = {k: np.asarray(v, dtype=np.float64).reshape(-1) for k, v in finished.items()}
-        rows = []
-        for i in range(len(cols["fell"])):
-            row = {k: float(cols[k][i]) for k in BASE_METRIC_KEYS if k not in ("fell", "course_done")}
-            row["control_dt_s"] = self.control_dt_s
-            row["termination_reason"] = TerminationReason.FALL if cols["fell"][i] > 0.5 else \
-                TerminationReason.COURSE_DONE if cols["course_done"][i] > 0.5 else TerminationReason.MAX_STEPS
-            rows.append(with_overlay_columns(row, cols, i, self.factors))
-        return rows
-
+        return {"legs_reached": ep["legs_done"], "achieved_speed_m_per_s": cf.safe_div(ep["walk_m"], ep["walk_s"], jnp),
+                "walking_s": ep["walk_s"], "max_lateral_m": ep["max_lateral_m"],
+                "mean_power_w": cf.safe_div(ep["energy_wh"] * cf.SECONDS_PER_HOUR, length_s, jnp),
+                "course_done": state.info["course_done"].astype(jnp.float32)}

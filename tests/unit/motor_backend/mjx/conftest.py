@@ -1,7 +1,8 @@
 """Shared fixtures of the mjx tests: one jitted env per courier for the whole session.
 
 MJX compiles slowly on a CPU (the hopper's step: ~45 s of CPU), so every test of a courier
-shares one :class:`MjxCourierEnv` with jitted ``reset``/``step`` at :data:`NUM_ENVS` envs, and
+shares one batched env (``wrappers.make_env`` on a
+:class:`~econmotor.motor_backend.mjx.env.GymCourierEnv`) with jitted ``reset``/``step`` at :data:`NUM_ENVS` envs, and
 compiled programs persist across runs in a JAX compilation cache under the system temp dir.
 """
 
@@ -59,14 +60,15 @@ def jitted_env(task_id: str, **model_options) -> JittedEnv:
     ``model_options`` override the catalog entry's."""
     key = (task_id, *sorted(model_options.items()))
     if key not in _ENVS:
-        from econmotor.motor_backend.mjx.env import MjxCourierEnv
+        from econmotor.motor_backend.mjx.env import GymCourierEnv
+        from econmotor.motor_backend.mjx.wrappers import make_env
         from econmotor.tasks.catalog import load_catalog
 
         catalog = None
         if model_options:
             shipped = load_catalog().get(task_id).backends["mjx"].get("model_options", {})
             catalog = catalog_with_mjx_entry(task_id, model_options={**shipped, **model_options})
-        _ENVS[key] = JittedEnv(MjxCourierEnv(task_id, objective=every_term_objective(), catalog=catalog))
+        _ENVS[key] = JittedEnv(make_env(GymCourierEnv, task_id, objective=every_term_objective(), catalog=catalog))
     return _ENVS[key]
 
 

@@ -19,6 +19,7 @@ from econmotor.errors import ConfigError
 from econmotor.motor_backend.datapacks import DatapackConfig
 from econmotor.motor_backend.mjx import env as mjx_env
 from econmotor.motor_backend.mjx.settings import HOLOSOMA_COURSE, INHERITED_KEYS, parse_mjx_settings
+from econmotor.motor_backend.mjx.wrappers import make_env
 from econmotor.motor_backend.mujoco import metering
 from econmotor.motor_backend.mujoco.settings import parse_mujoco_settings
 from econmotor.robots import card
@@ -184,14 +185,14 @@ def test_datapacks_the_mjx_env_cannot_honour_are_config_errors():
 
 
 def test_friction_and_mass_are_drawn_per_env_at_reset():
-    env = mjx_env.MjxCourierEnv("hopper_courier", datapacks=[DatapackConfig(
+    env = make_env(mjx_env.GymCourierEnv, "hopper_courier", datapacks=[DatapackConfig(
         id="dr", domain_randomization={"friction_range": [0.5, 0.9], "mass_scale_range": [0.8, 1.2]})])
     state = jax.jit(env.reset, static_argnums=1)(jax.random.PRNGKey(0), 8)
     friction, mass = np.asarray(state.randomization["friction_scale"]), np.asarray(state.randomization["mass_scale"])
     assert friction.shape == (8,) and np.all((friction >= 0.5) & (friction <= 0.9)) and np.ptp(friction) > 0
     assert mass.shape == (8, env.mj_model.nbody) and np.all(mass[:, 0] == 1.0)
     assert np.all((mass[:, 1:] >= 0.8) & (mass[:, 1:] <= 1.2))
-    model = env._randomized_model({"friction_scale": friction[0], "mass_scale": mass[0]})
+    model = env.randomized_model({"friction_scale": friction[0], "mass_scale": mass[0]})
     np.testing.assert_allclose(np.asarray(model.geom_friction[:, 0]), env.mj_model.geom_friction[:, 0] * friction[0],
                                rtol=1e-6)
     np.testing.assert_allclose(np.asarray(model.body_mass), env.mj_model.body_mass * mass[0], rtol=1e-6)
@@ -200,7 +201,7 @@ def test_friction_and_mass_are_drawn_per_env_at_reset():
 @pytest.mark.parametrize("task_id", ["walker_courier", "ant_courier", "humanoid_courier"])
 def test_every_courier_has_the_gymnasium_layout(task_id):
     """Traced without compiling (eval_shape): obs/action sizes and bounds, control dt, metric keys."""
-    env = mjx_env.MjxCourierEnv(task_id)
+    env = make_env(mjx_env.GymCourierEnv, task_id)
     gym_env = gym.make(env.settings.env_id)
     assert env.observation_size == gym_env.observation_space.shape[0]
     np.testing.assert_array_equal(env.action_low, gym_env.action_space.low)
@@ -216,4 +217,5 @@ def test_an_overlay_term_the_mjx_env_cannot_weight_is_a_config_error():
     from econmotor.objectives import EconomicObjectiveSpec
 
     with pytest.raises(ConfigError, match=r"extra_weights\.pose_tracking.*mjx backend"):
-        mjx_env.MjxCourierEnv("hopper_courier", objective=EconomicObjectiveSpec(extra_weights={"pose_tracking": 1.0}))
+        make_env(mjx_env.GymCourierEnv, "hopper_courier",
+                 objective=EconomicObjectiveSpec(extra_weights={"pose_tracking": 1.0}))

@@ -1,4 +1,4 @@
-"""MjxCourierEnv on the hopper courier: overlay invariant, auto-reset, raw-metric keys, one compile."""
+"""The batched GymCourierEnv on the hopper courier: overlay invariant, auto-reset, raw-metric keys, one compile."""
 
 from __future__ import annotations
 
@@ -109,21 +109,21 @@ def test_auto_reset_starts_the_next_episode_in_the_same_step(rollout):
             assert state.episode["steps"][i] == prev.episode["steps"][i] + 1
     assert seen >= 2
     # novelty visit counts outlive episodes: one count per step taken
-    assert int(steps[-1][1].novelty_counts.sum()) == len(steps) * NUM_ENVS
+    assert int(steps[-1][1].lifelong["novelty_counts"].sum()) == len(steps) * NUM_ENVS
 
 
 def test_time_limit_truncates_and_resets(hopper):
     env = hopper.env
     state = hopper.reset(jax.random.PRNGKey(2), NUM_ENVS)
     episode = dict(state.episode)
-    episode["steps"] = jnp.asarray([env.max_episode_steps - 1, 5], jnp.float32)
+    episode["control_steps"] = jnp.asarray([env.max_episode_steps - 1, 5], jnp.float32)
     state = hopper.step(state._replace(episode=episode), jnp.zeros((NUM_ENVS, env.action_size)))
     np.testing.assert_array_equal(np.asarray(state.done), [1.0, 0.0])
     np.testing.assert_array_equal(np.asarray(state.truncated), [1.0, 0.0])
     row = env.finished_to_dicts({k: np.asarray(v)[:1] for k, v in state.finished.items()})[0]
     assert row["termination_reason"] == "max_steps" and row["errors"] == 0.0
     assert row["length_steps"] == env.max_episode_steps
-    assert float(state.episode["steps"][0]) == 0.0 and float(state.episode["steps"][1]) == 6.0
+    assert float(state.episode["control_steps"][0]) == 0.0 and float(state.episode["control_steps"][1]) == 6.0
 
 
 def test_step_compiles_once(hopper, rollout):

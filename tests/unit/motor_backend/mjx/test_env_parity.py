@@ -31,7 +31,7 @@ from .conftest import NUM_ENVS
 
 
 def c_metered_env(env):
-    """The mujoco backend's meter on the same Gymnasium env and model options as ``env`` (an MjxCourierEnv)."""
+    """The mujoco backend's meter on the same Gymnasium env and model options as ``env`` (a batched GymCourierEnv)."""
     s = env.settings
     base = gym.make(s.env_id, **s.env_kwargs)
     apply_model_options(base.unwrapped.model, s.model_options)  # the model MJX runs, on the C side too

@@ -60,7 +60,8 @@ def humanoid(robot: str, stress: bool = False, **model_options) -> JittedEnv:
     ``stress``: the :func:`stress_bundle` datapack), built and jitted once."""
     key = (robot, stress, *sorted(model_options.items()))
     if key not in _ENVS:
-        from econmotor.motor_backend.mjx.humanoid_env import MjxHumanoidCourierEnv
+        from econmotor.motor_backend.mjx.humanoid_env import HumanoidWalkerEnv
+        from econmotor.motor_backend.mjx.wrappers import make_env
         from econmotor.objectives import EconomicObjectiveSpec
         from econmotor.tasks.catalog import load_catalog
 
@@ -70,9 +71,9 @@ def humanoid(robot: str, stress: bool = False, **model_options) -> JittedEnv:
         if model_options:
             changes["model_options"] = {**entry["model_options"], **model_options}
         objective = EconomicObjectiveSpec(mpl_weight=1.0, energy_weight=0.5, error_weight=0.2, risk_weight=0.4)
-        _ENVS[key] = JittedEnv(MjxHumanoidCourierEnv(task, objective=objective,
-                                                     datapacks=[stress_bundle(task)] if stress else [],
-                                                     catalog=catalog_with_mjx_entry(task, **changes)))
+        _ENVS[key] = JittedEnv(make_env(HumanoidWalkerEnv, task, objective=objective,
+                                          datapacks=[stress_bundle(task)] if stress else [],
+                                          catalog=catalog_with_mjx_entry(task, **changes)))
     return _ENVS[key]
 
 
@@ -148,7 +149,7 @@ def test_mjx_humanoid_steps_meter_and_observe_as_mujoco_c(robot: str) -> None:
     if stress:
         lo, hi = card.push_preset["push_interval_s"]
         assert 0.4 <= draws["friction"] <= 1.0 and 2.0 <= draws["payload_kg"] <= 5.0
-        assert lo <= float(state.robot["next_push_s"][0]) <= hi
+        assert lo <= float(state.info["next_push_s"][0]) <= hi
         assert np.all((0.9 <= draws["kp_scale"]) & (draws["kp_scale"] <= 1.1)) and np.ptp(draws["kd_scale"]) > 0
     model, data, qadr, dadr, act = c_robot(env, draws)
     kp, kd = card.array("kp") * draws["kp_scale"], card.array("kd") * draws["kd_scale"]
@@ -240,12 +241,13 @@ def test_holosomas_shipped_g1_walker_walks_in_the_mjx_env() -> None:
 def test_training_episodes_start_at_random_points_of_the_course() -> None:
     """``random_start``: the base placed along the course (in a dwell at a leg's end, or part-way along a leg),
     the course's state and the time spent so far set as :func:`couriers.walker_train.course_point` says."""
-    from econmotor.motor_backend.mjx.humanoid_env import MjxHumanoidCourierEnv
+    from econmotor.motor_backend.mjx.humanoid_env import HumanoidWalkerEnv
+    from econmotor.motor_backend.mjx.wrappers import make_env
 
-    env = MjxHumanoidCourierEnv("humanoid_locomotion_g1", random_start=True)
+    env = make_env(HumanoidWalkerEnv, "humanoid_locomotion_g1", random_start=True)
     state = jax.jit(env.reset, static_argnums=1)(jax.random.PRNGKey(3), 64)
     x = np.asarray(state.data.qpos[:, 0])
-    leg, dwell, done = (np.asarray(state.robot[k]) for k in ("leg", "dwell_left_s", "legs_done"))
+    leg, dwell, done = (np.asarray(state.info[k]) for k in ("leg", "dwell_left_s", "legs_done"))
     steps = np.asarray(state.episode["control_steps"])
     course = env.course
     assert set(leg.astype(int)) == set(range(course.legs))
@@ -256,5 +258,6 @@ def test_training_episodes_start_at_random_points_of_the_course() -> None:
     np.testing.assert_array_equal(done, np.where(dwell > 0, leg + 1, leg))
     np.testing.assert_allclose(np.asarray(state.episode["best_x"]), x)  # the meter counts from where it stands
     assert (steps > 0).mean() > 0.9 and steps.max() < env.max_episode_steps
-    fixed = jax.jit(MjxHumanoidCourierEnv("humanoid_locomotion_g1").reset, static_argnums=1)(jax.random.PRNGKey(3), 4)
+    fixed = jax.jit(make_env(HumanoidWalkerEnv, "humanoid_locomotion_g1").reset, static_argnums=1)(
+        jax.random.PRNGKey(3), 4)
     assert np.all(np.asarray(fixed.episode["control_steps"]) == 0)  # evaluation starts at the course's start

@@ -11,7 +11,7 @@ import pytest
 from econmotor.couriers import locomotion_rewards as lr
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.datapacks import DatapackBundle, load_datapack_configs
-from econmotor.motor_backend.mjx.humanoid_env import MjxHumanoidCourierEnv, parse_humanoid_stress, parse_locomotion
+from econmotor.motor_backend.mjx.humanoid_env import HumanoidWalkerEnv, parse_humanoid_stress, parse_locomotion
 from econmotor.robots import G1_29DOF
 from econmotor.tasks import load_catalog
 
@@ -51,8 +51,8 @@ def test_an_unknown_reward_term_or_missing_key_names_the_catalog_key() -> None:
     catalog = catalog_with_mjx_entry(task, source="my_mjx.yaml",
                                      locomotion={**loco, "rewards": {**loco["rewards"], "moonwalk": {"weight": 1.0}}})
     with pytest.raises(ConfigError, match=r"my_mjx.yaml.*locomotion.rewards.moonwalk.*tracking_lin_vel"):
-        MjxHumanoidCourierEnv(task, catalog=catalog)
-    env = MjxHumanoidCourierEnv(task)
+        HumanoidWalkerEnv(task, catalog=catalog)
+    env = HumanoidWalkerEnv(task)
     episode_s, weights, params = parse_locomotion(env.settings)
     assert episode_s == loco["episode_s"] and weights["feet_phase"] == 5.0 and params["feet_phase"]["swing_height"]
     with pytest.raises(ConfigError, match="episode_s"):

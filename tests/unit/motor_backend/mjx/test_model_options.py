@@ -7,8 +7,8 @@ import pytest
 
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.mjx.assets import load_model, robot_spec
-from econmotor.motor_backend.mjx.env import MjxCourierEnv
-from econmotor.motor_backend.mjx.humanoid_env import MjxHumanoidCourierEnv
+from econmotor.motor_backend.mjx.env import GymCourierEnv
+from econmotor.motor_backend.mjx.humanoid_env import HumanoidWalkerEnv
 from econmotor.motor_backend.mjx.settings import parse_mjx_settings
 from econmotor.tasks import load_catalog
 
@@ -28,17 +28,17 @@ def test_the_catalog_runs_every_courier_as_brax_does_on_mjx():
     catalog = load_catalog()
     for task_id in catalog.ids("mjx"):
         if "robot" in catalog.get(task_id).backends["mjx"]:
-            env = MjxHumanoidCourierEnv(task_id, catalog=catalog)  # feet-only contacts from its robot card
+            env = HumanoidWalkerEnv(task_id, catalog=catalog)  # feet-only contacts from its robot card
             assert geoms_that_collide(env.mj_model) - {"floor"} == set(env.card.foot_geoms)
             assert env.mj_model.opt.iterations <= 4 and env.mj_model.opt.ls_iterations <= 8
             continue
-        env = MjxCourierEnv(task_id, catalog=catalog)
+        env = GymCourierEnv(task_id, catalog=catalog)
         opt = env.mj_model.opt
         assert opt.integrator == mujoco.mjtIntegrator.mjINT_EULER, task_id
         assert opt.solver == mujoco.mjtSolver.mjSOL_NEWTON and opt.iterations <= 4 and opt.ls_iterations <= 8
         assert "floor" in geoms_that_collide(env.mj_model)
         assert geoms_that_collide(env.mj_model) - {"floor"} == set(env.settings.model_options["contact_geoms"])
-    humanoid = MjxCourierEnv("humanoid_courier", catalog=catalog).mj_model
+    humanoid = GymCourierEnv("humanoid_courier", catalog=catalog).mj_model
     assert humanoid.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP
 
 
@@ -71,4 +71,4 @@ def test_bad_model_options_are_config_errors_naming_the_file_and_key(options, ma
 def test_an_unknown_contact_geom_names_the_geoms_there_are():
     catalog = with_options("hopper_courier", {"contact_geoms": ["foot"]})
     with pytest.raises(ConfigError, match=r"my_mjx.yaml.*contact_geoms.*unknown geom 'foot'.*foot_geom, leg_geom"):
-        MjxCourierEnv("hopper_courier", catalog=catalog)
+        GymCourierEnv("hopper_courier", catalog=catalog)
