@@ -56,7 +56,7 @@ FIGURES = {
     "shadow_overhead.py": "SAC steps/s with shadow / without",
     "walker_throughput.py": "env_processes / raw_2:",
     "solver_throughput.py": "speed-up (loop / vectorised)",
-    "time_to_deployable.py": "ratio median fixed / median until",
+    "time_to_deployable.py": "ratio median demo / median old",
     "training_throughput.py": "ratio",
 }
 #: the heavy ones (train a policy, or compile MJX programs): end-to-end tests like the other slow ones
@@ -66,7 +66,8 @@ SLOW = {"conditioned_vs_specialists.py", "constraints_dishwashing.py", "demo_rel
         "training_throughput.py", "shadow_overhead.py"}
 #: minutes each on a CPU (MJX compilation, Holosoma training): only with ECONMOTOR_BENCHMARKS=all
 HEAVY = {"mjx_model_options.py", "mjx_physics_gap.py", "mjx_throughput.py", "mjx_time_to_courier.py",
-         "mjx_humanoid_throughput.py", "mjx_eval_timeline.py", "g1_objectives.py", "holosoma_overlay_overhead.py"}
+         "mjx_humanoid_throughput.py", "mjx_eval_timeline.py", "g1_objectives.py", "holosoma_overlay_overhead.py",
+         "time_to_deployable.py"}
 #: need the isolated Holosoma environment (the script runs in it, or starts jobs in it)
 HOLOSOMA = {"holosoma_overlay_overhead.py"}
 TIMEOUT_S = 900  # generous: minutes on 2 shared cores with a cold compilation cache

@@ -1,8 +1,8 @@
 """MjxBackend: the GPU-native motor backend (factory name ``mjx``).
 
 The mujoco couriers (``tasks/mjx.yaml``) simulated by MuJoCo's JAX port in batches
-(:class:`~econmotor.motor_backend.mjx.env.MjxCourierEnv`, the economics inside the compiled
-step), trained by the JAX PPO of ``mjx/ppo.py`` on whatever device JAX sees (GPU when present,
+(``wrappers.make_env`` over the thin envs of ``env.py`` and ``humanoid_env.py``, the economics
+inside the compiled step), trained by the JAX PPO of ``mjx/ppo.py`` on whatever device JAX sees (GPU when present,
 CPU otherwise), evaluated in batches, deployed to ONNX. Same contract, result types, raw-metric
 keys, run-directory layout and ConfigError rules as the ``mujoco`` backend, so the registry,
 ``econmotor report --motor-backend mjx``, ``solve`` and ``sweep`` work unchanged.

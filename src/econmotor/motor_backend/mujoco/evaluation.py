@@ -17,15 +17,25 @@ ActFn = Callable[[np.ndarray], np.ndarray]
 
 
 def torch_act_fn(model: Any, normalizer: tuple[np.ndarray, np.ndarray, float, float] | None) -> ActFn:
-    """``obs -> model.predict(normalise(obs), deterministic=True)`` (VecNormalize's formula)."""
+    """``obs -> model.predict(normalise(obs), deterministic=True)`` (VecNormalize's formula): the policy's
+    deterministic action clipped to the action space, as ``predict`` computes it, without ``predict``'s
+    per-call checks (a third of its cost for one observation)."""
+    import torch
+
+    policy, space = model.policy, model.action_space
+    low, high = space.low, space.high
 
     def act(obs: np.ndarray) -> np.ndarray:
         x = np.asarray(obs, dtype=np.float64)
         if normalizer is not None:
             mean, var, eps, clip = normalizer
             x = np.clip((x - mean) / np.sqrt(var + eps), -clip, clip)
-        action, _ = model.predict(x.astype(np.float32), deterministic=True)
-        return action
+        batch = x.ndim > 1
+        with torch.no_grad():
+            actions = policy._predict(torch.as_tensor(x if batch else x[None], dtype=torch.float32),
+                                      deterministic=True).numpy()
+        actions = policy.unscale_action(actions) if policy.squash_output else np.clip(actions, low, high)
+        return actions if batch else actions[0]
 
     return act
 

@@ -1,6 +1,6 @@
 """PPO in JAX (mjx/ppo.py): GAE, the normaliser, learning on a small pure-JAX env, and no recompilation.
 
-The env here is a real env of the mjx contract (``EnvState`` fields, auto-reset, ``finished``
+The env here is a real env of the mjx contract (``base_env.State`` fields, auto-reset, ``finished``
 metrics), only physically trivial: a point on a line steered towards a target, so PPO's
 learning is checked in seconds without MJX's compile time (the MJX env is exercised by the
 integration tests)."""
