@@ -22,7 +22,12 @@ training seconds and their ratio. The load average is printed at the start and t
 Tried and not kept for the SB3 arm (2 shared cores, 2026-11-25/28): PPO ``batch_size`` 256 ran
 1.07-1.34x the env steps/s with 10 epochs (1.7x with 5), but seed 0 was still not deployable at 225k
 steps (batch 256, 5 epochs: not at 600k); SB3's ``SubprocVecEnv`` for the 4 envs ran 0.51-0.62x the
-steps/s of the in-process ``DummyVecEnv`` (pipes cost more than a Hopper step).
+steps/s of the in-process ``DummyVecEnv`` (pipes cost more than a Hopper step). For the demo arm, XLA
+flags against the default (compilation 20.5 s, then 7,975 env steps/s; idle cores, 2026-11-28):
+``--xla_backend_optimization_level=0`` 29.1 s and 73 steps/s, ``--xla_llvm_disable_expensive_passes``
+23.3 s and 6,750, single-threaded Eigen 21.3 s and 7,416. The backend's own held-out cadence (at most a
+tenth of the wall time) found seed 1's deployable policy at 600k steps in 94 s, every 25,000 steps at
+225k in 57 s (warm cache).
 
     .venv/bin/python benchmarks/time_to_deployable.py [--seeds 0,1,2] [--arms demo,old] [--warm-cache]
 """
