@@ -289,7 +289,10 @@ def test_demo_prints_the_html_report_path_last(workdir: Path) -> None:
     assert last == "HTML report: reports/demo/hopper_courier_run2.html"
     doc = json.loads((workdir / "reports" / "demo" / "hopper_courier_run2.json").read_text())
     assert doc["task"]["task_id"] == "hopper_courier" and doc["runs"]["train"]["max_steps"] == 512
-    assert doc["runs"]["train"]["num_envs"] == 64  # the catalog's default on a CPU, as the backend used it
+    from econmotor.motor_backend.mjx.backend import MjxBackend
+
+    used, _ = MjxBackend.resolve_num_envs(MjxBackend(runs_dir=workdir).settings("hopper_courier"), 0)
+    assert doc["runs"]["train"]["num_envs"] == used  # the catalog's default (capped on a CPU), as the backend used it
     # the demo's own objective file (package data), weights as written there
     assert doc["objective"]["name"] == "courier_safety_first"
     assert doc["objective"]["overlay"] == {"mpl_per_hour": 1.0, "energy_kwh": -0.1, "error_rate": -5.0,
