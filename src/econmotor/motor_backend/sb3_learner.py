@@ -30,23 +30,16 @@ class SB3Learner(Learner):
 
     Args:
         model: the SB3 model (fresh or loaded from a checkpoint, with its env).
-        max_steps: the run's env steps in all (what learning-rate schedules count towards).
         callbacks: per-step SB3 callbacks of every chunk.
         tensorboard_dir: TensorBoard's folder (``<dir>/run_<N>``, continued by a resumed run), or None.
         resumed: the model comes from a checkpoint (its TensorBoard run is continued, not a new one).
     """
 
-    def __init__(self, model: BaseAlgorithm, max_steps: int, callbacks: Sequence[BaseCallback] = (),
+    def __init__(self, model: BaseAlgorithm, callbacks: Sequence[BaseCallback] = (),
                  tensorboard_dir: str | None = None, resumed: bool = False) -> None:
-        self.max_steps, self.callbacks = int(max_steps), list(callbacks)
-        self.tensorboard_dir, self.resumed = tensorboard_dir, resumed
-        self.attach(model)
-
-    def attach(self, model: BaseAlgorithm) -> None:
-        """Learn with ``model`` from now on (a fresh one, or one loaded from a checkpoint)."""
-        self.model = model
-        model.set_logger(configure_logger(0, self.tensorboard_dir, "run", not self.resumed)
-                         if self.tensorboard_dir else quiet_logger())
+        self.model, self.callbacks = model, list(callbacks)
+        model.set_logger(configure_logger(0, tensorboard_dir, "run", not resumed) if tensorboard_dir
+                         else quiet_logger())
 
     @property
     def env_steps(self) -> int:  # type: ignore[override]

@@ -134,14 +134,17 @@ class TrainingLoop:
     progress: ProgressFn = no_progress
     label: str = "train"
     _curve: list[dict[str, float]] = field(default_factory=list)
+    _previous: dict[str, Any] | None = None
 
     # ------------------------------------------------------------------ resume
     def previous(self) -> dict[str, Any]:
         """The recorded config of the run to resume (its task and backend checked, and the request too: a
-        resumed run keeps its hyperparameters); the backend builds its learner from it."""
-        previous = read_run_config(self.run_dir, self.backend)
-        check_resume_request(self.run_dir, previous, str(self.config.get("task_id")), self.requested_hyperparameters)
-        return previous
+        resumed run keeps its hyperparameters); the backend builds its learner from it. Read and checked once."""
+        if self._previous is None:
+            self._previous = read_run_config(self.run_dir, self.backend)
+            check_resume_request(self.run_dir, self._previous, str(self.config.get("task_id")),
+                                 self.requested_hyperparameters)
+        return self._previous
 
     def _start(self, learner: Learner, resume: bool) -> int:
         """Restore a resumed run (its checkpoint and its selection so far); write ``run_config.json``."""

@@ -25,9 +25,9 @@ def _weights(model: PPO) -> np.ndarray:
 def test_chunks_learn_what_one_learn_call_learns() -> None:
     whole = _model()
     whole.learn(4 * 128)
-    learner = SB3Learner(_model(), max_steps=4 * 128)
+    learner = SB3Learner(_model())
     assert learner.chunk_steps == 128  # one rollout: n_steps x envs
-    while learner.env_steps < 4 * 128:
+    for _ in range(4):  # four chunks of one rollout each
         learner.learn(learner.env_steps + learner.chunk_steps)
     assert learner.env_steps == whole.num_timesteps == 512
     np.testing.assert_array_equal(_weights(learner.model), _weights(whole))

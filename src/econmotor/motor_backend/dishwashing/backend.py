@@ -306,7 +306,7 @@ class DishwashingBackend(MotorBackendBase):
         loop = TrainingLoop(run_dir, self.name, config, max_steps, curve_every_steps=self.sac.curve_every_steps,
                             progress=progress, label=f"train {task_id}")
         try:
-            outcome = loop.run(SACLearner(self._model(make, num_envs, max_steps, seed), max_steps))
+            outcome = loop.run(SACLearner(self._model(make, num_envs, max_steps, seed)))
         except (ValueError, RuntimeError) as exc:
             raise BackendError(f"SAC training on '{task_id}' failed: {exc}") from exc
         config, curve = outcome.config, outcome.curve

@@ -320,7 +320,7 @@ class MjxBackend(MotorBackendBase):
         run.held_out = lambda learner, n, first_seed, stop: evaluate_episodes(
             self._evaluator(env, run.cfg), self.eval_batch, env, learner, n, first_seed, stop=stop)
         run.export = lambda run_dir, learner: self._export(run_dir, learner, run.cfg, run.config)
-        curve, _ = run.train(resume=resume, progress=progress)
+        curve = run.train(resume=resume, progress=progress)
         config = run.config
         artifacts = {"policy": str(run.run_dir / "policy.npz"), "tensorboard": str(run.run_dir / "tb"),
                      "run_config": str(run.run_dir / RUN_CONFIG_FILE), "onnx": str(run.onnx),

@@ -297,8 +297,8 @@ class MjxTrainingRun:
     export: Callable[[Path, ppo.Learner], Path] | None = None
     onnx: Path | None = None
 
-    def train(self, resume: bool = False, progress: ProgressFn = no_progress) -> tuple[list[dict[str, float]], Any]:
-        """Train to ``max_steps`` (the shared loop); returns (training curve, the kept learner)."""
+    def train(self, resume: bool = False, progress: ProgressFn = no_progress) -> list[dict[str, float]]:
+        """Train to ``max_steps`` (the shared loop; the kept learner is ``policy.npz``); the training curve."""
         loop = TrainingLoop(self.run_dir, "mjx", {**self.described}, self.max_steps,
                             checkpoint_every_steps=self.checkpoint_every_steps, selection=self.selection,
                             requested_hyperparameters=self.requested_hyperparameters, progress=progress)
@@ -310,7 +310,6 @@ class MjxTrainingRun:
             **self.described, "algorithm": "ppo", "hyperparameters": self.cfg.to_dict(), "num_envs": self.num_envs,
             "seed": self.seed, "checkpoint_every_steps": self.checkpoint_every_steps, "obs_layout": obs_layout,
             "action_layout": action_layout, **self.extra_config}
-        learner = MjxLearner(self, progress)
-        outcome = loop.run(learner, resume)
+        outcome = loop.run(MjxLearner(self, progress), resume)
         self.config, self.onnx = outcome.config, outcome.export
-        return outcome.curve, learner.state.learner
+        return outcome.curve

@@ -199,7 +199,7 @@ class MujocoBackend(MotorBackendBase):
             selection=selection_for(self.catalog.get(task_id), objective, select_every_steps, select_episodes,
                                     until_deployable, seed, self.held_out_cadence, self.evaluation_batch(task_id)),
         )
-        _, curve = run.train(resume=resume, progress=progress)
+        curve = run.train(resume=resume, progress=progress)
         artifacts = {"policy": str(run.run_dir / "policy.zip"), "tensorboard": str(run.run_dir / "tb"),
                      "run_config": str(run.run_dir / RUN_CONFIG_FILE), "onnx": str(run.onnx),
                      "curve": str(run.run_dir / CURVE_FILE)}

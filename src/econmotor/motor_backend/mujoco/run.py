@@ -78,7 +78,7 @@ class MujocoLearner(SB3Learner):
 
     def __init__(self, model: Any, run: TrainingRun, resumed_at: int, callbacks: list[Any],
                  metadata: Mapping[str, Any]) -> None:
-        super().__init__(model, run.max_steps, callbacks, str(run.run_dir / "tb"), resumed=resumed_at > 0)
+        super().__init__(model, callbacks, str(run.run_dir / "tb"), resumed=resumed_at > 0)
         self.run, self.resumed_at, self.metadata = run, resumed_at, metadata
 
     def evaluate(self, num_episodes: int, first_seed: int, stop: StopFn) -> list[dict[str, Any]]:
@@ -159,8 +159,9 @@ class TrainingRun:
             return load_checkpoint(self.algorithm, ckpt[0], ckpt[1], self.venv)
         return build_model(self.algorithm, self.venv, hp, self.seed, None)
 
-    def train(self, resume: bool = False, progress: ProgressFn = no_progress) -> tuple[Any, list[dict[str, float]]]:
-        """Train to ``max_steps`` total environment steps; returns (model, training curve)."""
+    def train(self, resume: bool = False, progress: ProgressFn = no_progress) -> list[dict[str, float]]:
+        """Train to ``max_steps`` total environment steps (the kept policy is ``policy.zip``); the training
+        curve."""
         loop = TrainingLoop(self.run_dir, "mujoco", {**self.described}, self.max_steps,
                             checkpoint_every_steps=self.checkpoint_every_steps, selection=self.selection,
                             curve_every_steps=max(1000, self.max_steps // 50),
@@ -186,7 +187,6 @@ class TrainingRun:
         if self.recipe.curriculum.ramp_steps > 0:
             callbacks.append(CurriculumCallback(self.recipe.curriculum))
         metadata = self.onnx_metadata(loop.config) if self.onnx_metadata else {}
-        learner = MujocoLearner(model, self, ckpt[1] if ckpt else 0, callbacks, metadata)
-        outcome = loop.run(learner, resume)
+        outcome = loop.run(MujocoLearner(model, self, ckpt[1] if ckpt else 0, callbacks, metadata), resume)
         self.config, self.onnx = outcome.config, outcome.export
-        return learner.model, outcome.curve
+        return outcome.curve
