@@ -43,7 +43,14 @@ import time
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-from econmotor.cli.demo import DEMO_BACKEND, DEMO_MAX_STEPS, DEMO_OBJECTIVE, DEMO_SELECT_EVERY, DEMO_TASK
+from econmotor.cli.demo import (
+    DEMO_BACKEND,
+    DEMO_HYPERPARAMETERS,
+    DEMO_MAX_STEPS,
+    DEMO_OBJECTIVE,
+    DEMO_SELECT_EVERY,
+    DEMO_TASK,
+)
 from econmotor.economics.uncertainty import SequentialPlan
 from econmotor.motor_backend.factory import make_motor_backend
 from econmotor.motor_backend.selection import Selection, SelectionConfig
@@ -62,16 +69,18 @@ def run_arm(arm: str, seed: int, args: argparse.Namespace, out: str, cache_dir: 
     if arm == "demo":
         backend = make_motor_backend(DEMO_BACKEND, compilation_cache_dir=cache_dir)
         every = DEMO_SELECT_EVERY
+        given = json.loads(args.hyperparameters) if args.hyperparameters else DEMO_HYPERPARAMETERS
+        hyperparameters = {"hyperparameters": given}
     else:
         backend = make_motor_backend(OLD_BACKEND)
-        every = OLD_SELECT_EVERY
+        every, hyperparameters = OLD_SELECT_EVERY, {}
     objective = load_objective_spec(DEMO_OBJECTIVE)
     task = backend.catalog.get(DEMO_TASK)
     run_dir = os.path.join(out, f"{arm}-s{seed}")
     started = time.perf_counter()
     result = backend.train_policy(DEMO_TASK, objective, [], 0, args.max_steps, seed, output_dir=run_dir,
                                   eval_episodes=0, until_deployable=True, select_every_steps=every,
-                                  select_episodes=args.select_episodes)
+                                  select_episodes=args.select_episodes, **hyperparameters)
     train_s = time.perf_counter() - started
     t_eval = time.perf_counter()
     if args.eval_episodes:
@@ -110,6 +119,8 @@ def main() -> None:
     parser.add_argument("--select-episodes", type=int, default=None, help="cap of a held-out evaluation "
                         "(default: selection.DEFAULT_SELECT_EPISODES)")
     parser.add_argument("--eval-episodes", type=int, default=0, help="a fixed count (0: sequential, as the demo)")
+    parser.add_argument("--hyperparameters", default=None, help="the demo arm's PPO over the catalog's, "
+                        "as JSON (default: the demo's DEMO_HYPERPARAMETERS)")
     parser.add_argument("--warm-cache", action="store_true", help="the demo arm's runs share one compilation cache")
     args = parser.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
@@ -128,10 +139,12 @@ def main() -> None:
                     rows.append(pool.submit(run_arm, arm, seed, args, out, cache).result())
                 print(json.dumps(rows[-1]), flush=True)
     print(f"load average at end: {os.getloadavg()}")
-    print(f"{'arm':<5} {'seed':>4} {'env steps':>10} {'train s':>8} {'compile':>8} {'eval s':>7} "
+    print(f"{'arm':<5} {'seed':>4} {'pass at':>8} {'train s':>8} {'compile':>8} {'eval s':>7} "
           f"{'verdict (fresh)':>15} {'falls/legs':>11} {'legs/h':>7}")
     for r in rows:
-        print(f"{r['arm']:<5} {r['seed']:>4} {r['env_steps']:>10,} {r['train_s']:>8.1f} {r['compile_s']:>8.1f} "
+        at = (r["held_out_deployable_at"] or {}).get("env_steps")
+        at = at if at is not None else "-"
+        print(f"{r['arm']:<5} {r['seed']:>4} {at:>8} {r['train_s']:>8.1f} {r['compile_s']:>8.1f} "
               f"{r['report_eval_s']:>7.1f} {r['report_verdict']:>15} {r['falls']:>4.0f}/{r['legs']:<6.1f} "
               f"{r['legs_per_h']:>7.1f}")
     medians = {arm: statistics.median(r["train_s"] for r in rows if r["arm"] == arm) for arm in arms}

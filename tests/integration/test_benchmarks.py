@@ -44,6 +44,7 @@ FIGURES = {
     "holosoma_overlay_overhead.py": "in-run ratio",
     "g1_objectives.py": "energy_saver - throughput, Wh/leg",
     "hypervolume.py": "ratio HSO/grid",
+    "mjx_compile.py": "ratio flags / default, compile_iteration_s:",
     "mjx_eval_timeline.py": "evaluation per episode: before",
     "mjx_humanoid_throughput.py": "ratio",
     "mjx_model_options.py": "ratio",
@@ -61,13 +62,13 @@ FIGURES = {
 }
 #: the heavy ones (train a policy, or compile MJX programs): end-to-end tests like the other slow ones
 SLOW = {"conditioned_vs_specialists.py", "constraints_dishwashing.py", "demo_reliability.py",
-        "economic_layers_cost.py", "holosoma_overlay_overhead.py", "mjx_model_options.py", "mjx_physics_gap.py",
-        "mjx_throughput.py", "mjx_time_to_courier.py", "preset_differentiation.py", "time_to_deployable.py",
-        "training_throughput.py", "shadow_overhead.py"}
+        "economic_layers_cost.py", "holosoma_overlay_overhead.py", "mjx_compile.py", "mjx_model_options.py",
+        "mjx_physics_gap.py", "mjx_throughput.py", "mjx_time_to_courier.py", "preset_differentiation.py",
+        "time_to_deployable.py", "training_throughput.py", "shadow_overhead.py"}
 #: minutes each on a CPU (MJX compilation, Holosoma training): only with ECONMOTOR_BENCHMARKS=all
-HEAVY = {"mjx_model_options.py", "mjx_physics_gap.py", "mjx_throughput.py", "mjx_time_to_courier.py",
-         "mjx_humanoid_throughput.py", "mjx_eval_timeline.py", "g1_objectives.py", "holosoma_overlay_overhead.py",
-         "time_to_deployable.py"}
+HEAVY = {"mjx_compile.py", "mjx_model_options.py", "mjx_physics_gap.py", "mjx_throughput.py",
+         "mjx_time_to_courier.py", "mjx_humanoid_throughput.py", "mjx_eval_timeline.py", "g1_objectives.py",
+         "holosoma_overlay_overhead.py", "time_to_deployable.py"}
 #: need the isolated Holosoma environment (the script runs in it, or starts jobs in it)
 HOLOSOMA = {"holosoma_overlay_overhead.py"}
 TIMEOUT_S = 900  # generous: minutes on 2 shared cores with a cold compilation cache

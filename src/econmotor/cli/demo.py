@@ -1,8 +1,9 @@
 """``econmotor demo`` (``make demo``): the task pricing report of a hopper courier trained on this machine.
 
 Trains a ``hopper_courier`` policy (the Gymnasium Hopper-v5 body in MJX, MuJoCo's JAX port, with the
-mjx backend's JAX PPO on 64 batched envs: on a CPU it learns several times faster than SB3's PPO on
-the ``mujoco`` backend, XLA compilation included; ``benchmarks/time_to_deployable.py``) under the
+mjx backend's JAX PPO on 64 batched envs and :data:`DEMO_HYPERPARAMETERS`: on a CPU it learns several times
+faster than SB3's PPO on the ``mujoco`` backend, XLA compilation included; its held-out evaluations run
+beside training, on the other core; ``benchmarks/time_to_deployable.py``) under the
 safety-first objective :data:`DEMO_OBJECTIVE` until a held-out evaluation passes the task's
 acceptance rule (``--until-deployable``, at most :data:`DEMO_MAX_STEPS` steps; a held-out evaluation
 every :data:`DEMO_SELECT_EVERY` steps: a failing one costs a fraction of a second), evaluates the kept
@@ -33,6 +34,11 @@ DEMO_MAX_STEPS = 600_000
 #: env steps between the held-out evaluations: the backend's own cadence (at most a tenth of the wall time)
 #: found seed 1's deployable policy at 600k steps in 94 s, this one at 225k in 57 s (warm cache, idle cores)
 DEMO_SELECT_EVERY = 25_000
+#: the demo's PPO over the catalog's: policy and value MLPs of 128 x 128 (the catalog's 256 x 256 suit the
+#: thousands of envs of a GPU); on a CPU the 128 minibatch updates of an iteration then take ~15 ms instead of
+#: ~125 ms, beside a ~100 ms rollout of 64 envs (benchmarks/time_to_deployable.py), and seeds 0-2 are as
+#: deployable within the same steps
+DEMO_HYPERPARAMETERS = {"hidden_sizes": [128, 128]}
 #: the demo's objective (a package file; its comments give the weights' reasons): falls and lean are
 #: weighted at the scale of Hopper-v5's own reward, so PPO learns an upright gait within the demo's
 #: steps (the default vector's hopper falls in most episodes; see benchmarks/demo_reliability.py).
@@ -61,4 +67,5 @@ def demo_command(
         task_id=DEMO_TASK, motor_backend=DEMO_BACKEND, objective_config=DEMO_OBJECTIVE,
         notes="econmotor demo: hopper courier on the mjx backend", max_steps=max_steps,
         eval_episodes=eval_episodes, eval_max_episodes=eval_max_episodes, eval_max_seconds=eval_max_seconds,
-        seed=seed, output_dir=output_dir, db_url=db_url, until_deployable=True, select_every=DEMO_SELECT_EVERY))
+        seed=seed, output_dir=output_dir, db_url=db_url, until_deployable=True, select_every=DEMO_SELECT_EVERY,
+        hyperparameters=DEMO_HYPERPARAMETERS))

@@ -97,6 +97,8 @@ class ReportArgs:
     select_episodes: int | None = None
     imported_policy: str | None = None
     init_policy: str | None = None
+    #: the learner's hyperparameters over the catalog's (``train --hyperparameters``; the demo's own)
+    hyperparameters: dict[str, Any] | None = None
 
     @property
     def trains(self) -> bool:
@@ -163,6 +165,8 @@ def check_report_args(a: ReportArgs) -> ReportInputs:
                           "--motor-backend none price without training")
     if cls is not None:
         options.update(init_policy_options(cls, a.init_policy))
+        if a.hyperparameters:
+            options["hyperparameters"] = dict(a.hyperparameters)
     objective = resolve_objective(a.objective_config, name=a.objective_name)
     packs = resolve_datapacks(split_datapack_values(list(a.datapacks)), url)
     out_dir = check_output_dir("--output-dir", a.output_dir or Path("reports") / a.task_id)

@@ -174,6 +174,12 @@ class Selection:
 
     def consider(self, env_steps: int, evaluate: EvaluateFn) -> tuple[HeldOutResult, bool]:
         """Run one sequential held-out evaluation of the current policy; ``(result, is the best so far)``."""
+        result = self.assess(env_steps, evaluate)
+        return result, self.admit(result)
+
+    def assess(self, env_steps: int, evaluate: EvaluateFn) -> HeldOutResult:
+        """One sequential held-out evaluation of the policy at ``env_steps``, judged; the selection is left as
+        it is (:meth:`admit` enters the result), so it may run in a thread beside training."""
         t0 = time.perf_counter()
         run = SequentialEvaluation(self.task, self.config.plan)
         rows = run.finish(evaluate(self.config.episodes, self.config.first_seed, run.stop))
@@ -192,11 +198,15 @@ class Selection:
             eval_env_steps=int(sum(float(r.get("length_steps", 0.0)) for r in rows)),
             reasons=tuple(verdict.reasons) if not run.passed else (),
             outcome=str(run.outcome), why=run.why if run.outcome == FAIL or not run.passed else "")
+        return result
+
+    def admit(self, result: HeldOutResult) -> bool:
+        """Enter an assessed evaluation (in the order they were taken); True when it is the best so far."""
         self.history.append(result)
         better = self.best is None or (result.deployable, result.j_mean) > (self.best.deployable, self.best.j_mean)
         if better:
             self.best = result
-        return result, better
+        return better
 
     def restore(self, record: Mapping[str, Any] | None) -> None:
         """Continue a resumed run's selection from its recorded ``selection`` (evaluations and the kept one),

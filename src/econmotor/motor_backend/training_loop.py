@@ -15,6 +15,12 @@ learning, its checkpoints, its policy files and its export. What a loop-driven r
     <policy files>     # the kept policy (Learner.save_policy: the best held-out one, else the last)
     policy.onnx        # its export (Learner.export)
 
+Held-out evaluations run between chunks, or, for a learner that gives a :class:`PolicySnapshot`
+(:meth:`Learner.snapshot`: the mjx backend's, whose compiled evaluation leaves the GIL), beside training:
+one thread evaluates the snapshots in the order they were taken (at most :data:`MAX_BACKLOG` waiting) and
+the loop enters each result after the chunk it ended in, so the same policies are judged as between chunks
+and the kept one is the snapshot that passed, not the weights learned while it was judged.
+
 A run stops at ``max_steps`` env steps, at ``max_wall_s`` or once deployable (``--until-deployable``).
 Interrupted (Ctrl-C, SIGTERM), it writes a checkpoint first when the learner keeps them, so ``--resume``
 continues from there.
@@ -25,7 +31,9 @@ from __future__ import annotations
 import json
 import math
 import os
+import queue
 import shutil
+import threading
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -34,7 +42,7 @@ from typing import Any
 
 from econmotor.motor_backend.base import ProgressFn, no_progress
 from econmotor.motor_backend.run_dir import check_resume_request, read_run_config, write_run_config
-from econmotor.motor_backend.selection import Selection
+from econmotor.motor_backend.selection import HeldOutResult, Selection
 
 BEST_DIR = "best"
 CURVE_FILE = "curve.jsonl"
@@ -87,6 +95,12 @@ class Learner:
         """A few words on the latest chunk for the progress bar (empty: none)."""
         return ""
 
+    def snapshot(self) -> PolicySnapshot | None:
+        """The current policy frozen for a held-out evaluation in a thread beside training, or None (the
+        default): held-out evaluations run between chunks. Worth it where an evaluation leaves the GIL
+        (compiled rollouts on a core training does not use); Python envs would only share one core."""
+        return None
+
     def log_scalars(self, scalars: Mapping[str, float]) -> None:
         """Scalars at the current ``env_steps`` (TensorBoard), e.g. a held-out evaluation's."""
 
@@ -96,6 +110,81 @@ class Learner:
 
     def close(self) -> None:
         """Release envs and writers."""
+
+
+class PolicySnapshot:
+    """A learner's policy at one moment (:meth:`Learner.snapshot`): evaluated and saved while learning goes on."""
+
+    def evaluate(self, num_episodes: int, first_seed: int, stop: StopFn) -> list[dict[str, Any]]:
+        """As :meth:`Learner.evaluate`, of the frozen policy."""
+        raise NotImplementedError
+
+    def save_policy(self, directory: Path) -> None:
+        """As :meth:`Learner.save_policy`, of the frozen policy."""
+        raise NotImplementedError
+
+
+class _Beside:
+    """Held-out evaluations of snapshots, assessed in the order they were taken by one thread while the
+    learner learns on; the loop enters each finished one into the selection (:meth:`TrainingLoop._settle`).
+
+    At most :data:`MAX_BACKLOG` wait or run at once: taking one more first waits for the oldest, so a run
+    whose evaluations are slower than its training learns no further than that ahead of them."""
+
+    def __init__(self, selection: Selection) -> None:
+        self.selection, self.cancel = selection, threading.Event()
+        self.todo: queue.Queue[tuple[int, PolicySnapshot] | None] = queue.Queue()
+        self.done: list[tuple[PolicySnapshot, HeldOutResult | None, BaseException | None]] = []
+        self.ended = threading.Condition()
+        self.taken = self.returned = 0
+        # not a daemon: an interpreter never exits under a running XLA computation
+        self.thread = threading.Thread(target=self._work, name="econmotor-held-out", daemon=False)
+        self.thread.start()
+
+    def _work(self) -> None:
+        while (item := self.todo.get()) is not None:
+            env_steps, snapshot = item
+            if self.cancel.is_set():  # closing: what is queued is not evaluated
+                continue
+
+            def evaluate(num_episodes: int, first_seed: int, stop: StopFn, snapshot=snapshot) -> list[dict[str, Any]]:
+                return snapshot.evaluate(num_episodes, first_seed, lambda rows: self.cancel.is_set() or stop(rows))
+
+            result, error = None, None
+            try:
+                result = self.selection.assess(env_steps, evaluate)
+            except BaseException as exc:  # raised in the loop's thread when it enters this evaluation
+                error = exc
+            with self.ended:
+                self.done.append((snapshot, result, error))
+                self.ended.notify_all()
+
+    def take(self, env_steps: int, snapshot: PolicySnapshot) -> None:
+        """Queue the evaluation of ``snapshot``, taken at ``env_steps``."""
+        self.taken += 1
+        self.todo.put((env_steps, snapshot))
+
+    def finished(self, wait_for: int = 0) -> list[tuple[PolicySnapshot, HeldOutResult]]:
+        """The evaluations ended since the last call, in order, once at least ``wait_for`` have ended in all;
+        an evaluation's error is raised here."""
+        with self.ended:
+            self.ended.wait_for(lambda: len(self.done) >= min(wait_for, self.taken))
+            ended, self.returned = self.done[self.returned:], len(self.done)
+        for _, _, error in ended:
+            if error is not None:
+                raise error
+        return [(snapshot, result) for snapshot, result, _ in ended]  # type: ignore[misc]
+
+    def close(self, cancel: bool = False) -> None:
+        """End the thread after the queued evaluations (``cancel``: each stops at its next batch)."""
+        if cancel:
+            self.cancel.set()
+        self.todo.put(None)
+        self.thread.join()
+
+
+#: held-out evaluations beside training that may wait or run at once (:class:`_Beside`)
+MAX_BACKLOG = 4
 
 
 @dataclass(frozen=True)
@@ -135,6 +224,7 @@ class TrainingLoop:
     label: str = "train"
     _curve: list[dict[str, float]] = field(default_factory=list)
     _previous: dict[str, Any] | None = None
+    _beside: _Beside | None = None
 
     # ------------------------------------------------------------------ resume
     def previous(self) -> dict[str, Any]:
@@ -175,16 +265,22 @@ class TrainingLoop:
             while not self._done(learner, started):
                 row = learner.learn(self._next_stop(learner, last_selected, last_ckpt[0]))
                 self._record(learner, row, started)
+                self._settle(learner)
                 if self.selection is not None and self.selection.due(learner.env_steps, last_selected):
                     last_selected = learner.env_steps
-                    self._consider(learner)
+                    if not self.selection.should_stop:
+                        self._consider(learner)
                 if self._checkpoint_due(learner, last_ckpt):
                     learner.save_checkpoint(self.run_dir)
                     last_ckpt = (learner.env_steps, time.perf_counter())
                 self._report(learner, started)
+            self._settle(learner, backlog=0)
             if self.selection is not None and self.selection.final_due(learner.env_steps, last_selected):
-                self._consider(learner)  # the last weights are a candidate too
+                self._consider(learner, beside=False)  # the last weights are a candidate too
         except BaseException:  # interrupted (Ctrl-C, SIGTERM) or failed: what was learned is kept for --resume
+            if self._beside is not None:
+                self._beside.close(cancel=True)
+                self._beside = None
             try:
                 if learner.env_steps > last_ckpt[0]:
                     learner.save_checkpoint(self.run_dir)
@@ -244,11 +340,38 @@ class TrainingLoop:
             done = max(done, min(1.0, (time.perf_counter() - started) / self.max_wall_s) * self.max_steps)
         self.progress(" · ".join([self.label, *(s for s in said if s)]), done, self.max_steps)
 
-    def _consider(self, learner: Learner) -> None:
-        """One held-out evaluation; the policy saved to ``best/`` when it is the best so far."""
-        result, better = self.selection.consider(learner.env_steps, learner.evaluate)
+    def _consider(self, learner: Learner, beside: bool = True) -> None:
+        """One held-out evaluation of the current policy: queued beside training when the learner gives a
+        snapshot (entered later by :meth:`_settle`), else here and now."""
+        snapshot = learner.snapshot() if beside else None
+        if snapshot is None:
+            self._enter(learner, self.selection.assess(learner.env_steps, learner.evaluate), learner.save_policy)
+            return
+        if self._beside is None:
+            self._beside = _Beside(self.selection)
+        self._settle(learner, backlog=MAX_BACKLOG - 1)  # room for this one
+        if not self.selection.should_stop:
+            self._beside.take(learner.env_steps, snapshot)
+
+    def _settle(self, learner: Learner, backlog: int | None = None) -> None:
+        """Enter the evaluations beside training that have ended, in order; with ``backlog``, first wait until
+        at most that many are still waiting or running (0: all have ended, and the thread is closed)."""
+        beside = self._beside
+        if beside is None:
+            return
+        for snapshot, result in beside.finished(0 if backlog is None else beside.taken - backlog):
+            if self.selection.should_stop:  # --until-deployable: the first pass is kept; later ones are moot
+                break
+            self._enter(learner, result, snapshot.save_policy)
+        if backlog == 0 or self.selection.should_stop:
+            beside.close(cancel=self.selection.should_stop)
+            self._beside = None
+
+    def _enter(self, learner: Learner, result: HeldOutResult, save_policy: Callable[[Path], None]) -> None:
+        """An evaluation into the selection; its policy saved to ``best/`` when it is the best so far."""
+        better = self.selection.admit(result)
         if better:
-            _replace_dir(self.run_dir / BEST_DIR, learner.save_policy)
+            _replace_dir(self.run_dir / BEST_DIR, save_policy)
         self.config = {**self.config, "selection": self.selection.record()}
         write_run_config(self.run_dir, self.config, self.backend)
         learner.log_scalars(result.scalars())

@@ -401,3 +401,102 @@ def test_selection_keeps_the_checkpoint_the_objectives_own_j_prefers_with_a_pric
     usd = [episode_j(s, [1, 1, 3, 1, 0], TASK.economics, "usd") for s in summaries]
     wh = [episode_j(s, [1, 1, 3, 1, 0], TASK.economics, "wh") for s in summaries]
     assert first.j_mean == pytest.approx(sum(usd) / len(usd)) and first.j_mean != pytest.approx(sum(wh) / len(wh))
+
+
+class StepLearner:
+    """A loop learner whose policy is the env steps it had learned: ``GOOD_AT`` is the one safe policy.
+
+    Its snapshot's evaluation of the policy at 2,000 steps waits until learning has gone 500 steps past it
+    (which it can only do beside training, not between chunks) and records the learner's steps then."""
+
+    GOOD_AT = 2000
+    policy_file = "policy.txt"
+    chunk_steps = 100
+
+    def __init__(self, beside: bool, interrupt_at: int | None = None) -> None:
+        import threading
+
+        self.env_steps, self.beside, self.interrupt_at = 0, beside, interrupt_at
+        self.progressed = threading.Condition()
+        self.seen_while_evaluating: list[int] = []
+
+    def learn(self, until_steps: int):
+        while self.env_steps < until_steps:
+            if self.interrupt_at is not None and self.env_steps >= self.interrupt_at:
+                raise KeyboardInterrupt
+            with self.progressed:
+                self.env_steps += self.chunk_steps
+                self.progressed.notify_all()
+        return {"mean_return": float(self.env_steps)}
+
+    def rows_of(self, policy_steps: int, stop) -> list[dict]:
+        if policy_steps == self.GOOD_AT and self.beside:
+            with self.progressed:
+                self.progressed.wait_for(lambda: self.env_steps >= self.GOOD_AT + 500, timeout=30)
+                self.seen_while_evaluating.append(self.env_steps)
+        return evaluation(SAFE if policy_steps == self.GOOD_AT else FALLING)(160, SELECTION_SEED_OFFSET, stop)
+
+    def evaluate(self, num_episodes: int, first_seed: int, stop) -> list[dict]:
+        return self.rows_of(self.env_steps, stop)
+
+    def snapshot(self):
+        if not self.beside:
+            return None
+        learner, steps = self, self.env_steps
+
+        class Frozen:
+            def evaluate(self, num_episodes: int, first_seed: int, stop) -> list[dict]:
+                return learner.rows_of(steps, stop)
+
+            def save_policy(self, directory) -> None:
+                (directory / StepLearner.policy_file).write_text(str(steps))
+
+        return Frozen()
+
+    def save_policy(self, directory) -> None:
+        (directory / self.policy_file).write_text(str(self.env_steps))
+
+    def load_policy(self, directory) -> None:
+        self.env_steps = int((directory / self.policy_file).read_text())
+
+    def save_checkpoint(self, run_dir) -> None: ...
+    def load_checkpoint(self, run_dir) -> int: return 0
+    def export(self, run_dir): return None
+    def status(self) -> str: return ""
+    def log_scalars(self, scalars) -> None: ...
+    def timing(self) -> dict: return {}
+    def close(self) -> None: ...
+
+
+def run_steps(tmp_path, beside: bool, until: bool = False, interrupt_at: int | None = None):
+    from econmotor.motor_backend.training_loop import TrainingLoop
+
+    learner = StepLearner(beside, interrupt_at)
+    loop = TrainingLoop(tmp_path / f"run-{beside}-{until}", "mujoco", {"task_id": "hopper_courier"}, 5000,
+                        selection=selection(until))
+    return learner, loop.run(learner), loop
+
+
+@pytest.mark.parametrize("until", [False, True])
+def test_an_evaluation_beside_training_keeps_the_policy_it_judged_as_one_between_chunks_would(tmp_path, until):
+    between, outcome_between, _ = run_steps(tmp_path, beside=False, until=until)
+    beside, outcome_beside, loop = run_steps(tmp_path, beside=True, until=until)
+    assert beside.seen_while_evaluating and beside.seen_while_evaluating[0] >= StepLearner.GOOD_AT + 500  # in parallel
+    picked = [(e["env_steps"], e["deployable"]) for e in outcome_beside.config["selection"]["evaluations"]]
+    assert picked == [(e["env_steps"], e["deployable"]) for e in outcome_between.config["selection"]["evaluations"]]
+    assert picked[:2] == [(1000, False), (2000, True)] and len(picked) == (2 if until else 5)
+    # the kept policy is the one judged at 2,000 steps, not the weights learned while it was judged
+    assert (loop.run_dir / "policy.txt").read_text() == "2000" and (loop.run_dir / "best" / "policy.txt").is_file()
+    assert beside.env_steps == 2000  # the kept policy is the learner's at the end
+    assert outcome_beside.config["selection"]["kept"]["env_steps"] == 2000
+    if until:  # stopped once the pass was known, having learned on meanwhile; between chunks: at once
+        assert between.env_steps == 2000 and outcome_between.config["trained_steps"] == 2000
+        assert outcome_beside.config["trained_steps"] >= 2500
+
+
+def test_an_interrupt_ends_the_evaluation_beside_training_and_leaves_no_thread(tmp_path):
+    import threading
+
+    with pytest.raises(KeyboardInterrupt):
+        run_steps(tmp_path, beside=True, interrupt_at=2300)  # the evaluation of 2,000 steps waits for 2,500
+    assert not [t for t in threading.enumerate() if t.name == "econmotor-held-out"]

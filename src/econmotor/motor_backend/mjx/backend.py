@@ -315,8 +315,8 @@ class MjxBackend(MotorBackendBase):
             selection=selection_for(self.catalog.get(task_id), objective, select_every_steps, select_episodes,
                                     until_deployable, seed, self.held_out_cadence, self.eval_batch),
             cache_dir=self.compilation_cache_dir)
-        if run.selection is not None or eval_episodes > 0:
-            self._evaluator(env, cfg, ahead=True)  # compiles while training starts
+        if run.selection is not None or eval_episodes > 0:  # compiled beside training, after the iteration's own
+            run.after_first_iteration = lambda: self._evaluator(env, run.cfg, ahead=True)
         run.held_out = lambda learner, n, first_seed, stop: evaluate_episodes(
             self._evaluator(env, run.cfg), self.eval_batch, env, learner, n, first_seed, stop=stop)
         run.export = lambda run_dir, learner: self._export(run_dir, learner, run.cfg, run.config)

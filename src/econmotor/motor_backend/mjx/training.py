@@ -13,7 +13,9 @@ Run directory (``policy_id``), as the mujoco backend's::
 The run around the learner is the shared :class:`~econmotor.motor_backend.training_loop.TrainingLoop`
 (``run_config.json``, ``curve.jsonl``, checkpoints, held-out selection, the kept policy, timing);
 :class:`MjxLearner` supplies its chunks: the one jitted iteration (``ppo.make_train_iteration``) of
-``num_envs * unroll_length`` env steps, with TensorBoard scalars of the episodes that ended.
+``num_envs * unroll_length`` env steps, with TensorBoard scalars of the episodes that ended. Its held-out
+evaluations run beside training (:meth:`MjxLearner.snapshot`): a jitted iteration keeps about one core
+busy, and the evaluation's compiled rollout takes the other, so on two cores they cost training little.
 
 A run may start from a given learner (``initial``: an actor imported from a walker that exists,
 ``onnx_import.py``) instead of a fresh one. Its first ``cfg.critic_warmup_iterations`` iterations
@@ -31,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from econmotor.errors import BackendError
@@ -42,7 +45,7 @@ from econmotor.motor_backend.mjx.compile import CacheWatch
 from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE
 from econmotor.motor_backend.selection import Selection
 from econmotor.motor_backend.training_loop import Learner as LoopLearner
-from econmotor.motor_backend.training_loop import StopFn, TrainingLoop
+from econmotor.motor_backend.training_loop import PolicySnapshot, StopFn, TrainingLoop
 
 POLICY_FILE = "policy.npz"
 
@@ -221,6 +224,8 @@ class MjxLearner(LoopLearner):
     def _first_iteration_done(self) -> None:
         """The first iteration includes XLA compilation: timed apart, and a warm cache said."""
         self.first_done, self.t_loop = time.perf_counter() - self.started, time.perf_counter()
+        if self.run.after_first_iteration is not None:
+            self.run.after_first_iteration()
         watch = self.watch
         if watch.hits:
             self.progress(f"mjx: compilation cache warm: {watch.hits} compiled program(s) loaded from "
@@ -229,6 +234,13 @@ class MjxLearner(LoopLearner):
 
     def evaluate(self, num_episodes: int, first_seed: int, stop: StopFn) -> list[dict[str, Any]]:
         return self.run.held_out(self._ready().learner, num_episodes, first_seed, stop)
+
+    def snapshot(self) -> PolicySnapshot:
+        """The current learner copied (the next iteration donates the train state's buffers): its held-out
+        evaluation runs in a thread, on the core the jitted iterations leave idle on a CPU."""
+        state = self._ready()
+        frozen = jax.block_until_ready(jax.tree_util.tree_map(jnp.copy, (state.learner, state.key)))
+        return MjxSnapshot(self.run, *frozen, self.env_steps)
 
     def save_checkpoint(self, run_dir: Path) -> None:
         if self.state is not None:
@@ -270,6 +282,22 @@ class MjxLearner(LoopLearner):
         self.writer.close()
 
 
+@dataclass(frozen=True)
+class MjxSnapshot(PolicySnapshot):
+    """A learner at ``env_steps``, evaluated and saved as :class:`MjxLearner` would."""
+
+    run: MjxTrainingRun
+    learner: ppo.Learner
+    key: jax.Array
+    env_steps: int
+
+    def evaluate(self, num_episodes: int, first_seed: int, stop: StopFn) -> list[dict[str, Any]]:
+        return self.run.held_out(self.learner, num_episodes, first_seed, stop)
+
+    def save_policy(self, directory: Path) -> None:
+        ckpt.save_tree(directory / POLICY_FILE, self.learner, self.key, self.env_steps)
+
+
 @dataclass
 class MjxTrainingRun:
     """One training run (fields are the run's configuration; ``config`` is filled by ``train``)."""
@@ -296,6 +324,9 @@ class MjxTrainingRun:
     #: ``export(run_dir, learner) -> policy.onnx`` of the kept learner (None: no export)
     export: Callable[[Path, ppo.Learner], Path] | None = None
     onnx: Path | None = None
+    #: called once the first iteration has run (the backend compiles its evaluator then: beside training,
+    #: not beside the iteration's own compilation, which uses both cores of a small CPU)
+    after_first_iteration: Callable[[], Any] | None = None
 
     def train(self, resume: bool = False, progress: ProgressFn = no_progress) -> list[dict[str, float]]:
         """Train to ``max_steps`` (the shared loop; the kept learner is ``policy.npz``); the training curve."""
