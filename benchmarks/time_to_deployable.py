@@ -5,8 +5,8 @@ after the other on this machine (both arms see the same hours):
 
 - ``demo``: what ``econmotor demo`` runs (``cli/demo.py``): ``hopper_courier`` on the ``mjx`` backend
   (Hopper-v5 in MJX, JAX PPO on 64 batched envs on a CPU) under the demo's objective
-  (``courier_demo.yaml``), until a held-out evaluation (every 25,000 env steps, as the demo) passes the
-  task's acceptance rule; JAX's compilation cache is an empty folder of its own unless ``--warm-cache``
+  (``courier_demo.yaml``) and its PPO (``DEMO_HYPERPARAMETERS``), until a held-out evaluation (every 25,000
+  env steps, at most ``DEMO_SELECT_EPISODES``, beside training, as the demo) passes the task's acceptance rule; JAX's compilation cache is an empty folder of its own unless ``--warm-cache``
   (then the first seed fills one the others reuse);
 - ``old``: the demo before it, the ``mujoco`` backend's SB3 PPO on 4 in-process envs (the catalog's
   hyperparameters: n_steps 512, batch 64, 10 epochs), a held-out evaluation every 25,000 env steps.
@@ -48,6 +48,7 @@ from econmotor.cli.demo import (
     DEMO_HYPERPARAMETERS,
     DEMO_MAX_STEPS,
     DEMO_OBJECTIVE,
+    DEMO_SELECT_EPISODES,
     DEMO_SELECT_EVERY,
     DEMO_TASK,
 )
@@ -71,16 +72,17 @@ def run_arm(arm: str, seed: int, args: argparse.Namespace, out: str, cache_dir: 
         every = DEMO_SELECT_EVERY
         given = json.loads(args.hyperparameters) if args.hyperparameters else DEMO_HYPERPARAMETERS
         hyperparameters = {"hyperparameters": given}
+        episodes = args.select_episodes or DEMO_SELECT_EPISODES
     else:
         backend = make_motor_backend(OLD_BACKEND)
-        every, hyperparameters = OLD_SELECT_EVERY, {}
+        every, hyperparameters, episodes = OLD_SELECT_EVERY, {}, args.select_episodes
     objective = load_objective_spec(DEMO_OBJECTIVE)
     task = backend.catalog.get(DEMO_TASK)
     run_dir = os.path.join(out, f"{arm}-s{seed}")
     started = time.perf_counter()
     result = backend.train_policy(DEMO_TASK, objective, [], 0, args.max_steps, seed, output_dir=run_dir,
                                   eval_episodes=0, until_deployable=True, select_every_steps=every,
-                                  select_episodes=args.select_episodes, **hyperparameters)
+                                  select_episodes=episodes, **hyperparameters)
     train_s = time.perf_counter() - started
     t_eval = time.perf_counter()
     if args.eval_episodes:
@@ -117,7 +119,7 @@ def main() -> None:
     parser.add_argument("--arms", default="demo,old")
     parser.add_argument("--max-steps", type=int, default=DEMO_MAX_STEPS, help="cap of each arm")
     parser.add_argument("--select-episodes", type=int, default=None, help="cap of a held-out evaluation "
-                        "(default: selection.DEFAULT_SELECT_EPISODES)")
+                        "(default: the demo's DEMO_SELECT_EPISODES, the old arm's selection.DEFAULT_SELECT_EPISODES)")
     parser.add_argument("--eval-episodes", type=int, default=0, help="a fixed count (0: sequential, as the demo)")
     parser.add_argument("--hyperparameters", default=None, help="the demo arm's PPO over the catalog's, "
                         "as JSON (default: the demo's DEMO_HYPERPARAMETERS)")

@@ -293,6 +293,11 @@ def test_demo_prints_the_html_report_path_last(workdir: Path) -> None:
 
     used, _ = MjxBackend.resolve_num_envs(MjxBackend(runs_dir=workdir).settings("hopper_courier"), 0)
     assert doc["runs"]["train"]["num_envs"] == used  # the catalog's default (capped on a CPU), as the backend used it
+    from econmotor.cli.demo import DEMO_HYPERPARAMETERS, DEMO_SELECT_EPISODES
+
+    run = doc["runs"]["train"]["config"]["backend_config"]  # the demo's own PPO and held-out cap, as recorded
+    assert run["hyperparameters"]["hidden_sizes"] == DEMO_HYPERPARAMETERS["hidden_sizes"] == [128, 128]
+    assert run["selection"]["episodes"] == DEMO_SELECT_EPISODES == 96
     # the demo's own objective file (package data), weights as written there
     assert doc["objective"]["name"] == "courier_safety_first"
     assert doc["objective"]["overlay"] == {"mpl_per_hour": 1.0, "energy_kwh": -0.1, "error_rate": -5.0,
