@@ -6,8 +6,9 @@ after the other on this machine (both arms see the same hours):
 - ``demo``: what ``econmotor demo`` runs (``cli/demo.py``): ``hopper_courier`` on the ``mjx`` backend
   (Hopper-v5 in MJX, JAX PPO on 64 batched envs on a CPU) under the demo's objective
   (``courier_demo.yaml``) and its PPO (``DEMO_HYPERPARAMETERS``), until a held-out evaluation (every 25,000
-  env steps, at most ``DEMO_SELECT_EPISODES``, beside training, as the demo) passes the task's acceptance rule; JAX's compilation cache is an empty folder of its own unless ``--warm-cache``
-  (then the first seed fills one the others reuse);
+  env steps, at most ``DEMO_SELECT_EPISODES``, beside training, as the demo) passes the task's acceptance
+  rule; JAX's compilation cache is an empty folder of its own unless ``--warm-cache`` (then the first seed
+  fills one the others reuse);
 - ``old``: the demo before it, the ``mujoco`` backend's SB3 PPO on 4 in-process envs (the catalog's
   hyperparameters: n_steps 512, batch 64, 10 epochs), a held-out evaluation every 25,000 env steps.
 
