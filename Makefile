@@ -39,10 +39,11 @@ $(HSTAMP): requirements-holosoma.txt pyproject.toml
 
 holosoma: $(HSTAMP)
 
-# one pytest worker per core (pytest-xdist), a test file kept on one worker (its module fixtures built once)
+# one pytest worker per core (pytest-xdist), a test file kept on one worker (its module fixtures built once);
+# the 15 slowest tests are listed at the end, where the suite's time goes
 TEST_WORKERS ?= auto
 test: $(STAMP) $(HSTAMP)
-	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=15
 
 # every benchmark at its smallest sizes, the MJX / Holosoma-training ones included (tens of minutes on a CPU)
 bench-smoke: $(STAMP) $(HSTAMP)
