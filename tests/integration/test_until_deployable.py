@@ -50,7 +50,7 @@ def test_until_deployable_stops_early_records_when_and_the_report_prices_fresh_s
     assert selection["became_deployable"]["env_steps"] == 1024 and selection["became_deployable"]["wall_s"] > 0
     assert backend_config["trained_steps"] < 8192  # stopped early: PPO finishes its 512-step rollout at most
     assert selection["evaluation_cost"]["count"] == 1 and selection["evaluation_cost"]["episodes"] == 8
-    assert selection["kept"]["env_steps"] == 1024 and "training stopped there" in selection["why"]
+    assert selection["kept"]["env_steps"] == 1024 and "training stopped once that was known" in selection["why"]
     # the report: its own evaluation run on fresh seeds, and which checkpoint was kept and why
     facts = doc["selection"]
     assert facts["fresh_seeds"] is True

@@ -269,7 +269,7 @@ class Selection:
         if best.deployable:
             if self.config.until_deployable:
                 return (f"{what}: the first to pass the task's acceptance rule on {best.episodes} held-out "
-                        "episodes (training stopped there: --until-deployable)")
+                        "episodes (training stopped once that was known: --until-deployable)")
             return (f"{what}: the best J ({best.j_mean:.4g}) of the {sum(r.deployable for r in self.history)} "
                     f"held-out evaluations that passed the task's acceptance rule (of {len(self.history)})")
         return (f"{what}: none of {len(self.history)} held-out evaluations passed the task's acceptance rule, "

@@ -86,7 +86,7 @@ def test_until_deployable_stops_at_the_first_pass():
     assert not sel.should_stop and "not deployable" in sel.status()
     sel.consider(2000, evaluation(SAFE))
     assert sel.should_stop and sel.status() == "@2k: deployable"
-    assert "training stopped there" in sel.kept_reason()
+    assert "training stopped once that was known" in sel.kept_reason()
 
 
 def test_a_hopeless_evaluation_is_cut_short_and_a_passing_one_stops_once_decided():
@@ -226,7 +226,7 @@ def test_the_kept_reason_in_words():
     sel = selection(until=True)
     sel.consider(3000, evaluation(SAFE))
     assert sel.kept_reason() == ("the checkpoint at 3,000 env steps: the first to pass the task's acceptance rule on "
-                                 "64 held-out episodes (training stopped there: --until-deployable)")
+                                 "64 held-out episodes (training stopped once that was known: --until-deployable)")
     sel = selection()
     sel.consider(4000, evaluation(FALLING))
     assert sel.kept_reason() == (f"the checkpoint at 4,000 env steps: none of 1 held-out evaluations passed the task's "
