@@ -74,6 +74,11 @@ ONNX_FILE = "policy.onnx"
 ONNX_METADATA_KEYS = ("task_id", "overlay", "overlay_references", "objective", "datapack_ids", "economics",
                       "algorithm", "obs_layout", "action_layout", "seed", "init_policy")
 CACHE_ENV = "ECONMOTOR_JAX_CACHE_DIR"
+#: a run that needs its evaluator within this many iterations (its first held-out evaluation, or its end)
+#: compiles it from the start, beside the iteration's compilation; a longer one after its first iteration,
+#: beside training: on two cores the two compilations slow each other (the demo's first iteration took
+#: 29-35 s with both, 19-21 s alone), while a tiny run would wait for the evaluator after training
+COMPILE_AHEAD_ITERATIONS = 8
 
 
 def device_description() -> str:
@@ -315,8 +320,12 @@ class MjxBackend(MotorBackendBase):
             selection=selection_for(self.catalog.get(task_id), objective, select_every_steps, select_episodes,
                                     until_deployable, seed, self.held_out_cadence, self.eval_batch),
             cache_dir=self.compilation_cache_dir)
-        if run.selection is not None or eval_episodes > 0:  # compiled beside training, after the iteration's own
-            run.after_first_iteration = lambda: self._evaluator(env, run.cfg, ahead=True)
+        if run.selection is not None or eval_episodes > 0:
+            every = run.selection.config.every_steps if run.selection is not None else run.max_steps
+            if min(every, run.max_steps) <= COMPILE_AHEAD_ITERATIONS * used_envs * run.cfg.unroll_length:
+                self._evaluator(env, run.cfg, ahead=True)  # needed within a few iterations: compiles from the start
+            else:  # beside training, after the iteration's own compilation (which uses both cores of a small CPU)
+                run.after_first_iteration = lambda: self._evaluator(env, run.cfg, ahead=True)
         run.held_out = lambda learner, n, first_seed, stop: evaluate_episodes(
             self._evaluator(env, run.cfg), self.eval_batch, env, learner, n, first_seed, stop=stop)
         run.export = lambda run_dir, learner: self._export(run_dir, learner, run.cfg, run.config)
