@@ -321,11 +321,7 @@ class MjxBackend(MotorBackendBase):
                                     until_deployable, seed, self.held_out_cadence, self.eval_batch),
             cache_dir=self.compilation_cache_dir)
         if run.selection is not None or eval_episodes > 0:
-            every = run.selection.config.every_steps if run.selection is not None else run.max_steps
-            if min(every, run.max_steps) <= COMPILE_AHEAD_ITERATIONS * used_envs * run.cfg.unroll_length:
-                self._evaluator(env, run.cfg, ahead=True)  # needed within a few iterations: compiles from the start
-            else:  # beside training, after the iteration's own compilation (which uses both cores of a small CPU)
-                run.after_first_iteration = lambda: self._evaluator(env, run.cfg, ahead=True)
+            self._compile_evaluator_ahead(run, env)
         run.held_out = lambda learner, n, first_seed, stop: evaluate_episodes(
             self._evaluator(env, run.cfg), self.eval_batch, env, learner, n, first_seed, stop=stop)
         run.export = lambda run_dir, learner: self._export(run_dir, learner, run.cfg, run.config)
@@ -339,6 +335,16 @@ class MjxBackend(MotorBackendBase):
                                                   datapack_configs=datapack_configs, progress=progress,
                                                   datapack_ids=datapack_ids)
         return self.training_result(run.run_dir, task_id, evaluation, curve, config, artifacts)
+
+    def _compile_evaluator_ahead(self, run: MjxTrainingRun, env: Any) -> None:
+        """Compile the run's evaluator in the background: from the start when the run needs it within
+        :data:`COMPILE_AHEAD_ITERATIONS` iterations, else after its first iteration, beside training (not beside
+        the iteration's own compilation, which uses both cores of a small CPU)."""
+        every = run.selection.config.every_steps if run.selection is not None else run.max_steps
+        if min(every, run.max_steps) <= COMPILE_AHEAD_ITERATIONS * run.num_envs * run.cfg.unroll_length:
+            self._evaluator(env, run.cfg, ahead=True)
+        else:
+            run.after_first_iteration = lambda: self._evaluator(env, run.cfg, ahead=True)
 
     def _warm_start(self, init_policy: str, resume: bool, env: Any, cfg: ppo.PPOConfig,
                     hyperparameters: dict[str, Any] | None, seed: int,
