@@ -274,7 +274,9 @@ class TrainingLoop:
                     learner.save_checkpoint(self.run_dir)
                     last_ckpt = (learner.env_steps, time.perf_counter())
                 self._report(learner, started)
-            self._settle(learner, backlog=0)
+            if self._beside is not None:  # the evaluations still running beside training, then the bar says the last
+                self._settle(learner, backlog=0)
+                self._report(learner, started)
             if self.selection is not None and self.selection.final_due(learner.env_steps, last_selected):
                 self._consider(learner, beside=False)  # the last weights are a candidate too
         except BaseException:  # interrupted (Ctrl-C, SIGTERM) or failed: what was learned is kept for --resume
