@@ -71,6 +71,7 @@ def test_report_on_mjx_trains_evaluates_records_and_writes_reports(workdir: Path
     (run_dir,) = [p for p in (workdir / "runs").rglob("run_config.json") if "eval" not in p.parent.name]
     config = json.loads(run_dir.read_text())
     assert config["backend"] == "mjx" and config["device"].startswith("CPU") and config["num_envs"] == 8
+    assert config["timing"]["iteration_compiled_ahead"] is True  # compiled once, beside the envs' reset
     assert (run_dir.parent / "policy.onnx").is_file()
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
@@ -101,6 +102,7 @@ def test_train_resume_continues_from_the_last_checkpoint(workdir: Path) -> None:
     econmotor([*base, "--max-steps", "640", "--resume"], workdir)
     config = json.loads((run / "run_config.json").read_text())
     assert config["resumed_from_steps"] == 320 and config["max_steps"] == 640
+    assert config["timing"]["iteration_compiled_ahead"] is True  # the checkpoint's state has the shapes compiled for
     assert (run / "checkpoints" / "ckpt_640_steps.npz").is_file()
 
 

@@ -297,6 +297,7 @@ def test_demo_prints_the_html_report_path_last(workdir: Path) -> None:
 
     run = doc["runs"]["train"]["config"]["backend_config"]  # the demo's own PPO and held-out cap, as recorded
     assert run["hyperparameters"]["hidden_sizes"] == DEMO_HYPERPARAMETERS["hidden_sizes"] == [128, 128]
+    assert run["hyperparameters"]["reward_scaling"] == DEMO_HYPERPARAMETERS["reward_scaling"] == 0.1
     assert run["selection"]["episodes"] == DEMO_SELECT_EPISODES == 96
     # the demo's own objective file (package data), weights as written there
     assert doc["objective"]["name"] == "courier_safety_first"

@@ -4,7 +4,8 @@
   (a non-daemon thread: the interpreter waits for it at exit instead of tearing down under a
   running compile, and an interrupted command ends through ``os._exit`` after its atexit handlers,
   ``cli/_interrupts.py``), so a run's evaluation compiles while its first training iterations run;
-  a call waits for the compile, then runs the compiled executable.
+  a call waits for the compile, then runs the compiled executable. A training run compiles its iteration
+  so, for the shapes of a train state (``jax.eval_shape``) while it resets its envs.
 - :class:`CacheWatch`: counts JAX's persistent compilation cache hits (``jax.monitoring`` events), so
   a run can say when it started warm.
 """
@@ -25,7 +26,8 @@ class CompiledAhead:
 
     Args:
         jitted: a ``jax.jit`` function.
-        example_args: arguments with the shapes, dtypes and tree structure of every later call.
+        example_args: arguments with the shapes, dtypes and tree structure of every later call (arrays, or
+            ``jax.ShapeDtypeStruct`` trees such as ``jax.eval_shape`` gives).
         name: the thread's name.
     """
 
@@ -33,6 +35,8 @@ class CompiledAhead:
         self._jitted = jitted
         self._compiled: Any = None
         self.error: BaseException | None = None
+        #: a call's arguments were unlike the examples, so the jitted function (compiling anew) answers
+        self.fell_back = False
         self._thread = threading.Thread(target=self._compile, args=example_args, name=name, daemon=False)
         self._thread.start()
 
@@ -52,7 +56,7 @@ class CompiledAhead:
             try:
                 return self._compiled(*args)
             except (TypeError, ValueError):  # arguments unlike the examples (shapes, dtypes): jit them
-                self._compiled = None
+                self._compiled, self.fell_back = None, True
         return self._jitted(*args)
 
 

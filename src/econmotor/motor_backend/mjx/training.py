@@ -41,7 +41,7 @@ from econmotor.motor_backend import run_dir as run_dirs
 from econmotor.motor_backend.base import ProgressFn, no_progress
 from econmotor.motor_backend.mjx import checkpoint as ckpt
 from econmotor.motor_backend.mjx import ppo
-from econmotor.motor_backend.mjx.compile import CacheWatch
+from econmotor.motor_backend.mjx.compile import CacheWatch, CompiledAhead
 from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE
 from econmotor.motor_backend.selection import Selection
 from econmotor.motor_backend.training_loop import Learner as LoopLearner
@@ -189,12 +189,19 @@ class MjxLearner(LoopLearner):
         return ppo.init_learner(jax.random.PRNGKey(self.run.seed), env.observation_size, env.action_size, cfg)
 
     def _ready(self) -> Any:
-        """The train state (built at the first chunk, from the start or the restored checkpoint)."""
+        """The train state (built at the first chunk, from the start or the restored checkpoint) and the compiled
+        iteration."""
         if self.state is None:
             run = self.run
-            self.state = ppo.init_train_state(run.env, run.cfg, run.num_envs, run.seed, learner=self.learner,
-                                              key=self.key)
-            self.iteration = ppo.make_train_iteration(run.env, run.cfg, run.num_envs)
+
+            def build() -> ppo.TrainState:
+                return ppo.init_train_state(run.env, run.cfg, run.num_envs, run.seed, learner=self.learner,
+                                            key=self.key)
+
+            # XLA compiles the iteration in a thread while this one resets the envs (a compilation of its own)
+            self.iteration = CompiledAhead(ppo.make_train_iteration(run.env, run.cfg, run.num_envs),
+                                           jax.eval_shape(build), 1.0, name="econmotor-mjx-iteration")
+            self.state = build()
         return self.state
 
     def learn(self, until_steps: int) -> dict[str, float] | None:
@@ -275,6 +282,8 @@ class MjxLearner(LoopLearner):
         loop_s = time.perf_counter() - self.t_loop
         return {"first_iteration_s": self.first_done or 0.0, "compile_cache_hits": self.watch.hits,
                 "compile_s_saved": round(self.watch.saved_s, 3),
+                # False: a state unlike the shapes it was compiled for, so the iteration compiled a second time
+                "iteration_compiled_ahead": None if self.iteration is None else not self.iteration.fell_back,
                 "env_steps_per_s_after_compile": (trained - self.chunk_steps) / loop_s
                 if trained > self.chunk_steps and loop_s > 0 else None}
 

@@ -1,6 +1,7 @@
-"""An evaluation compiled ahead in a background thread (motor_backend/mjx/compile.py): the same results
-as the jitted function, and a process whose compile is still running ends cleanly, on a normal exit and
-on SIGINT / SIGTERM under the CLI's interrupt guard (no abort, no "Fatal Python error")."""
+"""An evaluation or iteration compiled ahead in a background thread (motor_backend/mjx/compile.py): the
+same results as the jitted function, from the shapes of a state too, and a process whose compile is still
+running ends cleanly, on a normal exit and on SIGINT / SIGTERM under the CLI's interrupt guard (no abort,
+no "Fatal Python error")."""
 
 from __future__ import annotations
 
@@ -24,7 +25,25 @@ def test_a_function_compiled_ahead_answers_as_the_jitted_one():
     assert ahead.ready and ahead.error is None
     wider = jnp.ones((4, 5)), jnp.ones((5, 2))  # unlike the examples: the jitted function answers
     np.testing.assert_array_equal(np.asarray(ahead(*wider)), np.asarray(jitted(*wider)))
+    assert ahead.fell_back
     assert CacheWatch().hits == 0  # a new watch counts from now
+
+
+def test_an_iteration_compiled_ahead_for_the_shapes_of_its_state_runs_the_state_it_is_given():
+    """As ``MjxLearner`` compiles its iteration: for ``jax.eval_shape`` of the state and a Python float, donating
+    the state; the concrete state and the weights 1.0 and 0.0 then run the executable compiled ahead."""
+    def build():
+        return {"w": jnp.ones((3, 3)), "step": jnp.asarray(0, jnp.int32)}
+
+    def iteration(state, weight=1.0):
+        return {"w": state["w"] * 2.0 * weight, "step": state["step"] + 1}, jnp.sum(state["w"])
+
+    jitted = jax.jit(iteration, donate_argnums=0)
+    ahead = CompiledAhead(jitted, jax.eval_shape(build), 1.0)
+    state, total = ahead(build(), 1.0)
+    state, _ = ahead(state, 0.0)
+    assert float(total) == 9.0 and int(state["step"]) == 2 and float(jnp.sum(state["w"])) == 0.0
+    assert not ahead.fell_back and ahead.error is None
 
 
 # a program that takes XLA a while (a long unrolled scan), compiled ahead; the process then ends at once
