@@ -28,7 +28,12 @@ flags against the default (compilation 20.5 s, then 7,975 env steps/s; idle core
 ``--xla_backend_optimization_level=0`` 29.1 s and 73 steps/s, ``--xla_llvm_disable_expensive_passes``
 23.3 s and 6,750, single-threaded Eigen 21.3 s and 7,416. The backend's own held-out cadence (at most a
 tenth of the wall time) found seed 1's deployable policy at 600k steps in 94 s, every 25,000 steps at
-225k in 57 s (warm cache).
+225k in 57 s (warm cache). On 2026-11-29 (idle cores, seed 0, the demo arm's training alone): held-out
+batches of 32 episodes instead of 16 kept the trajectory but cost 1.6-2.0 s a failing evaluation instead of
+0.6-1.1 s (54.4 s to the pass against 51.8 s); the evaluator compiled from the start in a thread at nice 19
+made the first iteration 21.6 s instead of 12.5 s (45.8 s against 42.2 s). For the demo's PPO settings
+tried over seeds 0-4 (reward scaling, epochs, unroll length, learning rate, initial log-std), see
+``benchmarks/RESULTS.md``.
 
     .venv/bin/python benchmarks/time_to_deployable.py [--seeds 0,1,2] [--arms demo,old] [--warm-cache]
 """
