@@ -43,6 +43,7 @@ from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import MotorBackendBase
 from econmotor.motor_backend.datapacks import load_datapack_configs
 from econmotor.motor_backend.factory import DEFAULT_BACKEND, backend_class, known_backends
+from econmotor.motor_backend.selection import evaluation_cost_text
 from econmotor.recording import TrainRequest
 from econmotor.store.registry import Registry
 from econmotor.tasks import load_catalog
@@ -121,7 +122,7 @@ def selection_note(run_config: dict[str, Any]) -> str | None:
     first = selection.get("became_deployable")
     when = (f"deployable on held-out episodes after {first['env_steps']:,} env steps ({first['wall_s']:.0f} s); "
             if first else "")
-    spent = (f"{cost['count']} held-out evaluations cost {cost['wall_s']:.0f} s ({cost['episodes']} episodes)."
+    spent = (f"{evaluation_cost_text(cost)} ({cost['episodes']} episodes)."
              if cost["count"] else "")
     return f"policy kept: {selection['why']}. {when}{spent}".rstrip()
 

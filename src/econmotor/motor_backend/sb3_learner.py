@@ -60,10 +60,10 @@ class SB3Learner(Learner):
         return {"mean_return": float(np.mean([ep["r"] for ep in buffer])),
                 "mean_length": float(np.mean([ep["l"] for ep in buffer]))}
 
-    def log_scalars(self, scalars: Mapping[str, float]) -> None:
+    def log_scalars(self, scalars: Mapping[str, float], env_steps: int) -> None:
         for name, value in scalars.items():
             self.model.logger.record(name, value)
-        self.model.logger.dump(self.env_steps)
+        self.model.logger.dump(env_steps)
 
     def close(self) -> None:
         env = self.model.get_env()

@@ -157,6 +157,8 @@ class Selection:
     history: list[HeldOutResult] = field(default_factory=list)
     best: HeldOutResult | None = None
     started: float = field(default_factory=time.perf_counter)
+    #: how many of :attr:`history` ran beside training (their seconds were not taken from it)
+    beside: int = 0
 
     # --- the judgement -------------------------------------------------------------------------
     def judge(self, raw_episodes: Sequence[Mapping[str, Any]], confidence: float = CONFIDENCE,
@@ -200,9 +202,11 @@ class Selection:
             outcome=str(run.outcome), why=run.why if run.outcome == FAIL or not run.passed else "")
         return result
 
-    def admit(self, result: HeldOutResult) -> bool:
-        """Enter an assessed evaluation (in the order they were taken); True when it is the best so far."""
+    def admit(self, result: HeldOutResult, beside: bool = False) -> bool:
+        """Enter an assessed evaluation (in the order they were taken; ``beside``: it ran beside training); True
+        when it is the best so far."""
         self.history.append(result)
+        self.beside += bool(beside)
         better = self.best is None or (result.deployable, result.j_mean) > (self.best.deployable, self.best.j_mean)
         if better:
             self.best = result
@@ -217,6 +221,7 @@ class Selection:
         load = lambda d: HeldOutResult(**{k: (tuple(v) if k == "reasons" else v) for k, v in d.items() if k in fields_})
         self.history = [load(d) for d in record.get("evaluations") or []]
         self.best = load(record["kept"]) if record.get("kept") else None
+        self.beside = int((record.get("evaluation_cost") or {}).get("beside_training", 0))
 
     # --- what the trainer asks --------------------------------------------------------------
     def due(self, env_steps: int, last_env_steps: int, now: float | None = None) -> bool:
@@ -291,8 +296,18 @@ class Selection:
             "became_deployable": ({"env_steps": first.env_steps, "wall_s": first.wall_s} if first else None),
             "evaluation_cost": {"count": len(self.history), "episodes": sum(r.episodes for r in self.history),
                                 "env_steps": sum(r.eval_env_steps for r in self.history),
-                                "wall_s": round(self.evaluation_s, 3)},
+                                "wall_s": round(self.evaluation_s, 3), "beside_training": self.beside},
         }
+
+
+def evaluation_cost_text(cost: Mapping[str, Any]) -> str:
+    """A record's ``evaluation_cost`` in words: what the held-out evaluations cost the run, or, for those that ran
+    beside training, how long they ran (training went on meanwhile)."""
+    count, wall_s, beside = int(cost["count"]), float(cost["wall_s"]), int(cost.get("beside_training") or 0)
+    if not beside:
+        return f"{count} held-out evaluations cost {wall_s:.0f} s"
+    which = "all" if beside == count else f"{beside} of them"
+    return f"{count} held-out evaluations took {wall_s:.0f} s, {which} beside training"
 
 
 def selection_for(task: Any, objective: EconomicObjectiveSpec, every_steps: int | None, episodes: int | None,

@@ -101,8 +101,9 @@ class Learner:
         (compiled rollouts on a core training does not use); Python envs would only share one core."""
         return None
 
-    def log_scalars(self, scalars: Mapping[str, float]) -> None:
-        """Scalars at the current ``env_steps`` (TensorBoard), e.g. a held-out evaluation's."""
+    def log_scalars(self, scalars: Mapping[str, float], env_steps: int) -> None:
+        """Scalars at env step ``env_steps`` (TensorBoard), e.g. a held-out evaluation's at the step of the policy
+        it judged (earlier than the learner's own when it ran beside training)."""
 
     def timing(self) -> dict[str, Any]:
         """The learner's own timing entries (e.g. compilation) for the run's ``timing``."""
@@ -364,19 +365,21 @@ class TrainingLoop:
         for snapshot, result in beside.finished(0 if backlog is None else beside.taken - backlog):
             if self.selection.should_stop:  # --until-deployable: the first pass is kept; later ones are moot
                 break
-            self._enter(learner, result, snapshot.save_policy)
+            self._enter(learner, result, snapshot.save_policy, beside=True)
         if backlog == 0 or self.selection.should_stop:
             beside.close(cancel=self.selection.should_stop)
             self._beside = None
 
-    def _enter(self, learner: Learner, result: HeldOutResult, save_policy: Callable[[Path], None]) -> None:
-        """An evaluation into the selection; its policy saved to ``best/`` when it is the best so far."""
-        better = self.selection.admit(result)
+    def _enter(self, learner: Learner, result: HeldOutResult, save_policy: Callable[[Path], None],
+               beside: bool = False) -> None:
+        """An evaluation into the selection (``beside``: it ran beside training); its policy saved to ``best/``
+        when it is the best so far."""
+        better = self.selection.admit(result, beside)
         if better:
             _replace_dir(self.run_dir / BEST_DIR, save_policy)
         self.config = {**self.config, "selection": self.selection.record()}
         write_run_config(self.run_dir, self.config, self.backend)
-        learner.log_scalars(result.scalars())
+        learner.log_scalars(result.scalars(), result.env_steps)
 
     def _finish(self, learner: Learner, started: float, first: int) -> TrainingOutcome:
         """The run's record first, then the kept policy (its files mark a complete run) and its export."""

@@ -21,6 +21,7 @@ from typing import Any
 
 from econmotor.config.acceptance import ERROR_RATE_CHECK
 from econmotor.motor_backend.results import PROVENANCE_KEY
+from econmotor.motor_backend.selection import evaluation_cost_text
 from econmotor.report.plots import render_plots
 
 #: (field, label) of the pricing table, in reading order; every saving says what it counts.
@@ -237,7 +238,7 @@ def selection_text(selection: Mapping[str, Any] | None) -> str | None:
                  f"({first['wall_s']:.0f} s)")
     cost = selection.get("evaluation_cost") or {}
     if cost:
-        text += f"; {cost['count']} held-out evaluations cost {cost['wall_s']:.0f} s"
+        text += f"; {evaluation_cost_text(cost)}"
     seeds = selection["held_out_seeds"]
     if selection.get("fresh_seeds") is True:
         text += (f". The priced episodes (seeds {selection['priced_seeds'][0]}-{selection['priced_seeds'][1] - 1}) "

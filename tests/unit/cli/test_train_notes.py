@@ -17,3 +17,12 @@ def test_the_cost_of_held_out_evaluations_is_said():
     assert note == ("policy kept: the best by J. deployable on held-out episodes after 50,000 env steps (21 s); "
                     "2 held-out evaluations cost 3 s (160 episodes).")
     assert selection_note({}) is None
+
+
+def test_evaluations_beside_training_are_said_to_have_run_beside_it_not_to_have_cost_it():
+    cost = {"count": 3, "wall_s": 4.4, "episodes": 64, "beside_training": 3}
+    note = selection_note({"selection": {"why": "the first to pass", "evaluation_cost": cost}})
+    assert note == "policy kept: the first to pass. 3 held-out evaluations took 4 s, all beside training (64 episodes)."
+    some = {**cost, "beside_training": 2}
+    note = selection_note({"selection": {"why": "the first to pass", "evaluation_cost": some}})
+    assert note.endswith("3 held-out evaluations took 4 s, 2 of them beside training (64 episodes).")

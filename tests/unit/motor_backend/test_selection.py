@@ -140,8 +140,10 @@ def test_a_resumed_run_keeps_its_earlier_best_unless_beaten():
     sel = selection()
     sel.consider(1000, evaluation(SAFE))
     resumed = selection()
+    sel.admit(sel.assess(1500, evaluation(FALLING)), beside=True)
     resumed.restore(sel.record())
     assert resumed.best == sel.best and resumed.history == sel.history
+    assert sel.beside == resumed.beside == sel.record()["evaluation_cost"]["beside_training"] == 1
     _, better = resumed.consider(2000, evaluation(SAFE_SLOW))  # acceptable, lower J: the earlier one stays
     assert not better and resumed.best.env_steps == 1000
 
@@ -216,7 +218,8 @@ def test_the_run_record_says_every_field():
     assert record["kept"] == sel.history[1].to_dict() and record["kept_acceptable"] is True
     assert record["became_deployable"] == {"env_steps": 2000, "wall_s": sel.history[1].wall_s}
     assert record["evaluation_cost"] == {"count": 2, "episodes": 16 + 64, "env_steps": 80 * 1000,
-                                         "wall_s": round(sel.history[0].eval_s + sel.history[1].eval_s, 3)}
+                                         "wall_s": round(sel.history[0].eval_s + sel.history[1].eval_s, 3),
+                                         "beside_training": 0}
     assert record["why"] == sel.kept_reason() == (
         f"the checkpoint at 2,000 env steps: the best J ({sel.history[1].j_mean:.4g}) of the 1 held-out "
         "evaluations that passed the task's acceptance rule (of 2)")
@@ -419,6 +422,7 @@ class StepLearner:
         self.env_steps, self.beside, self.interrupt_at = 0, beside, interrupt_at
         self.progressed = threading.Condition()
         self.seen_while_evaluating: list[int] = []
+        self.logged_at: list[int] = []
 
     def learn(self, until_steps: int):
         while self.env_steps < until_steps:
@@ -463,7 +467,8 @@ class StepLearner:
     def load_checkpoint(self, run_dir) -> int: return 0
     def export(self, run_dir): return None
     def status(self) -> str: return ""
-    def log_scalars(self, scalars) -> None: ...
+    def log_scalars(self, scalars, env_steps: int) -> None:
+        self.logged_at.append(env_steps)
     def timing(self) -> dict: return {}
     def close(self) -> None: ...
 
@@ -489,6 +494,12 @@ def test_an_evaluation_beside_training_keeps_the_policy_it_judged_as_one_between
     assert (loop.run_dir / "policy.txt").read_text() == "2000" and (loop.run_dir / "best" / "policy.txt").is_file()
     assert beside.env_steps == 2000  # the kept policy is the learner's at the end
     assert outcome_beside.config["selection"]["kept"]["env_steps"] == 2000
+    # the record says which evaluations ran beside training: here all of them
+    cost = {name: outcome.config["selection"]["evaluation_cost"] for name, outcome in
+            (("between", outcome_between), ("beside", outcome_beside))}
+    assert cost["between"]["beside_training"] == 0 and cost["beside"]["beside_training"] == len(picked)
+    # each evaluation's scalars at the step of the policy it judged, not at the learner's step when it was entered
+    assert beside.logged_at == between.logged_at == [step for step, _ in picked]
     if until:  # stopped once the pass was known, having learned on meanwhile; between chunks: at once
         assert between.env_steps == 2000 and outcome_between.config["trained_steps"] == 2000
         assert outcome_beside.config["trained_steps"] >= 2500

@@ -273,9 +273,9 @@ class MjxLearner(LoopLearner):
     def export(self, run_dir: Path) -> Path | None:
         return self.run.export(run_dir, self._ready().learner) if self.run.export is not None else None
 
-    def log_scalars(self, scalars: Mapping[str, float]) -> None:
+    def log_scalars(self, scalars: Mapping[str, float], env_steps: int) -> None:
         for name, value in scalars.items():
-            self.writer.add_scalar(name, value, self.env_steps)
+            self.writer.add_scalar(name, value, env_steps)
 
     def timing(self) -> dict[str, Any]:
         trained = self.env_steps - self.resumed_from
