@@ -129,6 +129,8 @@ class HeldOutResult:
     reasons: tuple[str, ...] = ()
     outcome: str = ""
     why: str = ""
+    #: it ran in a thread beside training (its seconds were not taken from training)
+    beside_training: bool = False
 
     def status(self) -> str:
         """One short line for a progress bar: ``'@120k: deployable'`` / ``'@40k: falls<=0.31'``."""
@@ -157,8 +159,6 @@ class Selection:
     history: list[HeldOutResult] = field(default_factory=list)
     best: HeldOutResult | None = None
     started: float = field(default_factory=time.perf_counter)
-    #: how many of :attr:`history` ran beside training (their seconds were not taken from it)
-    beside: int = 0
 
     # --- the judgement -------------------------------------------------------------------------
     def judge(self, raw_episodes: Sequence[Mapping[str, Any]], confidence: float = CONFIDENCE,
@@ -179,9 +179,10 @@ class Selection:
         result = self.assess(env_steps, evaluate)
         return result, self.admit(result)
 
-    def assess(self, env_steps: int, evaluate: EvaluateFn) -> HeldOutResult:
+    def assess(self, env_steps: int, evaluate: EvaluateFn, beside_training: bool = False) -> HeldOutResult:
         """One sequential held-out evaluation of the policy at ``env_steps``, judged; the selection is left as
-        it is (:meth:`admit` enters the result), so it may run in a thread beside training."""
+        it is (:meth:`admit` enters the result), so it may run in a thread beside training (``beside_training``:
+        it does, and the result says so)."""
         t0 = time.perf_counter()
         run = SequentialEvaluation(self.task, self.config.plan)
         rows = run.finish(evaluate(self.config.episodes, self.config.first_seed, run.stop))
@@ -199,14 +200,13 @@ class Selection:
             errors=float(uncertainty.evidence.errors),
             eval_env_steps=int(sum(float(r.get("length_steps", 0.0)) for r in rows)),
             reasons=tuple(verdict.reasons) if not run.passed else (),
-            outcome=str(run.outcome), why=run.why if run.outcome == FAIL or not run.passed else "")
+            outcome=str(run.outcome), why=run.why if run.outcome == FAIL or not run.passed else "",
+            beside_training=beside_training)
         return result
 
-    def admit(self, result: HeldOutResult, beside: bool = False) -> bool:
-        """Enter an assessed evaluation (in the order they were taken; ``beside``: it ran beside training); True
-        when it is the best so far."""
+    def admit(self, result: HeldOutResult) -> bool:
+        """Enter an assessed evaluation (in the order they were taken); True when it is the best so far."""
         self.history.append(result)
-        self.beside += bool(beside)
         better = self.best is None or (result.deployable, result.j_mean) > (self.best.deployable, self.best.j_mean)
         if better:
             self.best = result
@@ -221,7 +221,6 @@ class Selection:
         load = lambda d: HeldOutResult(**{k: (tuple(v) if k == "reasons" else v) for k, v in d.items() if k in fields_})
         self.history = [load(d) for d in record.get("evaluations") or []]
         self.best = load(record["kept"]) if record.get("kept") else None
-        self.beside = int((record.get("evaluation_cost") or {}).get("beside_training", 0))
 
     # --- what the trainer asks --------------------------------------------------------------
     def due(self, env_steps: int, last_env_steps: int, now: float | None = None) -> bool:
@@ -296,7 +295,8 @@ class Selection:
             "became_deployable": ({"env_steps": first.env_steps, "wall_s": first.wall_s} if first else None),
             "evaluation_cost": {"count": len(self.history), "episodes": sum(r.episodes for r in self.history),
                                 "env_steps": sum(r.eval_env_steps for r in self.history),
-                                "wall_s": round(self.evaluation_s, 3), "beside_training": self.beside},
+                                "wall_s": round(self.evaluation_s, 3),
+                                "beside_training": sum(r.beside_training for r in self.history)},
         }
 
 

@@ -153,7 +153,7 @@ class _Beside:
 
             result, error = None, None
             try:
-                result = self.selection.assess(env_steps, evaluate)
+                result = self.selection.assess(env_steps, evaluate, beside_training=True)
             except BaseException as exc:  # raised in the loop's thread when it enters this evaluation
                 error = exc
             with self.ended:
@@ -365,16 +365,14 @@ class TrainingLoop:
         for snapshot, result in beside.finished(0 if backlog is None else beside.taken - backlog):
             if self.selection.should_stop:  # --until-deployable: the first pass is kept; later ones are moot
                 break
-            self._enter(learner, result, snapshot.save_policy, beside=True)
+            self._enter(learner, result, snapshot.save_policy)
         if backlog == 0 or self.selection.should_stop:
             beside.close(cancel=self.selection.should_stop)
             self._beside = None
 
-    def _enter(self, learner: Learner, result: HeldOutResult, save_policy: Callable[[Path], None],
-               beside: bool = False) -> None:
-        """An evaluation into the selection (``beside``: it ran beside training); its policy saved to ``best/``
-        when it is the best so far."""
-        better = self.selection.admit(result, beside)
+    def _enter(self, learner: Learner, result: HeldOutResult, save_policy: Callable[[Path], None]) -> None:
+        """An evaluation into the selection; its policy saved to ``best/`` when it is the best so far."""
+        better = self.selection.admit(result)
         if better:
             _replace_dir(self.run_dir / BEST_DIR, save_policy)
         self.config = {**self.config, "selection": self.selection.record()}

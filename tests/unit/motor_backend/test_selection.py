@@ -140,10 +140,11 @@ def test_a_resumed_run_keeps_its_earlier_best_unless_beaten():
     sel = selection()
     sel.consider(1000, evaluation(SAFE))
     resumed = selection()
-    sel.admit(sel.assess(1500, evaluation(FALLING)), beside=True)
+    sel.admit(sel.assess(1500, evaluation(FALLING), beside_training=True))
     resumed.restore(sel.record())
     assert resumed.best == sel.best and resumed.history == sel.history
-    assert sel.beside == resumed.beside == sel.record()["evaluation_cost"]["beside_training"] == 1
+    assert [r.beside_training for r in resumed.history] == [False, True]
+    assert resumed.record()["evaluation_cost"]["beside_training"] == 1
     _, better = resumed.consider(2000, evaluation(SAFE_SLOW))  # acceptable, lower J: the earlier one stays
     assert not better and resumed.best.env_steps == 1000
 
