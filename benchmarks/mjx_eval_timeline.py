@@ -78,7 +78,7 @@ def arm(args: argparse.Namespace) -> dict:
             "eval_episodes": len(evaluation.episodes), "eval_s": eval_s,
             "eval_env_steps": sum(float(e.get("length_steps", 0.0)) for e in evaluation.episodes),
             "eval_s_per_episode": eval_s / max(len(evaluation.episodes), 1),
-            "eval_batch": getattr(backend, "eval_batch", None), "cache_hits": timing.get("compile_cache_hits"),
+            "eval_batch": backend.evaluation_batch(args.task_id), "cache_hits": timing.get("compile_cache_hits"),
             "messages": [m for m in messages if "cache" in m], "process_s": time.perf_counter() - started}
 
 

@@ -4,7 +4,8 @@ For each seed, one run per arm, each in a fresh process (so XLA compiles as on a
 after the other on this machine (both arms see the same hours):
 
 - ``demo``: what ``econmotor demo`` runs (``cli/demo.py``): ``hopper_courier`` on the ``mjx`` backend
-  (Hopper-v5 in MJX, JAX PPO on 64 batched envs on a CPU) under the demo's objective
+  (JAX PPO on 64 batched envs on a CPU, the Hopper-v5 body stepped by MuJoCo C: the task's ``cpu_physics``)
+  under the demo's objective
   (``courier_demo.yaml``) and its PPO (``DEMO_HYPERPARAMETERS``), until a held-out evaluation (every 25,000
   env steps, at most ``DEMO_SELECT_EPISODES``, beside training, as the demo) passes the task's acceptance
   rule; JAX's compilation cache is an empty folder of its own unless ``--warm-cache`` (then the first seed
@@ -31,9 +32,11 @@ tenth of the wall time) found seed 1's deployable policy at 600k steps in 94 s, 
 225k in 57 s (warm cache). On 2026-11-29 (idle cores, seed 0, the demo arm's training alone): held-out
 batches of 32 episodes instead of 16 kept the trajectory but cost 1.6-2.0 s a failing evaluation instead of
 0.6-1.1 s (54.4 s to the pass against 51.8 s); the evaluator compiled from the start in a thread at nice 19
-made the first iteration 21.6 s instead of 12.5 s (45.8 s against 42.2 s). For the demo's PPO settings
-tried over seeds 0-4 (reward scaling, epochs, unroll length, learning rate, initial log-std), see
-``benchmarks/RESULTS.md``.
+made the first iteration 21.6 s instead of 12.5 s (45.8 s against 42.2 s). Those figures are MJX's physics;
+since then the hopper steps in MuJoCo C on a CPU (``cpu_physics``), and the held-out batch there is 48
+(``CPU_EVAL_BATCH``: 25.0-34.0 s to the pass on seeds 0, 1 and 4 against 28.8-41.5 s with 16). For the demo's
+PPO settings tried over seeds 0-4 (reward scaling, entropy bonus, epochs, unroll length, learning rate,
+initial log-std), see ``benchmarks/RESULTS.md``.
 
     .venv/bin/python benchmarks/time_to_deployable.py [--seeds 0,1,2] [--arms demo,old] [--warm-cache]
 """

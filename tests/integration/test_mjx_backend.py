@@ -145,7 +145,7 @@ def test_resume_refuses_other_hyperparameters_and_policy_compiles_once(workdir: 
     env, _ = backend.env("hopper_courier", objective)
     state = ppo.init_train_state(env, cfg, 8, seed=1)
     iteration = ppo.make_train_iteration(env, cfg, 8)
-    evaluate = ppo.make_evaluate(env, cfg, backend.eval_batch)
+    evaluate = ppo.make_evaluate(env, cfg, backend.evaluation_batch("hopper_courier"))
     for i in range(3):
         state, _ = iteration(state)
         evaluate(state.learner.params, state.learner.stats, jax.random.PRNGKey(i))

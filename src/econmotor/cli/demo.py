@@ -1,9 +1,10 @@
 """``econmotor demo`` (``make demo``): the task pricing report of a hopper courier trained on this machine.
 
-Trains a ``hopper_courier`` policy (the Gymnasium Hopper-v5 body in MJX, MuJoCo's JAX port, with the
-mjx backend's JAX PPO on 64 batched envs and :data:`DEMO_HYPERPARAMETERS`: on a CPU it learns several times
-faster than SB3's PPO on the ``mujoco`` backend, XLA compilation included; its held-out evaluations run
-beside training, on the other core; ``benchmarks/time_to_deployable.py``) under the
+Trains a ``hopper_courier`` policy (the Gymnasium Hopper-v5 body on the mjx backend: its JAX PPO on 64
+batched envs with :data:`DEMO_HYPERPARAMETERS`, the body stepped by MuJoCo C on a CPU (the task's
+``cpu_physics``) and by MJX on an accelerator: on a CPU it learns several times faster than SB3's PPO on the
+``mujoco`` backend, XLA compilation included; its held-out evaluations run beside training, on the other
+core; ``benchmarks/time_to_deployable.py``) under the
 safety-first objective :data:`DEMO_OBJECTIVE` until a held-out evaluation passes the task's
 acceptance rule (``--until-deployable``, at most :data:`DEMO_MAX_STEPS` steps; a held-out evaluation
 every :data:`DEMO_SELECT_EVERY` steps: a failing one costs a fraction of a second), evaluates the kept
@@ -41,13 +42,16 @@ DEMO_SELECT_EVERY = 25_000
 DEMO_SELECT_EPISODES = 96
 #: the demo's PPO over the catalog's:
 #: - policy and value MLPs of 128 x 128 (the catalog's 256 x 256 suit the thousands of envs of a GPU): on a
-#:   CPU the 128 minibatch updates of an iteration take ~15 ms instead of ~125 ms, beside a ~100 ms rollout
+#:   CPU the 128 minibatch updates of an iteration take ~25 ms instead of ~125 ms, beside a ~50 ms rollout
 #:   of 64 envs, and the seeds are as deployable within the same steps;
 #: - rewards scaled by 0.1 for learning (the reported figures are unscaled): the demo's objective prices a
 #:   fall at ~1,250, so unscaled returns run to thousands, and the value loss's gradient shares one
-#:   global-norm clip with the policy's. Seeds 0-4 passed at 200k-350k steps (median 250k); unscaled, at
-#:   350k-400k, and one not by 600k (2 idle cores, benchmarks/RESULTS.md)
-DEMO_HYPERPARAMETERS = {"hidden_sizes": [128, 128], "reward_scaling": 0.1}
+#:   global-norm clip with the policy's;
+#: - an entropy bonus of 0.01 (the catalog's 0.001): a hopper that stands still is safe under this objective,
+#:   and with the catalog's bonus one seed in five stood until 450k steps and was not deployable by 600k.
+#: Seeds 0-4 passed at 150k-325k steps (median 250k); with the catalog's bonus, or unscaled, one seed in five
+#: did not pass by 600k (2 idle cores, benchmarks/RESULTS.md)
+DEMO_HYPERPARAMETERS = {"hidden_sizes": [128, 128], "reward_scaling": 0.1, "entropy_cost": 0.01}
 #: the demo's objective (a package file; its comments give the weights' reasons): falls and lean are
 #: weighted at the scale of Hopper-v5's own reward, so PPO learns an upright gait within the demo's
 #: steps (the default vector's hopper falls in most episodes; see benchmarks/demo_reliability.py).
@@ -68,7 +72,7 @@ def demo_command(
     seed: int = typer.Option(0, "--seed"),
 ) -> None:
     """Train a hopper courier until deployable, price its delivery legs, write the reports."""
-    console.print(f"[bold]econmotor demo[/]: training {DEMO_TASK} (Hopper-v5 in MJX, JAX PPO on the CPU) under the "
+    console.print(f"[bold]econmotor demo[/]: training {DEMO_TASK} (Hopper-v5 in MuJoCo, JAX PPO on the CPU) under the "
                   "safety-first objective courier_safety_first until a held-out evaluation every "
                   f"{DEMO_SELECT_EVERY:,} steps passes the task's acceptance (at most {max_steps:,} steps), then "
                   "pricing a 10 m delivery leg against a human courier on fresh episodes.")

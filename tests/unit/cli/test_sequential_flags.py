@@ -32,10 +32,14 @@ def refused(capsys: pytest.CaptureFixture[str], args: list[str], *words: str) ->
     return lines[0]
 
 
-@pytest.mark.parametrize("command", [MUJOCO, ["demo"]])
-def test_a_cap_below_one_batch_names_the_flag_and_the_batch(capsys, workdir: Path, command: list[str]) -> None:
+@pytest.mark.parametrize(("command", "backend"), [(MUJOCO, "mujoco"), (["demo"], "mjx")])
+def test_a_cap_below_one_batch_names_the_flag_and_the_batch(capsys, workdir: Path, command: list[str],
+                                                             backend: str) -> None:
+    from econmotor.motor_backend.factory import make_motor_backend
+
+    batch = make_motor_backend(backend).evaluation_batch("hopper_courier")  # the mjx hopper's: 48 on a CPU
     line = refused(capsys, [*command, "--eval-max-episodes", "8"], "--eval-max-episodes", "below one evaluation batch",
-                   "16 or more")
+                   f"{batch} or more")
     assert "8" in line
     assert not (workdir / "runs").exists() and not (workdir / ".econmotor").exists()  # nothing trained or written
 

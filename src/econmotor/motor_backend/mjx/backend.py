@@ -79,6 +79,11 @@ CACHE_ENV = "ECONMOTOR_JAX_CACHE_DIR"
 #: beside training: on two cores the two compilations slow each other (the demo's first iteration took
 #: 29-35 s with both, 19-21 s alone), while a tiny run would wait for the evaluator after training
 COMPILE_AHEAD_ITERATIONS = 8
+#: episodes a held-out or report evaluation steps at once on a CPU, by the task's ``cpu_physics``: MJX's step
+#: costs in proportion to the batch; a MuJoCo C step called from JAX has ~0.4 ms of fixed cost per batched
+#: step (the callback, the meter's small ops), so 48 fall-free hopper episodes cost 1.6x 16 of them, and 96
+#: cost 3.3 s instead of 5.2 s (one core); a fast hopper (~1.4 legs an episode) passes at the first look
+CPU_EVAL_BATCH = {"mjx": 16, "mujoco": 48}
 
 
 def device_description() -> str:
@@ -113,9 +118,9 @@ class MjxBackend(MotorBackendBase):
         datapack_provider: registered datapacks that ids may refer to.
         keep_task_reward: add the overlay to the task's reward (True) or replace it (False).
         runs_dir: where new run directories go when ``output_dir`` is not given.
-        eval_batch: episodes evaluated at once (one compiled batched rollout; None: 16 on a CPU, where a
-            step's cost grows with the batch, 256 on an accelerator, where a rollout of 1,000 steps costs
-            about the same for 10 envs or 256).
+        eval_batch: episodes evaluated at once (one compiled batched rollout; None: 256 on an accelerator,
+            where a rollout of 1,000 steps costs about the same for 10 envs or 256, and on a CPU, where a step's
+            cost grows with the batch, :data:`CPU_EVAL_BATCH`).
         compilation_cache_dir: JAX's persistent compilation cache ("" or None: off).
         holosoma_venv: where shipped policies (``--init-policy holosoma:<robot>/<algo>``) are found when this
             interpreter has no holosoma_inference (default: ``find_holosoma_python``'s search; the CLI passes
@@ -147,7 +152,7 @@ class MjxBackend(MotorBackendBase):
         super().__init__(task_files=task_files, runs_dir=runs_dir, catalog=catalog)
         self.provider = datapack_provider or DatapackProvider()
         self.keep_task_reward = keep_task_reward
-        self.eval_batch = int(eval_batch or (16 if jax.default_backend() == "cpu" else 256))
+        self.eval_batch = int(eval_batch) if eval_batch else None
         self.compilation_cache_dir = str(compilation_cache_dir) if compilation_cache_dir else None
         self.holosoma_venv = holosoma_venv
         enable_compilation_cache(compilation_cache_dir or None)
@@ -224,19 +229,23 @@ class MjxBackend(MotorBackendBase):
             "datapacks": [p.to_dict() for p in configs],
             "economics": {r["name"]: r["value"] for r in spec.economics.parameters()},
             "settings": env.settings.to_dict(), "keep_task_reward": self.keep_task_reward,
+            "physics": env.physics_label,
         }
         return env, described
 
     def evaluation_batch(self, task_id: str) -> int:
-        """One compiled batched rollout of :attr:`eval_batch` episodes."""
-        return self.eval_batch
+        """One compiled batched rollout of :attr:`eval_batch` episodes; by default 256 on an accelerator, on a
+        CPU :data:`CPU_EVAL_BATCH` of the task's ``cpu_physics``."""
+        if self.eval_batch:
+            return self.eval_batch
+        return CPU_EVAL_BATCH[self.settings(task_id).cpu_physics] if jax.default_backend() == "cpu" else 256
 
     def _evaluator(self, env: Any, cfg: ppo.PPOConfig, ahead: bool = False) -> Any:
         """The run's one compiled evaluation (memoised per env and hyperparameters); ``ahead``: compile it
         now in a background thread (:class:`CompiledAhead`), overlapping the first training iterations."""
         key = (id(env), json.dumps(cfg.to_dict(), sort_keys=True))
         if key not in self._evaluators:
-            jitted = ppo.make_evaluate(env, cfg, self.eval_batch)
+            jitted = ppo.make_evaluate(env, cfg, self.evaluation_batch(env.task_id))
             if ahead:
                 template = ppo.init_learner(jax.random.PRNGKey(0), env.observation_size, env.action_size, cfg)
                 jitted = CompiledAhead(jitted, template.params, template.stats, jax.random.PRNGKey(0),
@@ -305,25 +314,25 @@ class MjxBackend(MotorBackendBase):
         if output_dir is None and resume:
             raise ConfigError("<train>", "output_dir", "resume needs the run directory to continue")
         extra = {"device": device_description(), "num_envs_requested": int(num_envs), "num_envs_note": note}
-        card = getattr(env, "card", None)
-        if card is not None:
-            extra["robot"] = card.name  # exported in Holosoma's format (_export)
+        if getattr(env, "card", None) is not None:
+            extra["robot"] = env.card.name  # exported in Holosoma's format (_export)
         initial = None
         if init_policy is not None:
             cfg, initial, extra["init_policy"] = self._warm_start(init_policy, resume, env, cfg, hyperparameters,
                                                                   seed, progress)
+        batch = self.evaluation_batch(task_id)
         run = MjxTrainingRun(
             run_dir=self.run_dir(output_dir, task_id, seed), env=train_env, described=described, cfg=cfg,
             requested_hyperparameters=hyperparameters, num_envs=used_envs, max_steps=int(max_steps), seed=int(seed),
             checkpoint_every_steps=int(checkpoint_every_steps or settings.checkpoint_every_steps),
             extra_config=extra, initial=initial,
             selection=selection_for(self.catalog.get(task_id), objective, select_every_steps, select_episodes,
-                                    until_deployable, seed, self.held_out_cadence, self.eval_batch),
+                                    until_deployable, seed, self.held_out_cadence, batch),
             cache_dir=self.compilation_cache_dir)
         if run.selection is not None or eval_episodes > 0:
             self._compile_evaluator_ahead(run, env)
         run.held_out = lambda learner, n, first_seed, stop: evaluate_episodes(
-            self._evaluator(env, run.cfg), self.eval_batch, env, learner, n, first_seed, stop=stop)
+            self._evaluator(env, run.cfg), batch, env, learner, n, first_seed, stop=stop)
         run.export = lambda run_dir, learner: self._export(run_dir, learner, run.cfg, run.config)
         curve = run.train(resume=resume, progress=progress)
         config = run.config
@@ -370,13 +379,13 @@ class MjxBackend(MotorBackendBase):
         env, described = self.env(task_id, objective, datapack_ids, datapack_configs)
         cfg = ppo.PPOConfig.from_mapping(config["hyperparameters"], str(Path(policy_id) / RUN_CONFIG_FILE))
         learner = load_learner(policy_id, config, cfg)
-        rows = evaluate_episodes(self._evaluator(env, cfg), self.eval_batch, env, learner, num_episodes, seed,
-                                 progress, stop=stop)
+        rows = evaluate_episodes(self._evaluator(env, cfg), self.evaluation_batch(task_id), env, learner,
+                                 num_episodes, seed, progress, stop=stop)
         eval_config = {**described, "policy_id": str(policy_id), "num_episodes": num_episodes, "seed": seed,
                        "algorithm": "ppo", "deterministic": True, "device": device_description()}
         provenance = EvalProvenance(
-            evaluator="mjx", figures_from=f"MJX batched rollouts of {task_id} on {device_description()} (the run's "
-            "PPO policy, deterministic, metered as in training)",
+            evaluator="mjx", figures_from=f"batched JAX rollouts of {task_id} ({env.physics_label} physics) on "
+            f"{device_description()} (the run's PPO policy, deterministic, metered as in training)",
             commanded_speed_m_per_s=env.settings.course.get("speed_m_per_s"),
             achieved_speed_m_per_s=walking_speed_m_per_s(rows), mean_power_w=mean_power_w(aggregate_raw(rows)))
         return evaluation_result(self.name, policy_id, task_id, rows, self.catalog.get(task_id).economics,

@@ -101,6 +101,8 @@ class Env:
     extra_metric_keys: tuple[str, ...] = ()
     #: metered physics steps per control step (rows of ``State.readings``)
     readings_per_step = 1
+    #: what steps the physics, in words (run configs, report provenance)
+    physics_label = "MJX"
 
     mj_model: mujoco.MjModel
     action_size: int

@@ -26,6 +26,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import mujoco
 import numpy as np
 
 from econmotor.couriers.overlay import TERM_METRICS
@@ -36,6 +37,7 @@ from econmotor.errors import ConfigError
 from econmotor.motor_backend.mjx._mjx import mjx
 from econmotor.motor_backend.mjx.assets import RobotSpec, load_model, robot_spec
 from econmotor.motor_backend.mjx.base_env import Env, State, reading
+from econmotor.motor_backend.mjx.host_physics import PHYSICS, HostPhysics
 from econmotor.robots import gym_couriers as robots
 
 #: the datapack domain-randomization keys this env honours (the others raise a ConfigError).
@@ -92,13 +94,15 @@ class GymCourierEnv(Env):
         task_id: a catalog task whose mjx entry names a Gymnasium ``env_id``.
         datapacks: datapack configs or bundles (domain randomization: :data:`SUPPORTED_DR_KEYS`).
         seed, catalog, readings: as :class:`~econmotor.motor_backend.mjx.base_env.Env`.
+        physics: ``"mjx"`` or ``"mujoco"`` (MuJoCo C on the host, ``mjx/host_physics.py``); default: the
+            task's ``cpu_physics`` on a CPU, MJX on an accelerator.
     """
 
     terms = MJX_TERMS
     counts_novelty = True
 
     def __init__(self, task_id: str, *, datapacks: Sequence[Any] = (), seed: int = 0, catalog: Any = None,
-                 readings: bool = True) -> None:
+                 readings: bool = True, physics: str | None = None) -> None:
         super().__init__(task_id, seed=seed, catalog=catalog, readings=readings)
         s = self.settings
         self.robot: RobotSpec = robot_spec(s.env_id, s.env_kwargs, self.where)
@@ -117,7 +121,27 @@ class GymCourierEnv(Env):
         self._free_root = has_free_root(self.mj_model)
         self._needs_cfrc = self.robot.robot.reads_contact_forces
         self._init_qpos = jnp.asarray(self.mj_model.qpos0, dtype=jnp.float32)
+        self.physics = physics or (s.cpu_physics if jax.default_backend() == "cpu" else "mjx")
+        self.host: HostPhysics | None = None
+        if self.physics == "mujoco":
+            self._check_host_physics()
+            self.host = HostPhysics(self.mj_model, self.frame_skip)
+            self._template = self.host.template()
+            self.physics_label = f"MuJoCo {mujoco.__version__} C, called from JAX"
+        elif self.physics != "mjx":
+            raise ConfigError(self.where, "cpu_physics", f"unknown physics {self.physics!r}", PHYSICS)
         self.observation_size = int(jax.eval_shape(lambda d: self._obs(d, self.model), self._template).shape[0])
+
+    def _check_host_physics(self) -> None:
+        """MuJoCo C on the host returns qpos, qvel and qfrc_actuator: a body whose observation, reward or
+        forward x reads more (contact forces, body kinematics) needs MJX."""
+        robot = self.robot.robot
+        needs = [p for p in robot.obs_parts if p not in ("qpos", "qvel", "qvel_clipped", "qfrc_actuator")]
+        needs += ["contact forces"] if robot.reads_contact_forces else []
+        needs += [robot.forward_x] if robot.forward_x != "root_x" else []
+        if needs:
+            raise ConfigError(self.where, "cpu_physics", f"{self.robot.robot.env_id} reads {', '.join(needs)}, "
+                              "which MuJoCo C on the host does not return; use mjx", ["mjx"])
 
     # ------------------------------------------------------------------ per-robot physics readouts
     def _obs(self, d: Any, m: Any) -> jax.Array:
@@ -200,16 +224,19 @@ class GymCourierEnv(Env):
     def step(self, state: State, action: jax.Array) -> State:
         """``frame_skip`` physics steps of the (noisy, clipped) action; Gymnasium's reward and fall."""
         p = self.robot.params
-        m = self.randomized_model(state.randomization)
+        m = self.randomized_model(state.randomization) if self.host is None else self.model
         k_act, k_obs = jax.random.split(state.key)
         if self.randomization.action_noise_std > 0:
             action = action + self.randomization.action_noise_std * jax.random.normal(k_act, action.shape)
         action = jnp.clip(action, self.action_low, self.action_high)
         x_before = self._forward_x(state.data, m)
-        data = state.data.replace(ctrl=action)
-        data = jax.lax.fori_loop(0, self.frame_skip, lambda _, d: mjx.step(m, d), data)
-        if self._needs_cfrc:
-            data = mjx.rne_postconstraint(m, data)
+        if self.host is not None:
+            data = self.host.step(state.data, action, state.randomization)
+        else:
+            data = state.data.replace(ctrl=action)
+            data = jax.lax.fori_loop(0, self.frame_skip, lambda _, d: mjx.step(m, d), data)
+            if self._needs_cfrc:
+                data = mjx.rne_postconstraint(m, data)
         qpos, qvel = data.qpos, data.qvel
         healthy = robots.is_healthy(self.healthy, qpos, qvel, jnp)
         fell = jnp.logical_not(healthy) if p["terminate_when_unhealthy"] else jnp.zeros((), bool)

@@ -6,6 +6,7 @@ Schema::
       mjx:
         inherit: mujoco              # metering keys from the task's backends.mujoco entry (below)
         num_envs: 2048               # environments simulated at once (capped to cpu_num_envs_cap on a CPU)
+        cpu_physics: mujoco          # on a CPU: mjx (default) or mujoco (MuJoCo C, mjx/host_physics.py)
         normalize_obs: true
         checkpoint_every_steps: 5000000
         ppo: {unroll_length: 20, ...}   # the JAX PPO trainer's hyperparameters, passed through
@@ -44,7 +45,7 @@ from econmotor.tasks.catalog import TaskSpec
 
 #: keys shared with the mujoco backend's entry (the economics of the physics).
 INHERITED_KEYS = METERING_KEYS
-OWN_KEYS = ("inherit", "num_envs", "cpu_num_envs_cap", "normalize_obs", "checkpoint_every_steps", "ppo",
+OWN_KEYS = ("inherit", "num_envs", "cpu_num_envs_cap", "cpu_physics", "normalize_obs", "checkpoint_every_steps", "ppo",
             "novelty_table_size", "model_options", "robot", "locomotion")
 INHERITS = ("mujoco", "holosoma")
 #: the holosoma entry's course keys -> the course's (``couriers/course.py``)
@@ -53,6 +54,8 @@ HOLOSOMA_COURSE = {"unit_length_m": "leg_m", "dwell_s": "dwell_s", "course_speed
 #: ``model_options`` keys; values are validated by :func:`parse_model_options`.
 MODEL_OPTION_KEYS = ("integrator", "iterations", "ls_iterations", "eulerdamp", "contact_geoms")
 INTEGRATORS = ("euler", "implicitfast", "rk4")
+#: the physics a task may step on a CPU (``cpu_physics``; mjx/host_physics.py)
+PHYSICS = ("mjx", "mujoco")
 
 
 @dataclass(frozen=True)
@@ -63,6 +66,7 @@ class MjxTaskSettings:
     metering: MeteringSettings  # env_id, leg_distance_m, ... validated by the couriers' parser
     num_envs: int = 2048
     cpu_num_envs_cap: int = 64
+    cpu_physics: str = "mjx"  # on a CPU: "mjx", or "mujoco" (MuJoCo C called from the rollout, host_physics.py)
     normalize_obs: bool = True
     checkpoint_every_steps: int = 5_000_000
     novelty_table_size: int = 4096
@@ -123,6 +127,11 @@ def parse_mjx_settings(spec: TaskSpec) -> MjxTaskSettings:
     for name in ("num_envs", "cpu_num_envs_cap", "checkpoint_every_steps", "novelty_table_size"):
         if name in entry:
             kw[name] = as_int(entry[name], src, key(name), min_value=1)
+    if "cpu_physics" in entry:
+        kw["cpu_physics"] = as_str(entry["cpu_physics"], src, key("cpu_physics"), PHYSICS)
+        if robot is not None and kw["cpu_physics"] != "mjx":
+            raise ConfigError(src, key("cpu_physics"), "a robot card's courier steps in MJX (its PD, contacts and "
+                              "course read MJX data)", ["mjx"])
     if "normalize_obs" in entry:
         if not isinstance(entry["normalize_obs"], bool):
             raise ConfigError(src, key("normalize_obs"), "expected true or false")

@@ -55,10 +55,11 @@ def catalog_with_mjx_entry(task_id: str, source: str = "<test>", **changes):
                                          backend_sources={**spec.backend_sources, "mjx": source})})
 
 
-def jitted_env(task_id: str, **model_options) -> JittedEnv:
+def jitted_env(task_id: str, physics: str = "mjx", **model_options) -> JittedEnv:
     """The session's env of ``task_id`` (every overlay term weighted), built and jitted once;
-    ``model_options`` override the catalog entry's."""
-    key = (task_id, *sorted(model_options.items()))
+    ``physics``: a Gymnasium body's (MJX, whatever the catalog's ``cpu_physics``, or ``"mujoco"``: MuJoCo C
+    on the host); ``model_options`` override the catalog entry's."""
+    key = (task_id, physics, *sorted(model_options.items()))
     if key not in _ENVS:
         from econmotor.motor_backend.mjx.env import GymCourierEnv
         from econmotor.motor_backend.mjx.wrappers import make_env
@@ -68,13 +69,21 @@ def jitted_env(task_id: str, **model_options) -> JittedEnv:
         if model_options:
             shipped = load_catalog().get(task_id).backends["mjx"].get("model_options", {})
             catalog = catalog_with_mjx_entry(task_id, model_options={**shipped, **model_options})
-        _ENVS[key] = JittedEnv(make_env(GymCourierEnv, task_id, objective=every_term_objective(), catalog=catalog))
+        options = {"physics": physics} if load_catalog().get(task_id).backends["mjx"].get("robot") is None else {}
+        _ENVS[key] = JittedEnv(make_env(GymCourierEnv, task_id, objective=every_term_objective(), catalog=catalog,
+                                        **options))
     return _ENVS[key]
 
 
 @pytest.fixture(scope="session")
 def hopper() -> JittedEnv:
     return jitted_env("hopper_courier")
+
+
+@pytest.fixture(scope="session")
+def hopper_host() -> JittedEnv:
+    """The hopper stepped by MuJoCo C on the host (``cpu_physics: mujoco``)."""
+    return jitted_env("hopper_courier", physics="mujoco")
 
 
 @pytest.fixture(scope="session")
