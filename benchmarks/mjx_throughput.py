@@ -15,10 +15,13 @@
    report, i.e. without env creation, XLA compilation (mjx: the first iteration) or
    evaluation (neither runs held-out evaluations: ``select_every_steps=0``). Goal on a GPU:
    ratio >= 100; on 2 CPU cores it is reported as it is.
+3. With ``--physics`` only: env steps/s of the step with economics, the body stepped by MuJoCo C from the
+   jitted step (``cpu_physics: mujoco``) against MJX, A B B A as 1 (``physics_throughput``).
 
     .venv/bin/python benchmarks/mjx_throughput.py                   # GPU: catalog num_envs
     .venv/bin/python benchmarks/mjx_throughput.py --mjx-envs 32 --mjx-steps 20000 --sb3-steps 8192 \
         --env-envs 8 --env-steps 20 --env-rounds 3                                           # CPU
+    .venv/bin/python benchmarks/mjx_throughput.py --physics --env-steps 100 --env-rounds 3  # C against MJX
 """
 
 from __future__ import annotations
@@ -57,6 +60,23 @@ def env_step_throughput(task_id: str = TASK, num_envs: int = 0, steps_per_block:
     bare = make_env(GymCourierEnv, task_id, objective=objective, economics=False)
     return side_by_side(task_id, econ, bare, ("with economics", "without"), num_envs, steps_per_block, rounds,
                         seed, print_fn, goal="goal >= 0.98")
+
+
+def physics_throughput(task_id: str = TASK, num_envs: int = 0, steps_per_block: int = 0, rounds: int = 5,
+                       seed: int = 0, print_fn=print) -> dict[str, float]:
+    """Env steps/s of the jitted batched step (economics inside) with the body stepped by MuJoCo C from the
+    step (``cpu_physics: mujoco``, ``mjx/host_physics.py``) against MJX, side by side; ratio C / MJX."""
+    from econmotor.config.objective_profile import ObjectiveVector
+    from econmotor.motor_backend.mjx.env import GymCourierEnv
+    from econmotor.motor_backend.mjx.wrappers import make_env
+    from econmotor.objectives.loader import objective_from_vector
+    from econmotor.valuation import default_objective_vector
+
+    objective = objective_from_vector(ObjectiveVector.from_list(default_objective_vector()), "default")
+    host = make_env(GymCourierEnv, task_id, objective=objective, physics="mujoco")
+    mjx = make_env(GymCourierEnv, task_id, objective=objective, physics="mjx")
+    return side_by_side(task_id, host, mjx, ("MuJoCo C", "MJX"), num_envs, steps_per_block, rounds, seed, print_fn,
+                        goal="on a CPU the faster is the task's cpu_physics")
 
 
 def side_by_side(task_id: str, env_a, env_b, names: tuple[str, str], num_envs: int = 0, steps_per_block: int = 0,
@@ -173,7 +193,11 @@ def main() -> None:
     parser.add_argument("--env-envs", type=int, default=0, help="env-step envs (0: catalog, CPU-capped)")
     parser.add_argument("--env-steps", type=int, default=0, help="env-step block (0: 1000 GPU, 20 CPU)")
     parser.add_argument("--env-rounds", type=int, default=5, help="A B B A rounds of the env-step comparison")
+    parser.add_argument("--physics", action="store_true", help="only the env step with MuJoCo C against MJX")
     args = parser.parse_args()
+    if args.physics:
+        physics_throughput(args.env_task, args.env_envs, args.env_steps, args.env_rounds)
+        return
     if not args.skip_env_step:
         env_step_throughput(args.env_task, args.env_envs, args.env_steps, args.env_rounds)
     sb3, sb3_envs = sb3_ppo_throughput(args.sb3_steps)
