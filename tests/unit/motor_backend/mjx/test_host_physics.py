@@ -86,7 +86,8 @@ def _copy_with(model: mujoco.MjModel, friction: float, mass: np.ndarray) -> mujo
     return changed
 
 
-def test_a_state_mujoco_rejects_comes_back_nan_and_reads_as_a_fall():
+def test_a_state_mujoco_rejects_comes_back_nan_and_reads_as_a_fall(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # MuJoCo appends its warning to MUJOCO_LOG.TXT in the working directory
     host, model = _physics()
     qpos = np.stack([model.qpos0, model.qpos0]).astype(np.float32)
     qvel = np.zeros((2, model.nv), np.float32)
