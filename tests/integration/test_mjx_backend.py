@@ -72,6 +72,9 @@ def test_report_on_mjx_trains_evaluates_records_and_writes_reports(workdir: Path
     config = json.loads(run_dir.read_text())
     assert config["backend"] == "mjx" and config["device"].startswith("CPU") and config["num_envs"] == 8
     assert config["timing"]["iteration_compiled_ahead"] is True  # compiled once, beside the envs' reset
+    # on a CPU the hopper's body steps in MuJoCo C (cpu_physics), and the record and the report say so
+    assert config["physics"].startswith("MuJoCo") and "called from JAX" in config["physics"]
+    assert config["physics"] in doc["runs"]["eval"]["config"]["provenance"]["figures_from"]
     assert (run_dir.parent / "policy.onnx").is_file()
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 

@@ -384,7 +384,7 @@ class MjxBackend(MotorBackendBase):
         eval_config = {**described, "policy_id": str(policy_id), "num_episodes": num_episodes, "seed": seed,
                        "algorithm": "ppo", "deterministic": True, "device": device_description()}
         provenance = EvalProvenance(
-            evaluator="mjx", figures_from=f"batched JAX rollouts of {task_id} ({env.physics_label} physics) on "
+            evaluator="mjx", figures_from=f"batched JAX rollouts of {task_id} (physics: {env.physics_label}) on "
             f"{device_description()} (the run's PPO policy, deterministic, metered as in training)",
             commanded_speed_m_per_s=env.settings.course.get("speed_m_per_s"),
             achieved_speed_m_per_s=walking_speed_m_per_s(rows), mean_power_w=mean_power_w(aggregate_raw(rows)))

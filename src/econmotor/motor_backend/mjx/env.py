@@ -127,7 +127,7 @@ class GymCourierEnv(Env):
             self._check_host_physics()
             self.host = HostPhysics(self.mj_model, self.frame_skip)
             self._template = self.host.template()
-            self.physics_label = f"MuJoCo {mujoco.__version__} C, called from JAX"
+            self.physics_label = f"MuJoCo {mujoco.__version__} (C), called from JAX"
         elif self.physics != "mjx":
             raise ConfigError(self.where, "cpu_physics", f"unknown physics {self.physics!r}", PHYSICS)
         self.observation_size = int(jax.eval_shape(lambda d: self._obs(d, self.model), self._template).shape[0])
@@ -139,6 +139,7 @@ class GymCourierEnv(Env):
         needs = [p for p in robot.obs_parts if p not in ("qpos", "qvel", "qvel_clipped", "qfrc_actuator")]
         needs += ["contact forces"] if robot.reads_contact_forces else []
         needs += [robot.forward_x] if robot.forward_x != "root_x" else []
+        needs += ["actuator activations"] if self.mj_model.na else []  # not carried between control steps
         if needs:
             raise ConfigError(self.where, "cpu_physics", f"{self.robot.robot.env_id} reads {', '.join(needs)}, "
                               "which MuJoCo C on the host does not return; use mjx", ["mjx"])
