@@ -37,7 +37,8 @@ from econmotor.errors import ConfigError
 from econmotor.motor_backend.mjx._mjx import mjx
 from econmotor.motor_backend.mjx.assets import RobotSpec, load_model, robot_spec
 from econmotor.motor_backend.mjx.base_env import Env, State, reading
-from econmotor.motor_backend.mjx.host_physics import PHYSICS, HostPhysics
+from econmotor.motor_backend.mjx.host_physics import HOST_OBS_PARTS, HostPhysics
+from econmotor.motor_backend.mjx.settings import PHYSICS
 from econmotor.robots import gym_couriers as robots
 
 #: the datapack domain-randomization keys this env honours (the others raise a ConfigError).
@@ -136,10 +137,9 @@ class GymCourierEnv(Env):
         """MuJoCo C on the host returns qpos, qvel and qfrc_actuator: a body whose observation, reward or
         forward x reads more (contact forces, body kinematics) needs MJX."""
         robot = self.robot.robot
-        needs = [p for p in robot.obs_parts if p not in ("qpos", "qvel", "qvel_clipped", "qfrc_actuator")]
+        needs = [p for p in robot.obs_parts if p not in HOST_OBS_PARTS]
         needs += ["contact forces"] if robot.reads_contact_forces else []
         needs += [robot.forward_x] if robot.forward_x != "root_x" else []
-        needs += ["actuator activations"] if self.mj_model.na else []  # not carried between control steps
         if needs:
             raise ConfigError(self.where, "cpu_physics", f"{self.robot.robot.env_id} reads {', '.join(needs)}, "
                               "which MuJoCo C on the host does not return; use mjx", ["mjx"])

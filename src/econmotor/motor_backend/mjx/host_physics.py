@@ -2,7 +2,7 @@
 
 On an accelerator the couriers step in MJX, thousands of envs at once. On a CPU MuJoCo C is faster for the
 small Gymnasium bodies (64 hoppers with the meter: 29,500 env steps/s against MJX's 19,800,
-``benchmarks/mjx_throughput.py --physics``; the demo's PPO rollout 51 ms against ~100 ms) and needs no XLA
+``benchmarks/mjx_throughput.py --physics``; the demo's PPO rollout 48 ms against ~100 ms) and needs no XLA
 compilation of the physics (the demo's iteration compiles in 3 s instead of 10.6 s). A task's ``cpu_physics: mujoco``
 (``tasks/mjx.yaml``, ``mjx/settings.py``) keeps everything else of the mjx backend (the JAX PPO, the
 wrappers and their meter, the evaluator, export) and steps the physics in MuJoCo C on a CPU: the env's step
@@ -25,6 +25,7 @@ model copy and ``MjData`` from a pool; MuJoCo releases the GIL inside ``mj_step`
 from __future__ import annotations
 
 import copy
+import functools
 import threading
 from collections.abc import Mapping
 from typing import Any, NamedTuple
@@ -34,9 +35,12 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from econmotor.motor_backend.mjx.settings import PHYSICS
+__all__ = ["HOST_OBS_PARTS", "RANDOMIZED", "HostData", "HostPhysics"]
 
-__all__ = ["PHYSICS", "HostData", "HostPhysics"]
+#: the observation parts (``robots/gym_couriers.py: OBS_PARTS``) a :class:`HostData` can give
+HOST_OBS_PARTS = ("qpos", "qvel", "qvel_clipped", "qfrc_actuator")
+#: the episode's randomization draws MuJoCo C applies to its model copy (``GymCourierEnv.randomized_model``'s)
+RANDOMIZED = ("friction_scale", "mass_scale")
 
 
 class HostData(NamedTuple):
@@ -94,34 +98,36 @@ class HostPhysics:
         return HostData(jnp.asarray(m.qpos0, jnp.float32), zeros, zeros, zeros)
 
     def step(self, data: HostData, ctrl: jax.Array, draws: Mapping[str, jax.Array]) -> HostData:
-        """``data`` after ``frame_skip`` steps under ``ctrl`` and the episode's randomization ``draws``."""
+        """``data`` after ``frame_skip`` steps under ``ctrl`` and the episode's randomization ``draws`` (only those
+        the env draws cross to the host)."""
         out = (jax.ShapeDtypeStruct(data.qpos.shape, jnp.float32),) + \
             (jax.ShapeDtypeStruct(data.qvel.shape, jnp.float32),) * 3
-        args = [data.qpos, data.qvel, data.qacc_warmstart, jnp.asarray(ctrl, jnp.float32)]
-        args += [draws.get("friction_scale", jnp.ones((), jnp.float32)),
-                 draws.get("mass_scale", jnp.ones((self.model.nbody,), jnp.float32))]
-        return HostData(*jax.pure_callback(self._host_step, out, *args, vmap_method="broadcast_all"))
+        keys = tuple(k for k in RANDOMIZED if k in draws)
+        args = [data.qpos, data.qvel, data.qacc_warmstart, jnp.asarray(ctrl, jnp.float32), *(draws[k] for k in keys)]
+        return HostData(*jax.pure_callback(functools.partial(self._host_step, keys), out, *args,
+                                           vmap_method="broadcast_all"))
 
-    def _host_step(self, *arrays: np.ndarray) -> tuple[np.ndarray, ...]:
+    def _host_step(self, keys: tuple[str, ...], *arrays: np.ndarray) -> tuple[np.ndarray, ...]:
         """The callback: a free workspace steps the batch (XLA calls it from its own threads, which hold
         no Python state between calls, so workspaces are pooled here, not thread-local)."""
         with self._lock:
             work = self._free.pop() if self._free else _Workspace(self.model)
         try:
-            return self._step_batch(work, *arrays)
+            return self._step_batch(work, *arrays[:4], dict(zip(keys, arrays[4:], strict=True)))
         finally:
             with self._lock:
                 self._free.append(work)
 
     def _step_batch(self, work: _Workspace, qpos: np.ndarray, qvel: np.ndarray, warm: np.ndarray,
-                    ctrl: np.ndarray, friction: np.ndarray, mass: np.ndarray) -> tuple[np.ndarray, ...]:
+                    ctrl: np.ndarray, draws: dict[str, np.ndarray]) -> tuple[np.ndarray, ...]:
         m0 = self.model
         lead = qpos.shape[:-1]
         qpos, qvel, warm, ctrl = (np.asarray(a).reshape(-1, a.shape[-1]) for a in (qpos, qvel, warm, ctrl))
-        friction, mass = np.asarray(friction).reshape(-1), np.asarray(mass).reshape(-1, m0.nbody)
         n = qpos.shape[0]
+        friction = np.asarray(draws.get("friction_scale", np.ones(n))).reshape(n)
+        mass = np.asarray(draws.get("mass_scale", np.ones((n, m0.nbody)))).reshape(n, m0.nbody)
         m = work.fit(n).model
-        randomized = bool(np.any(friction != 1.0) or np.any(mass != 1.0))
+        randomized = bool(draws)
         oq = np.empty((n, m0.nq), np.float32)
         ov, ow, of = (np.empty((n, m0.nv), np.float32) for _ in range(3))
         skip = self.frame_skip

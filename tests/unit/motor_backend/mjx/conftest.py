@@ -69,9 +69,8 @@ def jitted_env(task_id: str, physics: str = "mjx", **model_options) -> JittedEnv
         if model_options:
             shipped = load_catalog().get(task_id).backends["mjx"].get("model_options", {})
             catalog = catalog_with_mjx_entry(task_id, model_options={**shipped, **model_options})
-        options = {"physics": physics} if load_catalog().get(task_id).backends["mjx"].get("robot") is None else {}
         _ENVS[key] = JittedEnv(make_env(GymCourierEnv, task_id, objective=every_term_objective(), catalog=catalog,
-                                        **options))
+                                        physics=physics))
     return _ENVS[key]
 
 

@@ -139,3 +139,27 @@ def test_a_body_mujoco_c_cannot_read_for_is_refused():
     with pytest.raises(ConfigError) as err:
         GymCourierEnv("ant_courier", physics="mujoco")
     assert "cpu_physics" in str(err.value) and "cfrc_ext" in str(err.value)
+
+
+def test_a_robot_cards_courier_cannot_step_in_mujoco_c():
+    """The G1's mjx courier reads MJX data (its PD, contacts, course): ``cpu_physics: mujoco`` is refused."""
+    catalog = catalog_with_mjx_entry("humanoid_locomotion_g1", "tasks/x.yaml", cpu_physics="mujoco")
+    with pytest.raises(ConfigError) as err:
+        parse_mjx_settings(catalog.get("humanoid_locomotion_g1"))
+    assert "cpu_physics" in str(err.value) and "robot card" in str(err.value)
+
+
+def test_control_steps_continue_one_mujoco_c_trajectory():
+    """Control step after control step, the host's state (its solver warm start included) continues what one
+    ``MjData`` stepped without a break would do, to float32's rounding of the carried state. The walker's feet
+    make its solver start matter (started from zero each control step, its trajectory parts by metres)."""
+    env = GymCourierEnv("walker_courier", physics="mujoco")
+    host, model = env.host, env.mj_model
+    d = mujoco.MjData(model)
+    state = host.template()
+    step = jax.jit(lambda s, a: host.step(s, a, {}))
+    for action in np.random.default_rng(5).uniform(-1.0, 1.0, (100, model.nu)).astype(np.float32):
+        state = step(state, jnp.asarray(action))
+        d.ctrl[:] = action
+        mujoco.mj_step(model, d, nstep=host.frame_skip)
+        np.testing.assert_allclose(state.qpos, d.qpos, atol=5e-4)  # carried: <= 7e-5; from zero: 2e-2 by step 100
