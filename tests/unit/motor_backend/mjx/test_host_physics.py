@@ -35,7 +35,7 @@ def test_host_steps_the_hopper_as_mjx_does(hopper, hopper_host):
     key = jax.random.PRNGKey(3)
     a, b = hopper.reset(key, NUM_ENVS), hopper_host.reset(key, NUM_ENVS)
     falls = 0
-    for action in _actions(80):
+    for action in map(jnp.asarray, _actions(80)):  # jax arrays, as every test of the shared env steps it
         a, b = jax.block_until_ready(hopper.step(a, action)), jax.block_until_ready(hopper_host.step(b, action))
         np.testing.assert_allclose(b.data.qpos, a.data.qpos, atol=2e-4)
         np.testing.assert_allclose(b.obs, a.obs, atol=2e-3)
@@ -110,7 +110,7 @@ def test_concurrent_callers_get_what_each_gets_alone(hopper_host):
     def roll(i: int, out: list) -> None:
         s = hopper_host.reset(keys[i], NUM_ENVS)
         for action in actions[i]:
-            s = hopper_host.step(s, action)
+            s = hopper_host.step(s, jnp.asarray(action))
         out[i] = np.asarray(jax.block_until_ready(s).data.qpos)
 
     alone: list = [None, None]
