@@ -101,9 +101,11 @@ def read_actor(path: str | Path, source: str | None = None) -> ImportedActor:
     import onnx
     from onnx import numpy_helper
 
+    from econmotor.couriers.onnx_file import load_onnx
+
     path = Path(path)
     where = source or str(path)
-    model = onnx.load(str(path))
+    model = load_onnx(path, source)
     graph = model.graph
     consts = {i.name: numpy_helper.to_array(i).astype(np.float32) for i in graph.initializer}
     for node in graph.node:

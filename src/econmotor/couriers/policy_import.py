@@ -36,6 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from econmotor.couriers.onnx_file import load_onnx, onnx_session
 from econmotor.errors import BackendError, ConfigError
 from econmotor.robots import CARDS, RobotCard
 
@@ -187,10 +188,8 @@ def find_shipped_policy(name: str, fallback_python: str | Path | None = None, fl
 
 
 def onnx_metadata(path: str | Path) -> dict[str, Any]:
-    """The ONNX file's metadata, JSON-decoded where it is JSON."""
-    import onnx
-
-    model = onnx.load(str(path), load_external_data=False)
+    """The ONNX file's metadata, JSON-decoded where it is JSON; a ConfigError names a file that is not ONNX."""
+    model = load_onnx(path, load_external_data=False)
     out: dict[str, Any] = {}
     for prop in model.metadata_props:
         try:
@@ -217,8 +216,6 @@ def robot_card_for(dof_names: Sequence[str], source: str) -> RobotCard:
 def resolve_contract(policy: str, fallback_python: str | Path | None = None) -> PolicyContract:
     """The :class:`PolicyContract` of a shipped policy name (found by :func:`find_shipped_policy`) or an
     ONNX file (module docstring)."""
-    import onnxruntime as ort
-
     path = find_shipped_policy(policy, fallback_python) if policy.startswith(NAME_PREFIX) else Path(policy)
     if not path.is_file():
         raise ConfigError("--policy", policy, "no such ONNX file")
@@ -232,7 +229,7 @@ def resolve_contract(policy: str, fallback_python: str | Path | None = None) -> 
         if len(meta[key]) != len(dof_names):
             raise ConfigError(source, key, f"{len(meta[key])} gains for {len(dof_names)} dof_names")
     card = robot_card_for(dof_names, source)
-    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    session = onnx_session(path, source)
     inp, out = session.get_inputs()[0], session.get_outputs()[0]
     contract = PolicyContract(
         policy=policy, onnx_path=str(path.resolve()), input_name=inp.name,
@@ -264,10 +261,9 @@ def batched_onnx_policy(contract: PolicyContract) -> Any:
     differently from its many-row one: callers that want a row's action not to depend on the batch
     pass at least two rows (:func:`econmotor.couriers.walker_env.run_episodes` does).
     """
-    import onnx
     import onnxruntime as ort
 
-    model = onnx.load(contract.onnx_path)
+    model = load_onnx(contract.onnx_path, contract.policy)
     for value in [*model.graph.input, *model.graph.output]:
         dims = value.type.tensor_type.shape.dim
         if len(dims) > 0:
@@ -275,7 +271,7 @@ def batched_onnx_policy(contract: PolicyContract) -> Any:
     options = ort.SessionOptions()
     options.intra_op_num_threads = 1
     options.inter_op_num_threads = 1
-    session = ort.InferenceSession(model.SerializeToString(), options, providers=["CPUExecutionProvider"])
+    session = onnx_session(model.SerializeToString(), contract.onnx_path, options)
     name = contract.input_name
 
     def act(obs: Any) -> Any:

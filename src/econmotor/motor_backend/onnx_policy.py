@@ -62,13 +62,15 @@ class OnnxPolicyHandle(StepAlias):
     def __init__(self, path: str | Path) -> None:
         import onnxruntime as ort
 
+        from econmotor.couriers.onnx_file import onnx_session
+
         self.path = Path(path)
         if not self.path.is_file():
             raise BackendError(f"no ONNX policy at {self.path}; train or export one first")
         options = ort.SessionOptions()
         options.intra_op_num_threads = 1
         options.inter_op_num_threads = 1
-        self.session = ort.InferenceSession(str(self.path), options, providers=["CPUExecutionProvider"])
+        self.session = onnx_session(self.path, self.path, options)
         raw = self.session.get_modelmeta().custom_metadata_map
         self.metadata: dict[str, Any] = econmotor_metadata(raw)
         self.holosoma_metadata = {k: json_or_text(v) for k, v in raw.items()
