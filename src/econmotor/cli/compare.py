@@ -35,7 +35,13 @@ from econmotor.cli.options import (
     split_datapack_values,
 )
 from econmotor.cli.reporting import ReportInputs, price_imported
-from econmotor.cli.validation import check_db_url, check_flags, check_output_dir, evaluation_plan
+from econmotor.cli.validation import (
+    check_command_speeds,
+    check_db_url,
+    check_flags,
+    check_output_dir,
+    evaluation_plan,
+)
 from econmotor.config.acceptance import ERROR_RATE_CHECK
 from econmotor.economics.pricing import PricingPolicy
 from econmotor.economics.uncertainty import SequentialPlan
@@ -255,8 +261,8 @@ EVAL_EPISODES = typer.Option(None, "--eval-episodes", help="Exactly N episodes p
                              "evaluation of each, until its verdict is decided, or a cap).")
 SEED = typer.Option(0, "--seed", help="Seed of the evaluations (the same for every policy).")
 DATAPACKS = typer.Option([], "--datapacks", help="Datapack YAML paths or registered ids (stress).")
-COMMAND_SPEED = typer.Option(None, "--command-speed", min=0.05, help="Commanded walking speed, m/s (default: the "
-                             "task catalog's course speed).")
+COMMAND_SPEED = typer.Option(None, "--command-speed", help="Commanded walking speed, m/s (default: the task "
+                             "catalog's course speed; at most 10 m/s and each policy's own command range).")
 OUTPUT_DIR = typer.Option(None, "--output-dir", help="Where reports and the comparison go (default "
                           "reports/<task>/compare).")
 DB_URL = typer.Option(None, "--db-url", help="Registry URL (default as for `econmotor report`).")
@@ -282,6 +288,7 @@ def compare_command(
     check_flags(eval_episodes=eval_episodes, seed=seed, spread_share=spread_share,
                 eval_max_episodes=eval_max_episodes, eval_max_seconds=eval_max_seconds)
     check_policies(policies)
+    check_command_speeds([command_speed], policies)
     cls = backend_class(motor_backend)  # resolved once; the checks below ask it
     check_imports_policies(cls, "--motor-backend")
     speed = course_speed_options(cls, command_speed)  # the contract's keyword, where declared

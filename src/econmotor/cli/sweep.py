@@ -17,6 +17,7 @@ from econmotor.cli._interrupts import set_deadline_note
 from econmotor.cli.options import check_imports_policies, course_speed_options, open_registry, split_ids
 from econmotor.cli.validation import (
     MAX_SWEEP_CELLS,
+    check_command_speeds,
     check_db_url,
     check_flags,
     check_output_dir,
@@ -154,7 +155,7 @@ def parse_command_speeds(text: str | None, backend: type[MotorBackendBase], poli
                           "e.g. 0.4,0.6,0.8,1.0") from None
     if not speeds:
         raise ConfigError("--command-speed", text, "no speed given", "e.g. 0.4,0.6,0.8,1.0")
-    check_flags(command_speed=speeds)
+    check_command_speeds(speeds, [policy] if policy else [])
     if len(set(speeds)) != len(speeds):
         raise ConfigError("--command-speed", text, "a speed is named twice")
     if policy is None:

@@ -110,6 +110,24 @@ def check_flags(**values: Any) -> None:
             FLAG_RULES[flag].check(flag, item)
 
 
+def check_command_speeds(speeds: Iterable[float | None], policies: Iterable[str] = ()) -> None:
+    """Each ``--command-speed`` (m/s; None: the catalog's) against its rule (finite, 0.05-10 m/s) and against
+    the fastest forward command each of ``policies`` was trained for (``lin_vel_x``'s top in its ONNX metadata):
+    the walker clips its command to that top (``couriers/course.py``), so a faster speed would price the policy
+    at a speed other than the one asked for."""
+    from econmotor.couriers.onnx_actor import policy_command_ranges
+
+    speeds = [s for s in speeds if s is not None]
+    check_flags(command_speed=speeds)
+    for policy in policies if speeds else ():
+        top = (policy_command_ranges(policy).get("lin_vel_x") or (None, None))[1]
+        beyond = [s for s in speeds if top is not None and s > float(top)]
+        if beyond:
+            raise ConfigError("--command-speed", None, f"{beyond[0]:g} m/s is beyond the command range of policy "
+                              f"{policy} (its ONNX metadata: lin_vel_x up to {float(top):g} m/s); its walker would "
+                              f"be commanded {float(top):g} m/s", f"a speed >= 0.05 and <= {float(top):g} m/s")
+
+
 def evaluation_plan(backend: Any, task_id: str, eval_episodes: int | None, max_episodes: int | None,
                     max_seconds: float | None) -> Any:
     """How the evaluation run chooses its episodes: None for a fixed ``--eval-episodes N``, else the

@@ -90,6 +90,23 @@ def policy_file(policy: str, holosoma_venv: str | Path | None = None) -> Path:
     return path
 
 
+def policy_command_ranges(policy: str) -> dict[str, Any]:
+    """The command ranges ``policy`` was trained for, from its ONNX metadata (Holosoma's ``command_ranges``:
+    ``lin_vel_x`` [min, max] m/s, ...): a shipped name, an ONNX file or a run directory's ``policy.onnx``.
+    ``{}`` when it declares none or is not found (the command's own checks name a bad policy)."""
+    import os
+
+    from econmotor.couriers.policy_import import VENV_ENV, onnx_metadata
+    from econmotor.errors import EconmotorError
+
+    run_file = Path(policy) / "policy.onnx"
+    try:
+        path = run_file if run_file.is_file() else policy_file(policy, os.environ.get(VENV_ENV))
+        return dict(onnx_metadata(path).get("command_ranges") or {})
+    except EconmotorError:
+        return {}
+
+
 def _decode(value: str) -> Any:
     from econmotor.motor_backend.onnx_policy import json_or_text
 
