@@ -11,12 +11,17 @@ through :class:`~econmotor.couriers.walker_env.WalkerBatch`:
   holding both threads back (``benchmarks/walker_throughput.py`` measures both; docs/architecture.md).
 - every ``batch`` episodes finished in order, ``stop(episodes)`` may end the evaluation (a sequential
   verdict); the workers are then stopped. An episode's figures depend on its seed only.
+- a worker ends when its parent process does (:func:`_exit_with_parent`): a parent killed with
+  SIGKILL runs no cleanup, and its orphaned workers would step their remaining episodes at full CPU.
 """
 
 from __future__ import annotations
 
 import multiprocessing as mp
+import multiprocessing.connection
+import os
 import queue as queue_module
+import threading
 import time
 import traceback
 from collections.abc import Callable
@@ -75,8 +80,28 @@ def _run(ev: WalkerEvaluation, indices: list[int], emit: Callable[[int, dict[str
         batch.close()
 
 
+#: a worker's exit status when its parent died under it (its episodes went nowhere)
+ORPHANED_EXIT = 70
+
+
+def _exit_with_parent() -> None:
+    """End this process as soon as its parent dies, from a daemon thread that waits on the parent's
+    sentinel (multiprocessing's pipe from the parent, whose end of it closes only when the parent exits).
+    Waiting instead of polling ``os.getppid()``: no wake-ups, and no window in which a reused pid passes."""
+    parent = mp.parent_process()
+    if parent is None:  # not started by multiprocessing
+        return
+
+    def watch() -> None:
+        mp.connection.wait([parent.sentinel])
+        os._exit(ORPHANED_EXIT)  # no cleanup to run: nobody reads this worker's queue any more
+
+    threading.Thread(target=watch, name="econmotor-parent-watch", daemon=True).start()
+
+
 def _worker(ev: WalkerEvaluation, contract: PolicyContract, indices: list[int], out: Any, stop: Any) -> None:
     """A worker process: episodes to ``out`` as ``("episode", index, metrics)``; ``("end", None, None)``."""
+    _exit_with_parent()
     try:
         _run(ev, indices, lambda i, episode: out.put(("episode", i, episode)) or stop.is_set(), contract)
         out.put(("end", None, None))
