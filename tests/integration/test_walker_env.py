@@ -5,8 +5,10 @@
   old meter read from ``qfrc_actuator`` and ``qvel`` against the env's from its actuator-force sensors;
 - an episode's figures depend on its seed only: one slot or several, one worker process or two, under a
   stress datapack with every per-episode draw (friction, payload, pushes, gains, control delay);
-- the shipped PPO walkers walk the task's course at the speed and energy the one-robot evaluator measured
-  (seeds 0-3 there: G1 0.5282 m/s and 0.9987 Wh per leg, T1 0.5744 m/s and 1.1811 Wh per leg);
+- the shipped PPO walkers walk the task's course at the speed the one-robot evaluator measured (seeds 0-3
+  there: G1 0.5282 m/s, T1 0.5744 m/s) and at today's energy with the cards' motor models (G1 2.2706 Wh per
+  leg, T1 2.5925; 0.9987 and 1.1811 on the meter without the windings' heat);
+- standing still under the dwell draws the windings' heat above the idle draw;
 - the runaway rule ends a blown-up episode as a fall; the SB3 ``VecEnv`` resets in the same step and
   hands back the terminal observation, and SB3's PPO learns on it.
 """
@@ -52,7 +54,7 @@ def python_pd_reference(card, kp, kd, actions):
     data.qpos[qadr] = card.array("default_dof_angles")
     mujoco.mj_forward(model, data)
     limit, default = card.array("effort_limits"), card.array("default_dof_angles")
-    mech_j, qpos = 0.0, []
+    mech_j, heat_j, qpos = 0.0, 0.0, []
     for action in actions:
         target = default + card.action_scale * action.astype(np.float64)
         for _ in range(card.decimation):
@@ -60,8 +62,9 @@ def python_pd_reference(card, kp, kd, actions):
             data.ctrl[act] = np.clip(kp * (target - q) - kd * qd, -limit, limit)
             mujoco.mj_step(model, data)
             mech_j += float(np.sum(np.abs(data.qfrc_actuator[dadr] * data.qvel[dadr]))) * card.physics_dt_s
+            heat_j += float(np.sum(card.heat_coeff() * data.qfrc_actuator[dadr] ** 2)) * card.physics_dt_s
         qpos.append(data.qpos[qadr].copy())
-    return np.asarray(qpos), mech_j
+    return np.asarray(qpos), mech_j, heat_j
 
 
 def test_pd_by_actuators_equals_the_python_pd_law(g1_ppo):
@@ -69,7 +72,7 @@ def test_pd_by_actuators_equals_the_python_pd_law(g1_ppo):
     steps = 50  # one second of control
     phase = np.arange(card.num_dofs) * 0.7
     actions = [np.float32(0.4) * np.sin(0.3 * k + phase).astype(np.float32) for k in range(steps)]
-    ref_qpos, ref_mech_j = python_pd_reference(card, kp, kd, actions)
+    ref_qpos, ref_mech_j, ref_heat_j = python_pd_reference(card, kp, kd, actions)
     batch = WalkerBatch(WalkerModel.build(card, kp, kd), SHORT, METER, Stress(), 60.0, 1, g1_ppo.command_ranges)
     batch.start(0, 0, 0)
     slots, qpos = np.array([0]), []
@@ -78,9 +81,11 @@ def test_pd_by_actuators_equals_the_python_pd_law(g1_ppo):
         qpos.append(batch._qpos(batch.state[0])[batch.walker.qpos_adr].copy())
     assert np.max(np.abs(np.asarray(qpos) - ref_qpos)) < 2e-3  # rad, after 200 physics steps
     length_s = steps * card.control_dt_s
-    ref_wh = cf.electrical_energy_wh(ref_mech_j / length_s, METER.drivetrain_efficiency, METER.idle_power_w, length_s)
+    ref_wh = cf.electrical_energy_wh(ref_mech_j / length_s, METER.drivetrain_efficiency, METER.idle_power_w, length_s,
+                                     ref_heat_j / length_s)
     assert float(batch.sums.energy_wh[0]) == pytest.approx(ref_wh, rel=5e-3)
-    assert ref_mech_j > 1.0  # the sequence does work: the check compares something
+    assert float(batch.heat_wh[0]) == pytest.approx(ref_heat_j / 3600.0, rel=5e-3)
+    assert ref_mech_j > 1.0 and ref_heat_j > 1.0  # the sequence does work and heats: the check compares something
 
 
 def figures(episodes):
@@ -104,8 +109,8 @@ def test_an_episode_depends_on_its_seed_only(g1_ppo):
 
 
 @pytest.mark.parametrize(("policy", "task_id", "speed", "wh_per_leg"), [
-    ("holosoma:g1_29dof/ppo", "humanoid_locomotion_g1", 0.5282, 0.9987),
-    ("holosoma:t1_29dof/ppo", "humanoid_locomotion_t1", 0.5744, 1.1811),
+    ("holosoma:g1_29dof/ppo", "humanoid_locomotion_g1", 0.5282, 2.2706),
+    ("holosoma:t1_29dof/ppo", "humanoid_locomotion_t1", 0.5744, 2.5925),
 ])
 def test_the_shipped_walkers_walk_at_todays_nominal_speed_and_energy(policy, task_id, speed, wh_per_leg):
     spec = load_catalog().get(task_id)
@@ -188,3 +193,33 @@ def test_a_stopped_evaluation_returns_the_episodes_up_to_the_look_that_stopped_i
 
     episodes, _ = evaluate(ev, 12, workers, stop=stop, batch=2)
     assert asked == [2] and len(episodes) == 2  # six end together at their time limit: the look at 2 still decides
+
+
+def test_standing_under_the_dwell_draws_the_windings_heat_above_the_idle_draw(g1_ppo):
+    """The G1 standing still under its shipped walker (a 0 m/s command, as in the course's dwells): holding
+    its bent knees is current, and the meter charges the windings' heat on top of the idle draw (without
+    the card's motor model the same stand costs little more than idle)."""
+    import dataclasses
+
+    from econmotor.couriers.walker_eval import batched_onnx_policy
+
+    spec = load_catalog().get("humanoid_locomotion_g1")
+    settings = task_settings(spec.task_id, spec.backend_entry("holosoma"), spec.source)
+    meter = MeterSettings(**meter_settings(spec.task_id, settings, spec.source))
+    stand = CourseSettings(leg_m=10.0, dwell_s=20.0, speed_m_per_s=0.0, legs=1)
+
+    def power(card) -> tuple[float, float]:
+        batch = WalkerBatch(WalkerModel.build(card, np.asarray(g1_ppo.kp), np.asarray(g1_ppo.kd)), stand, meter,
+                            Stress(), 4.0, 2, g1_ppo.command_ranges)
+        rows: list[dict] = []
+        run_episodes(batch, batched_onnx_policy(g1_ppo), [(0, 0), (1, 1)], lambda i, ep: rows.append(ep))
+        assert sum(r["errors"] for r in rows) == 0 and all(r["distance_m"] < 0.5 for r in rows)  # it stood
+        return float(np.mean([r["mean_power_w"] for r in rows])), float(np.mean([r["mean_heat_power_w"] for r in rows]))
+
+    standing_w, heat_w = power(g1_ppo.card)
+    bare_w, bare_heat_w = power(dataclasses.replace(g1_ppo.card, motor_model=None))
+    print(f"G1 standing under its walker: {standing_w:.1f} W ({heat_w:.1f} W winding heat, idle "
+          f"{meter.idle_power_w:g} W); without the motor model {bare_w:.1f} W")
+    assert bare_heat_w == 0.0 and heat_w > 100.0
+    assert standing_w > meter.idle_power_w + 100.0
+    assert standing_w - bare_w == pytest.approx(heat_w, rel=1e-6)  # the same stand: only the heat differs

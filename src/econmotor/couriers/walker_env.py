@@ -17,8 +17,9 @@ the couriers' shared formulas (:func:`econmotor.economics.courier_formulas.meter
   ``mujoco.rollout`` call steps every robot ``decimation`` physics steps (C threads, no GIL).
 - **metering** from what the rollout records at each physics step: the base pose (units on the
   forward high-water mark, tilt risk, the fall rule) from the state, joint power from the
-  actuator-force sensors (``actuatorfrc``, added to the model) times the joint velocities: the
-  same readings the meter takes from ``qfrc_actuator`` and ``qvel``. A fall ends the episode at
+  actuator-force sensors (``actuatorfrc``, added to the model) times the joint velocities, and the
+  windings' heat from those forces (the card's motor model): the same readings the meter takes
+  from ``qfrc_actuator`` and ``qvel``. A fall ends the episode at
   its physics step; nothing after it is metered.
 - **seeds**: episode ``i`` draws everything from ``numpy.random.default_rng(seed_i)`` in a fixed
   order and starts from a reset MjData of its slot (on C threads, every control step starts
@@ -119,6 +120,8 @@ class WalkerBatch:
         self.delayed = np.zeros(self.n, dtype=bool)
         self.sums = cf.MeterSums(steps=np.zeros(self.n), units=np.zeros(self.n), best_x=np.zeros(self.n),
                                  errors=np.zeros(self.n), energy_wh=np.zeros(self.n), risk_sum=np.zeros(self.n))
+        self.heat_wh = np.zeros(self.n)  # the windings' share of energy_wh, per slot
+        self._heat_coeff = card.heat_coeff()
         self.default = card.array("default_dof_angles")
         self._pool = rollout.Rollout(nthread=self.nthread) if self.nthread > 1 else None
 
@@ -164,6 +167,7 @@ class WalkerBatch:
             part[slot] = 0.0
         for name in _SUMS:
             getattr(self.sums, name)[slot] = 0.0
+        self.heat_wh[slot] = 0.0
         self.sums.best_x[slot] = d.qpos[0]
 
     def place(self, slot: int, x_m: float, course: crs.CourseState, elapsed_steps: int) -> None:
@@ -308,8 +312,9 @@ class WalkerBatch:
         x = np.where(live, qpos[..., 0], -np.inf)
         best, units = cf.forward_units(s.best_x[slots], np.nan_to_num(x.max(axis=1), nan=-np.inf), c.leg_distance_m,
                                        np)
+        heat_w = cf.winding_heat_w(frc, self._heat_coeff, np)
         energy = cf.electrical_energy_wh(cf.mechanical_power_w(frc, qvel[..., w.dof_adr], np), c.drivetrain_efficiency,
-                                         c.idle_power_w, c.dt_s)
+                                         c.idle_power_w, c.dt_s, heat_w)
         risk = cf.tilt_risk(tilt, c.tilt_margin_rad, c.fall_tilt_rad, np)
         s.steps[slots] += live.sum(axis=1)
         s.units[slots] += units
@@ -317,6 +322,7 @@ class WalkerBatch:
         s.errors[slots] += fell * 1.0
         s.energy_wh[slots] += np.where(live, energy, 0.0).sum(axis=1)
         s.risk_sum[slots] += np.where(live, risk, 0.0).sum(axis=1)
+        self.heat_wh[slots] += np.where(live, heat_w, 0.0).sum(axis=1) * (c.dt_s / cf.SECONDS_PER_HOUR)
         return fell
 
     # ------------------------------------------------------------------ an episode's figures
@@ -329,6 +335,7 @@ class WalkerBatch:
         finished = bool(crs.course_finished(crs.CourseState(*(p[slot] for p in self.course_state)), self.course, np))
         length_s = n * card.physics_dt_s
         power_w = energy_wh * cf.SECONDS_PER_HOUR / length_s if length_s > 0 else 0.0
+        heat_w = float(self.heat_wh[slot]) * cf.SECONDS_PER_HOUR / length_s if length_s > 0 else 0.0
         self.episodes[slot] = None
         return {
             "units_completed": units, "units_attempted": units + errors, "errors": errors,
@@ -339,9 +346,9 @@ class WalkerBatch:
             "distance_m": best_x - card.init_pos[0], "legs_reached": legs_done,
             "commanded_speed_m_per_s": min(self.course.speed_m_per_s, self.vx_max),
             "achieved_speed_m_per_s": walk_m / walk_s if walk_s > 0 else 0.0, "walking_s": walk_s,
-            "max_lateral_m": float(self.max_lateral_m[slot]), "mean_power_w": power_w,
+            "max_lateral_m": float(self.max_lateral_m[slot]), "mean_power_w": power_w, "mean_heat_power_w": heat_w,
             "mean_mech_power_w": cf.mechanical_from_electrical_w(power_w, self.meter.drivetrain_efficiency,
-                                                                 self.meter.idle_power_w),
+                                                                 self.meter.idle_power_w, heat_w),
             "pushes": float(ep.pushes), **{f"stress_{k}": v for k, v in ep.draws.items()},
         }
 

@@ -18,8 +18,9 @@ Per control step of ``dt_s`` seconds:
 - units (:func:`forward_units`): ``best_x' = max(best_x, x)``; ``units += (best_x' - best_x) / leg_distance_m``
   (a high-water mark: moving back and forth earns nothing),
 - energy (:func:`electrical_energy_wh`): mechanical power ``P_mech = sum_j |qfrc_actuator_j * qvel_j|`` W
-  (:func:`mechanical_power_w`), electrical ``P_el = P_mech / drivetrain_efficiency + idle_power_w``
-  (:func:`electrical_power_w`),
+  (:func:`mechanical_power_w`), the motors' winding heat ``P_heat = sum_j k_j * qfrc_actuator_j ** 2`` W
+  (:func:`winding_heat_w`; ``k_j`` from the robot's card, 0 for a robot without a motor model),
+  electrical ``P_el = P_mech / drivetrain_efficiency + P_heat + idle_power_w`` (:func:`electrical_power_w`),
   ``energy_wh += P_el * dt_s / 3600``,
 - risk (:func:`tilt_risk`): ``clip((tilt - tilt_margin_rad) / (fall_tilt_rad - tilt_margin_rad), 0, 1)``,
 - falls: a step that ends in a fall is one error,
@@ -90,21 +91,35 @@ def mechanical_power_w(qfrc_actuator: Any, qvel: Any, xp: Any) -> Any:
     return xp.sum(xp.absolute(xp.multiply(qfrc_actuator, qvel)), axis=-1)
 
 
-def electrical_power_w(mechanical_w: Any, drivetrain_efficiency: float, idle_power_w: float) -> Any:
-    """Electrical W drawn for a mechanical joint power: ``P_el = P_mech / drivetrain_efficiency + idle_power_w``
-    (braking counted as dissipated: ``P_mech`` sums absolute joint powers)."""
-    return mechanical_w / drivetrain_efficiency + idle_power_w
+def winding_heat_w(qfrc_actuator: Any, heat_coeff: Any, xp: Any) -> Any:
+    """The joint motors' winding (copper) heat, W: ``P_heat = sum_j k_j * tau_j ** 2`` over the last axis.
+
+    A joint that holds torque ``tau_j`` (N m, after the gear) draws current ``I = tau_j / (K_t G)`` through
+    its windings' resistance ``R``, whether or not it moves: ``I^2 R = k_j tau_j^2`` with
+    ``k_j = R / (K_t G)^2`` (W per (N m)^2). ``heat_coeff``: ``k_j`` per joint, an array of ``qfrc_actuator``'s
+    namespace (the robot card's :attr:`~econmotor.robots.card.MotorModel.heat_w_per_nm2`).
+    """
+    return xp.sum(qfrc_actuator * qfrc_actuator * heat_coeff, axis=-1)
 
 
-def mechanical_from_electrical_w(electrical_w: Any, drivetrain_efficiency: float, idle_power_w: float) -> Any:
-    """The inverse of :func:`electrical_power_w`: ``P_mech = (P_el - idle_power_w) * drivetrain_efficiency`` (W)."""
-    return (electrical_w - idle_power_w) * drivetrain_efficiency
+def electrical_power_w(mechanical_w: Any, drivetrain_efficiency: float, idle_power_w: float,
+                       heat_w: Any = 0.0) -> Any:
+    """Electrical W drawn for a mechanical joint power and the windings' heat:
+    ``P_el = P_mech / drivetrain_efficiency + P_heat + idle_power_w`` (braking counted as dissipated:
+    ``P_mech`` sums absolute joint powers; ``P_heat``: :func:`winding_heat_w`, 0 without a motor model)."""
+    return mechanical_w / drivetrain_efficiency + heat_w + idle_power_w
+
+
+def mechanical_from_electrical_w(electrical_w: Any, drivetrain_efficiency: float, idle_power_w: float,
+                                 heat_w: Any = 0.0) -> Any:
+    """The inverse of :func:`electrical_power_w`: ``P_mech = (P_el - P_heat - idle_power_w) * drivetrain_efficiency`` (W)."""
+    return (electrical_w - heat_w - idle_power_w) * drivetrain_efficiency
 
 
 def electrical_energy_wh(mechanical_w: Any, drivetrain_efficiency: float, idle_power_w: float,
-                         dt_s: float) -> Any:
-    """Electrical Wh over one control step: ``(P_mech / drivetrain_efficiency + idle_power_w) * dt_s / 3600``."""
-    return electrical_power_w(mechanical_w, drivetrain_efficiency, idle_power_w) * (dt_s / SECONDS_PER_HOUR)
+                         dt_s: float, heat_w: Any = 0.0) -> Any:
+    """Electrical Wh over one step: ``(P_mech / drivetrain_efficiency + P_heat + idle_power_w) * dt_s / 3600``."""
+    return electrical_power_w(mechanical_w, drivetrain_efficiency, idle_power_w, heat_w) * (dt_s / SECONDS_PER_HOUR)
 
 
 def tilt_risk(tilt_rad: Any, tilt_margin_rad: float, fall_tilt_rad: float, xp: Any) -> Any:
@@ -143,6 +158,7 @@ class StepReading(NamedTuple):
     fell: Any  # the step ended in a fall (bool)
     novelty_bonus: Any = 0.0  # :func:`novelty_bonus` of this step's cell
     pose_similarity: Any = 0.0  # pose tracking's similarity at this step (0 without motion clips)
+    heat_w: Any = 0.0  # :func:`winding_heat_w` over the actuated dofs, W (0 without a motor model)
 
 
 @dataclass
@@ -170,7 +186,8 @@ def meter_step(sums: MeterSums, reading: StepReading, c: MeterConstants, xp: Any
     sums.units += units_gained
     sums.best_x = best_x
     sums.errors += reading.fell * 1.0  # a fall is one error (``fell``: a bool)
-    sums.energy_wh += electrical_energy_wh(reading.mechanical_w, c.drivetrain_efficiency, c.idle_power_w, c.dt_s)
+    sums.energy_wh += electrical_energy_wh(reading.mechanical_w, c.drivetrain_efficiency, c.idle_power_w, c.dt_s,
+                                           reading.heat_w)
     sums.risk_sum += tilt_risk(reading.tilt_rad, c.tilt_margin_rad, c.fall_tilt_rad, xp)
     sums.novelty_sum += reading.novelty_bonus
     sums.pose_sum += reading.pose_similarity

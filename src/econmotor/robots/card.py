@@ -77,6 +77,53 @@ def locomotion_observation(num_dofs: int, scales: Mapping[str, float], gait_peri
 
 
 @dataclass(frozen=True)
+class MotorModel:
+    """The joint motors' losses the meter counts beyond the drivetrain's efficiency: winding heat.
+
+    A joint holding torque ``tau_j`` draws current whether it moves or not, and the current heats the
+    windings: ``P_heat = sum_j k_j tau_j^2`` W
+    (:func:`econmotor.economics.courier_formulas.winding_heat_w`), ``k_j = R_j / (K_t,j G_j)^2`` from a
+    motor datasheet (winding resistance, torque constant, gear ratio) where one is published.
+
+    - ``heat_w_per_nm2``: ``k_j`` per joint (the card's ``dof_names`` order), W per (N m)^2;
+    - ``basis``: ``"datasheet"`` or ``"calibrated"``; ``source``: the datasheet, or the figure the
+      coefficients are calibrated to and how (:func:`scaled_heat_model`).
+    """
+
+    heat_w_per_nm2: tuple[float, ...]
+    basis: str
+    source: str
+
+    def __post_init__(self) -> None:
+        if self.basis not in ("datasheet", "calibrated"):
+            raise ValueError(f"motor model basis must be 'datasheet' or 'calibrated', got {self.basis!r}")
+        if any(not (k >= 0.0) for k in self.heat_w_per_nm2):
+            raise ValueError("motor model heat_w_per_nm2 must be >= 0 W/(N m)^2 per joint")
+
+
+def scaled_heat_model(effort_limits: tuple[float, ...], heat_at_limit_w_per_nm: float, source: str) -> MotorModel:
+    """A calibrated :class:`MotorModel` where no datasheet is published: every joint's winding heat at its
+    effort limit is proportional to that limit, ``k_j tau_max,j^2 = a tau_max,j``, so
+    ``k_j = a / tau_max,j`` (W per (N m)^2; ``a = heat_at_limit_w_per_nm``, W per N m of peak torque).
+
+    Why this shape: a bigger joint carries a bigger motor (or gear) whose losses at its own peak grow
+    with the torque it is built for, not with its square; one constant ``a`` is then fitted to the
+    maker's stated runtime (``source`` says to what and how).
+    """
+    return MotorModel(tuple(heat_at_limit_w_per_nm / float(t) for t in effort_limits), "calibrated", source)
+
+
+@dataclass(frozen=True)
+class StatedRuntime:
+    """The maker's stated runtime per charge: ``hours`` of ``activity`` (e.g. "continuous operation"),
+    and where it is stated (``source``)."""
+
+    hours: float
+    activity: str
+    source: str
+
+
+@dataclass(frozen=True)
 class RobotCard:
     """One robot's facts (module docstring). Joint-indexed tuples follow ``dof_names``.
 
@@ -129,6 +176,10 @@ class RobotCard:
     holosoma_experiment: str
     inference_preset: str
     sources: Mapping[str, str] = field(default_factory=dict)
+    #: the joint motors' winding heat (None: the meter counts drivetrain efficiency and idle draw only)
+    motor_model: MotorModel | None = None
+    #: the maker's runtime per charge (the report sets the meter's beside it); None: not stated
+    stated_runtime: StatedRuntime | None = None
     #: m/s: a walker moves at ~1 m/s and a push adds a few; past this the state has blown up
     runaway_speed_m_per_s: float = 20.0
 
@@ -138,6 +189,9 @@ class RobotCard:
             if len(getattr(self, key)) != n:
                 raise ValueError(f"robot card {self.name}: {key} has {len(getattr(self, key))} values "
                                  f"for {n} dof_names")
+        if self.motor_model is not None and len(self.motor_model.heat_w_per_nm2) != n:
+            raise ValueError(f"robot card {self.name}: motor_model has {len(self.motor_model.heat_w_per_nm2)} "
+                             f"coefficients for {n} dof_names")
         if self.observation.dims.get("actions", n) != n or self.observation.dims.get("dof_pos", n) != n:
             raise ValueError(f"robot card {self.name}: observation dims disagree with {n} dof_names")
 
@@ -167,6 +221,12 @@ class RobotCard:
     def phase_dt(self) -> float:
         """The gait clock's advance per control step, rad."""
         return 2.0 * np.pi / (self.control_rate_hz * self.observation.gait_period_s)
+
+    def heat_coeff(self, dtype: type = np.float64) -> np.ndarray:
+        """The winding-heat coefficients ``k_j`` (W per (N m)^2) per joint; zeros without a motor model."""
+        if self.motor_model is None:
+            return np.zeros(self.num_dofs, dtype=dtype)
+        return np.asarray(self.motor_model.heat_w_per_nm2, dtype=dtype)
 
     def array(self, key: str, dtype: type = np.float64) -> np.ndarray:
         """A joint-indexed field as an array (``kp``, ``kd``, ``default_dof_angles``, ``effort_limits``)."""

@@ -14,7 +14,17 @@ Sources (``tests/integration/test_robot_cards.py`` holds every value to them):
 
 from __future__ import annotations
 
-from econmotor.robots.card import HOLOSOMA_LOCOMOTION, RobotCard, locomotion_observation
+from econmotor.robots.card import HOLOSOMA_LOCOMOTION, RobotCard, StatedRuntime, locomotion_observation, scaled_heat_model
+
+EFFORT_LIMITS = (
+    88.0, 139.0, 88.0, 139.0, 50.0, 50.0,
+    88.0, 139.0, 88.0, 139.0, 50.0, 50.0,
+    88.0, 50.0, 50.0,
+    25.0, 25.0, 25.0, 25.0, 25.0, 5.0, 5.0,
+    25.0, 25.0, 25.0, 25.0, 25.0, 5.0, 5.0,
+)
+#: W of winding heat per N m of a joint's effort limit, at that limit (:func:`scaled_heat_model`)
+HEAT_AT_LIMIT_W_PER_NM = 13.0
 
 CARD = RobotCard(
     **HOLOSOMA_LOCOMOTION,
@@ -52,13 +62,7 @@ CARD = RobotCard(
         0.907222843, 0.907222843, 0.907222843, 0.907222843, 0.907222843, 1.068141502, 1.068141502,
         0.907222843, 0.907222843, 0.907222843, 0.907222843, 0.907222843, 1.068141502, 1.068141502,
     ),
-    effort_limits=(
-        88.0, 139.0, 88.0, 139.0, 50.0, 50.0,
-        88.0, 139.0, 88.0, 139.0, 50.0, 50.0,
-        88.0, 50.0, 50.0,
-        25.0, 25.0, 25.0, 25.0, 25.0, 5.0, 5.0,
-        25.0, 25.0, 25.0, 25.0, 25.0, 5.0, 5.0,
-    ),
+    effort_limits=EFFORT_LIMITS,
     init_pos=(0.0, 0.0, 0.8),
     root_body="pelvis",
     torso_body="torso_link",
@@ -73,4 +77,15 @@ CARD = RobotCard(
              "simulator": "holosoma 0.0.3 config_values/loco/g1/experiment.py g1_29dof",
              "observation": "holosoma_inference 0.1.3 preset g1-29dof-loco",
              "fall rule": "assumption: econmotor's sim-to-sim evaluator and meter (risk 1 at fall_tilt_rad)"},
+    # No datasheet of the G1's joint motors is published (torque constant, winding resistance, gear ratio):
+    # the winding-heat constant is fitted to the maker's runtime (benchmarks/motor_heat_calibration.py).
+    motor_model=scaled_heat_model(EFFORT_LIMITS, HEAT_AT_LIMIT_W_PER_NM, (
+        "calibrated: k_j = 13.0 / effort limit W/(N m)^2 (13 W of winding heat per N m at a joint's limit, "
+        "1.8 kW at the knee's 139 N m), fitted so that Holosoma's shipped G1 PPO walker on the "
+        "humanoid_locomotion_g1 course at its default 1 m/s command (10 m legs, 20 s dwells) draws "
+        "421.2 Wh / 2 h = 210.6 W: the maker's stated runtime (benchmarks/motor_heat_calibration.py, "
+        "16 episodes, seeds 1000-1015)")),
+    stated_runtime=StatedRuntime(2.0, "continuous operation", (
+        "Unitree G1 spec sheet: about 2 h of battery life on the 9000 mAh, 421.2 Wh pack; Unitree's "
+        "developer guide asks for straight knees and little standing still, where the battery goes")),
 )

@@ -33,6 +33,43 @@ def test_constant_torque_energy_over_an_hour_by_hand():
     assert cf.electrical_energy_wh(0.0, 0.8, 0.0, 1.0) == 0.0
 
 
+def _namespaces() -> list:
+    import jax.numpy as jnp
+    torch = pytest.importorskip("torch")
+    from econmotor.motor_backend.holosoma.econ_formulas import torch_namespace
+
+    return [pytest.param((np, np.asarray), id="numpy"), pytest.param((jnp, jnp.asarray), id="jax"),
+            pytest.param((torch_namespace(), lambda a: torch.as_tensor(a, dtype=torch.float64)), id="torch")]
+
+
+@pytest.mark.parametrize("namespace", _namespaces())
+def test_one_joint_with_winding_heat_by_hand(namespace):
+    xp, array = namespace
+    # one joint, 10 N m at 2 rad/s, k = 0.1 W/(N m)^2: 20 W mechanical / 0.8 = 25 W, heat 0.1 * 10^2 = 10 W,
+    # idle 50 W: 85 W electrical; over 36 s, 0.85 Wh
+    tau, qd, k = array([10.0]), array([2.0]), array([0.1])
+    mech, heat = cf.mechanical_power_w(tau, qd, xp), cf.winding_heat_w(tau, k, xp)
+    assert (float(mech), float(heat)) == (pytest.approx(20.0), pytest.approx(10.0))
+    assert float(cf.electrical_power_w(mech, 0.8, 50.0, heat)) == pytest.approx(85.0)
+    assert float(cf.electrical_energy_wh(mech, 0.8, 50.0, 36.0, heat)) == pytest.approx(0.85)
+    # holding the same torque without moving: no mechanical power, the heat and the idle draw remain
+    held = cf.mechanical_power_w(tau, array([0.0]), xp)
+    assert float(cf.electrical_power_w(held, 0.8, 50.0, heat)) == pytest.approx(60.0)
+    # the sign of the torque does not matter; two joints add
+    two = cf.winding_heat_w(array([[-10.0, 3.0]]), array([0.1, 0.5]), xp)
+    assert float(two[0]) == pytest.approx(10.0 + 4.5)
+    # the inverse recovers the mechanical power from the electrical
+    assert float(cf.mechanical_from_electrical_w(85.0, 0.8, 50.0, 10.0)) == pytest.approx(20.0)
+
+
+def test_the_meter_step_adds_the_windings_heat_to_the_energy():
+    sums = cf.MeterSums()
+    cf.meter_step(sums, cf.StepReading(x_m=0.0, mechanical_w=20.0, tilt_rad=0.0, fell=False, heat_w=10.0),
+                  CONSTANTS, cf.PY)
+    # (20 / 0.8 + 10 + 50) W over 0.02 s
+    assert sums.energy_wh == pytest.approx(85.0 * 0.02 / 3600.0)
+
+
 @pytest.mark.parametrize("xp", [cf.PY, np], ids=["py", "numpy"])
 def test_units_count_the_forward_high_water_mark_only(xp):
     best, gained = cf.forward_units(0.0, 4.0, 10.0, xp)

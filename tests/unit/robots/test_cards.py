@@ -167,3 +167,37 @@ def test_a_batch_of_robots_observes_as_each_robot_alone(name: str) -> None:
     rows_j = jax.jit(lambda **s: build_observation(c, jnp, **s))(
         **{k: jnp.asarray(v, jnp.float32) for k, v in {**batch, **common}.items()})
     np.testing.assert_allclose(np.asarray(rows_j), rows, atol=2e-6, rtol=1e-6)
+
+
+def test_a_scaled_motor_model_puts_heat_at_the_limit_in_proportion_to_the_limit() -> None:
+    from econmotor.robots.card import scaled_heat_model
+
+    model = scaled_heat_model((100.0, 20.0), 13.0, "calibration")
+    # k_j = 13 / limit: at its limit a 100 N m joint heats 1,300 W, a 20 N m one 260 W
+    assert model.heat_w_per_nm2 == (pytest.approx(0.13), pytest.approx(0.65))
+    assert model.heat_w_per_nm2[0] * 100.0 ** 2 == pytest.approx(1300.0)
+    assert model.heat_w_per_nm2[1] * 20.0 ** 2 == pytest.approx(260.0)
+    assert model.basis == "calibrated"
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_every_card_robot_has_a_sourced_motor_model_and_a_stated_runtime(name: str) -> None:
+    c = CARDS[name]
+    assert c.motor_model is not None and c.motor_model.basis in ("datasheet", "calibrated")
+    assert "calibrated" in c.motor_model.source or "datasheet" in c.motor_model.source
+    k = c.heat_coeff()
+    assert k.shape == (c.num_dofs,) and np.all(k > 0)
+    assert c.stated_runtime is not None and c.stated_runtime.hours > 0 and c.stated_runtime.source
+
+
+def test_a_card_without_a_motor_model_meters_no_heat_and_a_wrong_length_is_refused() -> None:
+    import dataclasses
+
+    from econmotor.robots.card import MotorModel
+
+    g1 = CARDS["g1_29dof"]
+    assert np.all(dataclasses.replace(g1, motor_model=None).heat_coeff() == 0.0)
+    with pytest.raises(ValueError, match="motor_model has 2 coefficients for 29"):
+        dataclasses.replace(g1, motor_model=MotorModel((0.1, 0.1), "calibrated", "x"))
+    with pytest.raises(ValueError, match="basis"):
+        MotorModel((0.1,), "guessed", "x")

@@ -5,9 +5,9 @@ sim-to-sim evaluator, :mod:`econmotor.couriers.walker_env`) are metered by the s
 :mod:`econmotor.economics.courier_formulas`, with the same constants (the task catalog's
 ``backends.holosoma`` entry, ``walker_task.meter_settings``):
 
-- electrical power ``P_el = sum_i |tau_i qd_i| / eta + idle_power_w`` (W; ``cf.mechanical_power_w``,
-  ``cf.electrical_power_w``; braking counted as dissipated: the G1/T1 drivers burn regenerated
-  energy in shunt resistors),
+- electrical power ``P_el = sum_i |tau_i qd_i| / eta + sum_i k_i tau_i^2 + idle_power_w`` (W;
+  ``cf.mechanical_power_w``, ``cf.winding_heat_w`` with the robot card's motor model, ``cf.electrical_power_w``;
+  braking counted as dissipated: the G1/T1 drivers burn regenerated energy in shunt resistors),
 - tilt risk ``clip((tilt - tilt_margin_rad) / (fall_tilt_rad - tilt_margin_rad), 0, 1)`` of the base's
   tilt from upright (``cf.tilt_risk`` of :func:`base_tilt_rad`).
 
@@ -85,11 +85,12 @@ def overlay_term_rates(
     constants: cf.MeterConstants,
     episode_s: float,
     xp: Any,
+    heat_w: Any = 0.0,
 ) -> dict[str, Any]:
     """Raw per-step rates of the overlay keys, normalised so sum_t rate_t * dt = episode metric.
 
     ``constants``: the courier meter's (:func:`econmotor.couriers.walker_task.meter_constants`, ``dt_s``
-    the control step).
+    the control step); ``heat_w``: the windings' heat (``cf.winding_heat_w``, 0 without a motor model).
     Holosoma's reward manager adds ``raw * weight * dt`` each step, so over an episode of the
     nominal length ``T = episode_s``:
 
@@ -100,7 +101,7 @@ def overlay_term_rates(
     - ``novelty_score``: rate = novelty / T                  ->  sum = mean novelty
     """
     c = constants
-    electrical_w = cf.electrical_power_w(mechanical_w, c.drivetrain_efficiency, c.idle_power_w)
+    electrical_w = cf.electrical_power_w(mechanical_w, c.drivetrain_efficiency, c.idle_power_w, heat_w)
     return {
         "mpl_per_hour": progress_units_per_s * (cf.SECONDS_PER_HOUR / episode_s),
         "energy_kwh": electrical_w / (cf.SECONDS_PER_HOUR * cf.WH_PER_KWH),

@@ -37,7 +37,7 @@ from econmotor.motor_backend.mjx.settings import MjxTaskSettings, parse_mjx_sett
 from econmotor.tasks import load_catalog
 
 #: one metered physics step (:class:`econmotor.economics.courier_formulas.StepReading`'s physics fields)
-READING_KEYS = ("x_m", "mechanical_w", "tilt_rad", "fell")
+READING_KEYS = ("x_m", "mechanical_w", "tilt_rad", "fell", "heat_w")
 
 
 class State(NamedTuple):
@@ -75,11 +75,12 @@ def like(new: Mapping[str, Any], old: Mapping[str, jax.Array]) -> dict[str, jax.
     return {k: jnp.asarray(v, jnp.asarray(old[k]).dtype) for k, v in new.items()}
 
 
-def reading(x_m: Any, mechanical_w: Any, tilt_rad: Any, fell: Any) -> dict[str, jax.Array]:
-    """One metered physics step (:data:`READING_KEYS`), typed as every step's."""
+def reading(x_m: Any, mechanical_w: Any, tilt_rad: Any, fell: Any, heat_w: Any = 0.0) -> dict[str, jax.Array]:
+    """One metered physics step (:data:`READING_KEYS`), typed as every step's (``heat_w``: the windings'
+    heat, :func:`~econmotor.economics.courier_formulas.winding_heat_w`; 0 for a body without a motor model)."""
     f32 = jnp.float32
     return {"x_m": jnp.asarray(x_m, f32), "mechanical_w": jnp.asarray(mechanical_w, f32),
-            "tilt_rad": jnp.asarray(tilt_rad, f32), "fell": jnp.asarray(fell, bool)}
+            "tilt_rad": jnp.asarray(tilt_rad, f32), "fell": jnp.asarray(fell, bool), "heat_w": jnp.asarray(heat_w, f32)}
 
 
 class Env:

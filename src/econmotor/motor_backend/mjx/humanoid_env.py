@@ -181,6 +181,7 @@ class HumanoidWalkerEnv(Env):
         self._default = jnp.asarray(c.default_dof_angles, jnp.float32)
         self._kp, self._kd = jnp.asarray(c.kp, jnp.float32), jnp.asarray(c.kd, jnp.float32)
         self._limit = jnp.asarray(c.effort_limits, jnp.float32)
+        self._heat_coeff = jnp.asarray(c.heat_coeff(np.float32))  # the card's motor model (W per (N m)^2)
 
     # ------------------------------------------------------------------ physics readouts
     def has_fallen(self, qpos: jax.Array, qvel: jax.Array) -> jax.Array:
@@ -280,8 +281,10 @@ class HumanoidWalkerEnv(Env):
             tau = jnp.clip(kp * (target - q) - kd * qd, -self._limit, self._limit)
             d = mjx.step(m, d.replace(ctrl=d.ctrl.at[self._act].set(tau)))
             fell = self.has_fallen(d.qpos, d.qvel)
-            now = reading(d.qpos[0], cf.mechanical_power_w(d.qfrc_actuator[self._dadr], d.qvel[self._dadr], jnp),
-                          root_tilt_rad(d.qpos, True, jnp), fell) if self.readings else {}
+            frc = d.qfrc_actuator[self._dadr]
+            now = reading(d.qpos[0], cf.mechanical_power_w(frc, d.qvel[self._dadr], jnp),
+                          root_tilt_rad(d.qpos, True, jnp), fell, cf.winding_heat_w(frc, self._heat_coeff, jnp)) \
+                if self.readings else {}
             return (d, alive & ~fell), now
 
         (data, alive), readings = jax.lax.scan(physics_step, (data, jnp.ones((), bool)), None,

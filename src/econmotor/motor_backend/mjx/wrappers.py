@@ -173,7 +173,8 @@ class EconomicMeter(Wrapper):
             before = dataclasses.replace(sums)
             fell = readings["fell"][i]
             cf.meter_step(sums, cf.StepReading(readings["x_m"][i], readings["mechanical_w"][i], readings["tilt_rad"][i],
-                                               fell, novelty_bonus if i == 0 else 0.0), self.constants, jnp)
+                                               fell, novelty_bonus if i == 0 else 0.0,
+                                               heat_w=readings["heat_w"][i]), self.constants, jnp)
             if alive is not None:  # the first reading counts always; a later one while the robot is up
                 for k in METER_KEYS:
                     setattr(sums, k, jnp.where(alive, getattr(sums, k), getattr(before, k)))

@@ -106,9 +106,10 @@ def test_training_terms_meter_each_step_as_the_evaluator_does(task_id: str, name
     dt_s = card(ROBOTS[task_id]).physics_dt_s  # the evaluator meters every physics step
     steps = _steps(seed=11)
     quat_xyzw = steps["qpos"][:, [4, 5, 6, 3]]  # Holosoma's base_quat order
+    heat_w = cf.winding_heat_w(array(steps["qfrc"]), array(card(ROBOTS[task_id]).heat_coeff()), xp)
     rates = overlay_term_rates(
         progress_units_per_s=array(np.zeros(STEPS)), fell=array(np.zeros(STEPS)), novelty=array(np.zeros(STEPS)),
-        mechanical_w=cf.mechanical_power_w(array(steps["qfrc"]), array(steps["qvel"]), xp),
+        mechanical_w=cf.mechanical_power_w(array(steps["qfrc"]), array(steps["qvel"]), xp), heat_w=heat_w,
         tilt_rad=base_tilt_rad(array(quat_xyzw), xp), constants=meter_constants(meter, dt_s),
         episode_s=EPISODE_S, xp=xp)
     # Holosoma's reward manager adds raw * dt per step: kWh per step, and risk / T
@@ -117,8 +118,12 @@ def test_training_terms_meter_each_step_as_the_evaluator_does(task_id: str, name
     priced_wh, priced_risk = _evaluator(steps, task_id)
     np.testing.assert_allclose(trained_wh, priced_wh, rtol=1e-9, atol=1e-15)
     np.testing.assert_allclose(trained_risk, priced_risk, rtol=1e-9, atol=1e-12)
-    # non-trivial figures compared: idle power at rest, no risk within the margin, full risk past a fall
-    at_rest = meter["idle_power_w"] * dt_s / cf.SECONDS_PER_HOUR
+    # non-trivial figures compared: the windings' heat a sizeable share of every step's draw (the robot card's
+    # motor model), idle power and heat at rest (a step without motion), no risk within the margin, full
+    # risk past a fall
+    heat_wh = np.asarray(heat_w) * dt_s / cf.SECONDS_PER_HOUR
+    assert np.all(heat_wh > 0.1 * trained_wh)
+    at_rest = meter["idle_power_w"] * dt_s / cf.SECONDS_PER_HOUR + heat_wh[0]
     assert meter["idle_power_w"] > 0 and trained_wh[0] == pytest.approx(at_rest)
     within, fallen = steps["tilt"] < meter["tilt_margin_rad"], steps["tilt"] >= meter["fall_tilt_rad"]
     assert within.any() and np.all(trained_risk[within] == 0.0)
@@ -158,9 +163,9 @@ class StepwiseMeter:
             self.fell = bool(tilt > b.card.fall_tilt_rad or qpos[2] < b.card.min_base_z_m
                              or not np.isfinite(state).all() or speed > b.runaway)
             mechanical = cf.mechanical_power_w(sensor[w.frc_adr].tolist(), qvel[w.dof_adr].tolist(), cf.PY)
-            cf.meter_step(self.sums,
-                          cf.StepReading(x_m=float(qpos[0]), mechanical_w=mechanical, tilt_rad=tilt, fell=self.fell),
-                          b.constants, cf.PY)
+            heat = float(cf.winding_heat_w(sensor[w.frc_adr], b.card.heat_coeff(), np))
+            cf.meter_step(self.sums, cf.StepReading(x_m=float(qpos[0]), mechanical_w=mechanical, tilt_rad=tilt,
+                                                    fell=self.fell, heat_w=heat), b.constants, cf.PY)
 
 
 def _tilted(angle_rad: float) -> tuple[float, float, float, float]:

@@ -78,6 +78,7 @@ from econmotor.motor_backend.results import (
 from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, read_run_config, write_run_config
 from econmotor.motor_backend.walker_pricing import WalkerPricing, price_walker
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
+from econmotor.robots import card as robot_card
 from econmotor.tasks.catalog import TaskCatalog
 
 __all__ = ["HolosomaBackend", "find_holosoma_python"]
@@ -253,6 +254,7 @@ class HolosomaBackend(MotorBackendBase):
             progress(f"holosoma: {text}", 1.0, 1.0)
         overlay_params = {k: settings[k] for k in ("progress_mode", "unit_duration_s", "novelty_rate")}
         overlay_params["meter"] = meter_settings(task_id, settings, spec.source)  # the evaluator's constants too
+        overlay_params["winding_heat_w_per_nm2"] = robot_card(str(settings["robot"]), spec.source).heat_coeff().tolist()
         job = TrainJob(run_dir=str(run_dir), run_name=f"{task_id}-seed{seed}", plan=plan, seed=int(seed),
                        motion_task=bool(settings["uses_motion_clip"]),
                        overlay=Overlay(weights=weights, params=overlay_params), overrides=overrides.to_dict())

@@ -9,8 +9,9 @@ and the sim-to-sim evaluator (:mod:`..econ_formulas`, the couriers' meter):
 - ``units_completed = sum_t progress_t * dt`` (progress in units/s: velocity along the
   command / ``unit_length_m``, or 1 / ``unit_duration_s`` while tracking a clip);
 - ``errors`` = falls (a reset that is not a time-out);
-- ``energy_wh = sum_t P_elec,t * dt / 3600`` with ``P_elec = P_mech / efficiency + idle_power_w``,
-  ``P_mech`` from torque x joint velocity averaged over the physics sub-steps;
+- ``energy_wh = sum_t P_elec,t * dt / 3600`` with ``P_elec = P_mech / efficiency + P_heat + idle_power_w``,
+  ``P_mech`` from torque x joint velocity and ``P_heat`` the windings' heat (the robot card's motor model),
+  each averaged over the physics sub-steps;
 - ``risk_score`` = mean tilt risk; ``novelty_score`` = mean joint-space novelty;
 - ``episode_length_s = steps * dt``; ``return`` = sum of Holosoma's step rewards.
 """
@@ -28,6 +29,7 @@ from econmotor.couriers.walker_task import meter_constants
 from econmotor.economics import courier_formulas as cf
 from econmotor.economics.termination import TerminationReason
 from econmotor.errors import BackendError
+from econmotor.robots import card as robot_card
 from econmotor.motor_backend.holosoma.econ_formulas import (
     base_tilt_rad,
     commanded_progress_m_per_s,
@@ -48,8 +50,11 @@ def step_series(data: Any, settings: Mapping[str, Any], meter: Mapping[str, floa
     else:
         command = data["commanded_velocity"] if "commanded_velocity" in data else np.zeros((steps, 3))
         progress = commanded_progress_m_per_s(data["base_lin_vel"][:, :2], command[:, :2]) / c.leg_distance_m
-    mechanical = cf.mechanical_power_w(data["torques_substep"], data["dof_vel_substep"], np).mean(-1)
-    power = cf.electrical_power_w(mechanical, c.drivetrain_efficiency, c.idle_power_w)
+    tau = data["torques_substep"]  # [steps, sub-steps, joints]
+    mechanical = cf.mechanical_power_w(tau, data["dof_vel_substep"], np).mean(-1)
+    heat = cf.winding_heat_w(tau, robot_card(str(settings["robot"]), "<recording>").heat_coeff(), np).mean(-1) \
+        if "robot" in settings else 0.0
+    power = cf.electrical_power_w(mechanical, c.drivetrain_efficiency, c.idle_power_w, heat)
     risk = cf.tilt_risk(base_tilt_rad(data["root_quat_xyzw"], np), c.tilt_margin_rad, c.fall_tilt_rad, np)
     q = data["dof_pos"].astype(np.float64)
     mean, var = q[0].copy(), np.ones_like(q[0])

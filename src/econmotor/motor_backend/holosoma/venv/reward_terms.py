@@ -15,8 +15,9 @@ each step (see :func:`econmotor.motor_backend.holosoma.econ_formulas.overlay_ter
 - progress toward the unit of work: base velocity along the commanded direction / metres
   per unit (``progress_mode="velocity"``), or tracked time / seconds per unit (``"time"``,
   whole-body tracking);
-- electrical power: sum |torque x joint velocity| (averaged over the physics sub-steps of the
-  control step) / drivetrain efficiency + idle power, the couriers' formula;
+- electrical power: sum |torque x joint velocity| / drivetrain efficiency + the windings' heat
+  sum k_j torque_j^2 (the robot card's motor model; both averaged over the physics sub-steps of the
+  control step) + idle power, the couriers' formula;
 - falls: terminations that are not time-outs (``reset_buf & ~time_out_buf``);
 - risk: the couriers' tilt risk of the base's tilt (0 within ``tilt_margin_rad``, 1 at ``fall_tilt_rad``);
 - novelty: distance of the joint configuration from its running statistics.
@@ -59,9 +60,11 @@ XP = torch_namespace()
 class _OverlayState:
     """Per-environment-batch state shared by all econ terms of one env object."""
 
-    def __init__(self, leader: int, num_envs: int, num_dof: int, device: Any) -> None:
+    def __init__(self, leader: int, num_envs: int, num_dof: int, device: Any, heat_coeff: Any = ()) -> None:
         self.leader = leader
         self.rates: dict[str, torch.Tensor] = {}
+        # the robot card's winding-heat coefficients per joint (W per (N m)^2); none: no motor model
+        self.heat_coeff = torch.as_tensor(list(heat_coeff) or [0.0] * num_dof, dtype=torch.float32, device=device)
         self.novelty_mean = torch.zeros(num_envs, num_dof, device=device)
         self.novelty_var = torch.ones(num_envs, num_dof, device=device)
         self.novelty_initialised = False
@@ -74,11 +77,15 @@ def _joint_control(env: Any) -> Any:
     raise RuntimeError("econ overlay: no action term with torques (needs Holosoma's joint_control)")
 
 
-def _mechanical_w(env: Any) -> torch.Tensor:
+def _joint_power_w(env: Any, heat_coeff: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """(mechanical W, winding heat W) of the control step, averaged over its physics sub-steps."""
     term = _joint_control(env)
     if hasattr(term, "torques_substep") and hasattr(term, "dof_vel_substep"):
-        return cf.mechanical_power_w(term.torques_substep, term.dof_vel_substep, XP).mean(-1)
-    return cf.mechanical_power_w(term.torques, env.simulator.dof_vel, XP)
+        tau = term.torques_substep  # [envs, sub-steps, joints]
+        return (cf.mechanical_power_w(tau, term.dof_vel_substep, XP).mean(-1),
+                cf.winding_heat_w(tau, heat_coeff, XP).mean(-1))
+    return (cf.mechanical_power_w(term.torques, env.simulator.dof_vel, XP),
+            cf.winding_heat_w(term.torques, heat_coeff, XP))
 
 
 def _progress_units_per_s(env: Any, params: dict[str, Any]) -> torch.Tensor:
@@ -99,9 +106,11 @@ def compute_step_rates(env: Any, state: _OverlayState, params: dict[str, Any]) -
     novelty, state.novelty_mean, state.novelty_var = novelty_step(
         q, state.novelty_mean, state.novelty_var, params["novelty_rate"]
     )
+    mechanical_w, heat_w = _joint_power_w(env, state.heat_coeff)
     return overlay_term_rates(
         progress_units_per_s=_progress_units_per_s(env, params),
-        mechanical_w=_mechanical_w(env),
+        mechanical_w=mechanical_w,
+        heat_w=heat_w,
         fell=fell,
         tilt_rad=base_tilt_rad(env.simulator.base_quat, XP),
         novelty=novelty,
@@ -118,7 +127,8 @@ class EconOverlayTerm(RewardTermBase):
     courier meter's constants, ``walker_task.meter_settings``: ``leg_distance_m`` metres per unit of
     work, ``drivetrain_efficiency``, ``idle_power_w``, ``tilt_margin_rad``, ``fall_tilt_rad``),
     ``unit_duration_s`` (seconds per unit in ``"time"`` mode), ``progress_mode`` (``"velocity"`` |
-    ``"time"``), ``novelty_rate``.
+    ``"time"``), ``novelty_rate``, ``winding_heat_w_per_nm2`` (the robot card's motor model per joint,
+    W per (N m)^2; absent: none).
     """
 
     def __init__(self, cfg: Any, env: Any) -> None:
@@ -129,7 +139,8 @@ class EconOverlayTerm(RewardTermBase):
         self.key = key
         state = getattr(env, _STATE_ATTR, None)
         if state is None:
-            state = _OverlayState(id(self), env.num_envs, env.simulator.dof_pos.shape[1], env.device)
+            state = _OverlayState(id(self), env.num_envs, env.simulator.dof_pos.shape[1], env.device,
+                                  cfg.params.get("winding_heat_w_per_nm2") or ())
             setattr(env, _STATE_ATTR, state)
         self.state = state
 
