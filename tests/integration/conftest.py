@@ -1,4 +1,5 @@
-"""Fixtures of the end-to-end tests: ``workdir``, and a throwaway PostgreSQL server (``pg_server``, ``pg_url``).
+"""Fixtures of the end-to-end tests: ``workdir``, and a throwaway PostgreSQL server (``pg_server``, ``pg_url``);
+:func:`sigterm_when`, a command line stopped the way a shell's ``kill`` stops it.
 
 Started on loopback once per session: initdb into a temporary directory, pg_ctl on a free
 port (as the ``postgres`` user when running as root, since PostgreSQL refuses root).
@@ -13,10 +14,12 @@ import glob
 import os
 import pwd
 import shutil
+import signal
 import socket
 import subprocess
 import tempfile
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -103,3 +106,23 @@ def workdir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     monkeypatch.chdir(tmp_path)
     monkeypatch.delenv("ECONMOTOR_DB_URL", raising=False)
     return tmp_path
+
+
+def sigterm_when(proc: subprocess.Popen, ready: Callable[[], bool], waiting_for: str, settle_s: float = 0.0,
+                 hang_s: float = 180.0) -> str:
+    """SIGTERM ``proc`` (started with ``start_new_session``, stderr piped as text) ``settle_s`` seconds after
+    ``ready()``; its stderr. Fails if it ends first or ``waiting_for`` does not come within ``hang_s``; its
+    process group is killed whatever happens, so nothing outlives the test."""
+    try:
+        deadline = time.monotonic() + hang_s
+        while not ready():
+            assert proc.poll() is None, proc.communicate()[1][-2000:]
+            assert time.monotonic() < deadline, f"{waiting_for} did not come within {hang_s:g} s"
+            time.sleep(0.1)
+        time.sleep(settle_s)
+        proc.send_signal(signal.SIGTERM)
+        return proc.communicate(timeout=60)[1]
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate(timeout=30)

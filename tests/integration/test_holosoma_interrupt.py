@@ -5,7 +5,6 @@ records the evaluation run as interrupted, leaves no worker behind and exits 143
 from __future__ import annotations
 
 import os
-import signal
 import sqlite3
 import subprocess
 import sys
@@ -13,6 +12,8 @@ import time
 from pathlib import Path
 
 import pytest
+
+from .conftest import sigterm_when
 
 pytestmark = [pytest.mark.holosoma]
 ECONMOTOR = Path(sys.executable).with_name("econmotor")
@@ -37,19 +38,8 @@ def test_sigterm_to_a_holosoma_report_exits_143_and_records_the_run_as_interrupt
             str(tmp_path / "out")]
     proc = subprocess.Popen([str(ECONMOTOR), *args], cwd=tmp_path, env={**os.environ, "OMP_NUM_THREADS": "1"},
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
-    try:
-        deadline = time.monotonic() + 180  # a hang guard
-        while run_status(db) != "running":
-            assert proc.poll() is None, proc.communicate()
-            assert time.monotonic() < deadline, "the evaluation run was never recorded"
-            time.sleep(0.2)
-        time.sleep(3)  # inside the episodes
-        proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.communicate(timeout=30)
+    err = sigterm_when(proc, lambda: run_status(db) == "running", "the evaluation run's record",
+                       settle_s=3)  # inside the episodes
     assert proc.returncode == 143, err[-2000:]  # 128 + SIGTERM
     assert "interrupted (signal SIGTERM)" in err and "still busy" not in err  # it stopped by itself
     assert run_status(db) == "interrupted"

@@ -231,7 +231,7 @@ def report_trained(a: ReportArgs, inputs: ReportInputs, backend: Any, plan: Sequ
                            train_eval_episodes=TRAINING_EVAL_EPISODES)
 
     def note() -> str:
-        return (f"{interrupted_note(a.motor_backend, a.task_id, run_dir, request.max_steps, 'report')}. "
+        return (f"{interrupted_note(a.motor_backend, a.task_id, run_dir, request.max_steps, 'report', a.init_policy)}. "
                 f"Registry: {inputs.url}; runs completed before are kept (price one with: econmotor report "
                 f"--motor-backend none --task-id {a.task_id} --run-id N)")
 

@@ -17,8 +17,10 @@ from econmotor.recording import TrainRequest, train_and_record
 from econmotor.store.registry import Registry
 
 
-def interrupted_note(backend: str, task: str, run_dir: Path, max_steps: int, command: str = "train") -> str:
-    """What an interrupted training run kept and how to go on (``command``: the one to start again)."""
+def interrupted_note(backend: str, task: str, run_dir: Path, max_steps: int, command: str = "train",
+                     init_policy: str | None = None) -> str:
+    """What an interrupted training run kept and how to go on: ``--resume`` from its newest checkpoint (which
+    holds the fine-tuned weights, so no ``--init-policy``), else ``command`` again from ``init_policy``."""
     checkpoints = backend_class(backend).checkpoints(run_dir)
     if checkpoints:
         return (f"the training run was recorded as interrupted. Kept: {len(checkpoints)} checkpoint(s) in "
@@ -26,7 +28,8 @@ def interrupted_note(backend: str, task: str, run_dir: Path, max_steps: int, com
                 f"{task} --motor-backend {backend} --output-dir {run_dir} --max-steps {max_steps} --resume")
     kept = f"the partial run directory {run_dir}" if run_dir.exists() else "no files"
     return (f"the training run was recorded as interrupted. Kept: {kept}; no checkpoint to resume from, so start "
-            f"again: econmotor {command} --task-id {task} --motor-backend {backend} --max-steps {max_steps}")
+            f"again: econmotor {command} --task-id {task} --motor-backend {backend} --max-steps {max_steps}"
+            + (f" --init-policy {init_policy}" if init_policy else ""))
 
 
 def train_with_bars(request: TrainRequest, backend: Any, url: str,

@@ -227,7 +227,8 @@ def train_command(
                            num_envs=size.num_envs, max_steps=size.max_steps, seed=seed,
                            train_eval_episodes=eval_episodes, output_dir=run_dir, backend_options=extra)
     registry, run_id, _ = train_with_bars(
-        request, motor, url, lambda: f"{interrupted_note(backend, task, run_dir, size.max_steps)} (registry {url})")
+        request, motor, url,
+        lambda: f"{interrupted_note(backend, task, run_dir, size.max_steps, init_policy=init_policy)} (registry {url})")
     show_trained(registry, run_id, task, backend, json_out)
 
 

@@ -83,7 +83,8 @@ class MotorBackendBase:
         max_num_envs: the most environments the backend can be asked for on any device;
             :meth:`num_envs_note` says how a request is adapted on this machine.
         final_policy_file: the file a complete run directory holds (its presence marks a run done).
-        checkpoint_glob: checkpoint files under ``<run>/checkpoints`` (None: no checkpoints).
+        checkpoint_glob: checkpoint files under ``<run>/checkpoints``, one pattern or several (None: no
+            checkpoints).
         environment_options: environment variable -> constructor keyword. A backend never reads the
             environment itself; the edge (the CLI) reads these and passes them
             (:func:`econmotor.motor_backend.factory.environment_options`).
@@ -97,7 +98,7 @@ class MotorBackendBase:
     smoke_run: ClassVar[RunSize] = RunSize(num_envs=1, max_steps=256)
     max_num_envs: ClassVar[int] = 256
     final_policy_file: ClassVar[str] = "policy.zip"
-    checkpoint_glob: ClassVar[str | None] = None
+    checkpoint_glob: ClassVar[str | tuple[str, ...] | None] = None
     environment_options: ClassVar[Mapping[str, str]] = {}
     held_out_cadence: ClassVar[HeldOutCadence] = HeldOutCadence()
 
@@ -177,7 +178,8 @@ class MotorBackendBase:
         folder = Path(run_dir) / "checkpoints"
         if cls.checkpoint_glob is None or not folder.is_dir():
             return []
-        return sorted(folder.glob(cls.checkpoint_glob), key=lambda p: p.stat().st_mtime)
+        globs = (cls.checkpoint_glob,) if isinstance(cls.checkpoint_glob, str) else cls.checkpoint_glob
+        return sorted({p for glob in globs for p in folder.glob(glob)}, key=lambda p: p.stat().st_mtime)
 
     def check_policy(self, policy_id: str) -> None:
         """Raise a ConfigError when ``policy_id`` cannot be evaluated by this backend, before any run is

@@ -91,7 +91,8 @@ class MujocoBackend(MotorBackendBase):
     smoke_run = RunSize(num_envs=1, max_steps=1024, task_id="hopper_courier")  # two PPO rollouts of 512
     max_num_envs = 256  # SB3 vector envs: one process (subproc) or one env object (dummy) each
     final_policy_file = "policy.zip"
-    checkpoint_glob = "*.zip"
+    # SB3's checkpoints, and the card robots' walker trainer's one (walker_training.CHECKPOINT_FILE)
+    checkpoint_glob = ("*.zip", "latest.pt")
 
     def __init__(self, *, task_files: Sequence[str | Path] = (), runs_dir: str | Path = "runs",
                  catalog: TaskCatalog | None = None,
