@@ -76,6 +76,10 @@ class EvalProvenance:
             episodes (None: no course).
         mean_power_w: mean electrical power over the episodes, W (None: not metered).
         mean_mech_power_w: the mechanical power behind it, W (None: not metered).
+        mean_heat_power_w: the joint motors' winding heat in it, W (None: no motor model).
+        stated_runtime_h: the maker's runtime per charge, h, from the robot's card (None: not stated);
+        stated_runtime: what the maker states it for (e.g. "continuous operation"); ``stated_runtime_source``:
+            where the maker states it.
     """
 
     evaluator: str = "unknown"
@@ -85,6 +89,10 @@ class EvalProvenance:
     achieved_speed_m_per_s: float | None = None
     mean_power_w: float | None = None
     mean_mech_power_w: float | None = None
+    mean_heat_power_w: float | None = None
+    stated_runtime_h: float | None = None
+    stated_runtime: str | None = None
+    stated_runtime_source: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The fields as a JSON-ready dict (what the registry and ``evaluation.json`` record)."""

@@ -33,6 +33,13 @@ from econmotor.motor_backend.results import (
 )
 
 
+def _mean_heat_power_w(episodes: Sequence[Mapping[str, Any]]) -> float:
+    """The windings' mean heat over the episodes, W, weighted by their lengths (0 without episodes)."""
+    seconds = sum(float(e["episode_length_s"]) for e in episodes)
+    return sum(float(e.get("mean_heat_power_w", 0.0)) * float(e["episode_length_s"]) for e in episodes) / seconds \
+        if seconds > 0 else 0.0
+
+
 @dataclass(frozen=True)
 class WalkerPricing:
     """Who prices what: the backend's name, the task (``spec`` and its walker ``settings``), the datapacks,
@@ -80,7 +87,9 @@ def price_walker(w: WalkerPricing, num_episodes: int, seed: int, run_dir: Path, 
                           episode_s=episode_s, seed=int(seed))
     episodes, wall_s = evaluate_walkers(ev, int(num_episodes), workers, progress=progress, stop=stop,
                                         batch=w.batch, timeout_s=w.timeout_s)
-    power_w = mean_power_w(aggregate_raw(episodes)) or 0.0
+    raw = aggregate_raw(episodes)
+    power_w, heat_w = mean_power_w(raw) or 0.0, _mean_heat_power_w(episodes)
+    stated = setup.card.stated_runtime
     contract_dict = contract.to_dict()
     provenance = EvalProvenance(
         evaluator="sim2sim", imported=w.imported,
@@ -90,7 +99,9 @@ def price_walker(w: WalkerPricing, num_episodes: int, seed: int, run_dir: Path, 
         commanded_speed_m_per_s=course.speed_m_per_s,
         achieved_speed_m_per_s=walking_speed_m_per_s(episodes) or 0.0,
         mean_power_w=power_w, mean_mech_power_w=mechanical_from_electrical_w(
-            power_w, meter["drivetrain_efficiency"], meter["idle_power_w"]))
+            power_w, meter["drivetrain_efficiency"], meter["idle_power_w"], heat_w), mean_heat_power_w=heat_w,
+        stated_runtime_h=stated.hours if stated else None,
+        stated_runtime=stated.activity if stated else None, stated_runtime_source=stated.source if stated else None)
     config = {
         "seed": int(seed), "policy": w.policy_id, "episode_length_s": episode_s, "course": asdict(course),
         "meter": meter, "datapacks": list(setup.datapack_ids),

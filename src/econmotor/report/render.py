@@ -95,11 +95,23 @@ def table_rows(doc: Mapping[str, Any]) -> list[tuple[str, ...]]:
     pricing = doc["pricing"]
     agg, dists, units = pricing["aggregate"], pricing.get("distributions") or {}, pricing["units"]
     rows = []
+    stated = stated_runtime_text(doc)
     for key, label in price_rows(agg):
         dist = dists.get(key, {})
+        if key == "battery_runtime_h" and stated:
+            label = f"{label[:-1]}; {stated})"
         rows.append((label, fmt(agg.get(key)), interval_text(doc, key),
                      *(fmt(dist.get(s)) for s in STAT_COLUMNS[1:]), units[key]))
     return rows
+
+
+def stated_runtime_text(doc: Mapping[str, Any]) -> str:
+    """The maker's runtime per charge beside the metered one (the robot card's, recorded in the evaluation's
+    provenance with its source), e.g. ``"the maker states 2 h of continuous operation"``; "" where no maker
+    states one."""
+    provenance = (((doc.get("runs") or {}).get("eval") or {}).get("config") or {}).get(PROVENANCE_KEY) or {}
+    hours = provenance.get("stated_runtime_h")
+    return f"the maker states {fmt(hours)} h of {provenance.get('stated_runtime')}" if hours else ""
 
 
 def evidence_text(doc: Mapping[str, Any]) -> str:

@@ -59,3 +59,16 @@ def test_a_robot_without_a_battery_has_no_battery_rows():
     assert [r[0] for r in table_rows(doc)] == [label for _, label in PRICE_ROWS]
     assert not any(key in doc["pricing"]["aggregate"] or key in doc["pricing"]["units"] for key, _ in BATTERY_ROWS)
     assert "per charge" not in render_markdown(doc)
+
+
+def test_the_runtime_row_says_the_makers_runtime_where_the_evaluation_records_one():
+    from econmotor.motor_backend.results import PROVENANCE_KEY
+
+    doc = _doc(battery=True)
+    runtime_label = BATTERY_ROWS[0][1]
+    assert runtime_label in [r[0] for r in table_rows(doc)]  # no evaluation provenance: the plain label
+    doc["runs"] = {**(doc.get("runs") or {}), "eval": {"config": {PROVENANCE_KEY: {
+        "stated_runtime_h": 2.0, "stated_runtime": "continuous operation", "stated_runtime_source": "spec sheet"}}}}
+    rows = {r[0]: r for r in table_rows(doc)}
+    label = "runtime per charge (battery capacity / robot energy per hour; the maker states 2 h of continuous operation)"
+    assert label in rows and rows[label][1] == "4"  # the meter's figure beside the maker's (console, md, html)
