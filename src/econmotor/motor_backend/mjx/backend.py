@@ -63,7 +63,7 @@ from econmotor.motor_backend.results import (
     mean_power_w,
     walking_speed_m_per_s,
 )
-from econmotor.motor_backend.selection import selection_for
+from econmotor.motor_backend.selection import fit_to_run, selection_for
 from econmotor.motor_backend.training_loop import CURVE_FILE
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.robots import card as robot_card
@@ -321,14 +321,16 @@ class MjxBackend(MotorBackendBase):
             cfg, initial, extra["init_policy"] = self._warm_start(init_policy, resume, env, cfg, hyperparameters,
                                                                   seed, progress)
         batch = self.evaluation_batch(task_id)
+        selection, notes = fit_to_run(selection_for(self.catalog.get(task_id), objective, select_every_steps,
+                                                    select_episodes, until_deployable, seed, self.held_out_cadence,
+                                                    batch), int(max_steps), env.max_episode_steps, eval_episodes)
+        for text in notes:
+            progress(f"mjx: {text}", 1.0, 1.0)
         run = MjxTrainingRun(
             run_dir=self.run_dir(output_dir, task_id, seed), env=train_env, described=described, cfg=cfg,
             requested_hyperparameters=hyperparameters, num_envs=used_envs, max_steps=int(max_steps), seed=int(seed),
             checkpoint_every_steps=int(checkpoint_every_steps or settings.checkpoint_every_steps),
-            extra_config=extra, initial=initial,
-            selection=selection_for(self.catalog.get(task_id), objective, select_every_steps, select_episodes,
-                                    until_deployable, seed, self.held_out_cadence, batch),
-            cache_dir=self.compilation_cache_dir)
+            extra_config=extra, initial=initial, selection=selection, cache_dir=self.compilation_cache_dir)
         if run.selection is not None or eval_episodes > 0:
             self._compile_evaluator_ahead(run, env)
         run.held_out = lambda learner, n, first_seed, stop: evaluate_episodes(
