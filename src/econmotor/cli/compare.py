@@ -180,16 +180,36 @@ PANELS = (("price_usd_per_unit", "price per unit (USD)"), ("units_per_hour", "un
           ("wh_per_unit", "Wh per unit"), ("fall_rate_bound", "fall-rate bound (95%)"))
 
 
+#: the longest policy name a bar is labelled with; longer ones (paths) get a letter and a line in the key
+MAX_TICK_LABEL = 16
+
+
+def policy_labels(policies: list[str]) -> tuple[list[str], list[str]]:
+    """Short, distinct bar labels of ``policies``, and the key that names them (empty when the labels are the names).
+
+    A shipped name loses its backend prefix and a file its folder and suffix (``holosoma:g1_29dof/ppo`` ->
+    ``g1_29dof/ppo``, ``exports/v3.onnx`` -> ``v3``); when one of those is longer than :data:`MAX_TICK_LABEL`
+    characters or two are the same (every run's file is ``policy.onnx``), the bars are lettered A, B, ... and the
+    key gives each letter's policy as the user named it: four paths as ticks ran into each other."""
+    short = [p.split(":", 1)[-1] if p.startswith("holosoma:") else Path(p).stem for p in policies]
+    if len(set(short)) == len(short) and max(map(len, short), default=0) <= MAX_TICK_LABEL:
+        return short, []
+    letters = [chr(ord("A") + i) if i < 26 else f"P{i + 1}" for i in range(len(policies))]
+    return letters, [f"{letter}: {policy}" for letter, policy in zip(letters, policies, strict=True)]
+
+
 def comparison_figure(ranked: list[dict[str, Any]], fall_rate_limit: float | None = None) -> Any:
     """The comparison plot (a matplotlib Figure): price per unit with its interval, units/h, Wh/unit and the
-    fall-rate bound per policy, in rank order. A refused (not deployable) policy's bars are grey and hatched and
-    its price is labelled "refused"; the fall-rate panel draws the acceptance limit ``fall_rate_limit``."""
+    fall-rate bound per policy, in rank order, each bar labelled by :func:`policy_labels` (a key under the panels
+    where they are letters). A refused (not deployable) policy's bars are grey and hatched and its price is
+    labelled "refused"; the fall-rate panel draws the acceptance limit ``fall_rate_limit``."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(12, 3.2))
+    names, legend = policy_labels([r["policy"] for r in ranked])
+    key_in = 0.18 * len(legend)  # inches of key lines under the panels
+    fig = Figure(figsize=(12, 3.2 + key_in))
     FigureCanvasAgg(fig)
-    names = [r["policy"].split(":", 1)[-1] for r in ranked]  # a shipped name without its backend prefix
     for i, (key, label) in enumerate(PANELS):
         ax = fig.add_subplot(1, 4, i + 1)
         values = [r[key] if r[key] is not None else 0.0 for r in ranked]
@@ -211,8 +231,10 @@ def comparison_figure(ranked: list[dict[str, Any]], fall_rate_limit: float | Non
                         fontsize=7, color="tab:red", xytext=(-2, 2), textcoords="offset points",
                         bbox={"facecolor": "white", "edgecolor": "none", "pad": 1})
         ax.set_title(label, fontsize=9)
-        ax.tick_params(axis="x", labelrotation=45, labelsize=7)
-    fig.tight_layout()
+        ax.tick_params(axis="x", labelsize=7)
+    if legend:
+        fig.text(0.01, 0.01, "\n".join(legend), fontsize=8, va="bottom", ha="left", family="monospace")
+    fig.tight_layout(rect=(0, key_in / (3.2 + key_in), 1, 1))
     return fig
 
 

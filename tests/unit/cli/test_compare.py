@@ -4,6 +4,8 @@ winner among policies that are not deployable; and its plot, which marks refused
 
 from __future__ import annotations
 
+import itertools
+
 from econmotor.cli.compare import comparison_figure, rank
 
 
@@ -112,3 +114,34 @@ def test_a_row_quotes_the_fall_rate_bound_its_reports_verdict_used():
     assert comparison_row("p", doc)["fall_rate_bound"] == 0.396
     doc["verdict"]["checks"] = []  # a report without the check: the interval's upper end
     assert comparison_row("p", doc)["fall_rate_bound"] == 0.181
+
+
+def test_four_policies_given_as_paths_are_lettered_with_a_key_and_every_label_is_readable() -> None:
+    """Four paths as tick labels ran into each other and off the figure (issue 52, item 7): the bars are
+    lettered, a key names each path, and every label lies inside the figure, apart from its neighbours."""
+    paths = ["runs/humanoid_locomotion_g1-20261202-035124-s0-6004/policy.onnx",
+             "/home/team/exports/g1_finetuned_energy_weighted_v3.onnx",
+             "runs/humanoid_locomotion_g1-20261203-101010-s1-7001/best/policy.onnx",
+             "/home/team/exports/g1_finetuned_energy_weighted_v4.onnx"]
+    ranked, _ = rank([_row(p, 0.12 + i / 100, 0.11 + i / 100, 0.13 + i / 100, bound=0.02)
+                      for i, p in enumerate(paths)])
+    fig = comparison_figure(ranked, fall_rate_limit=0.05)
+    fig.canvas.draw()
+    renderer, box = fig.canvas.get_renderer(), fig.bbox
+    for ax in fig.axes:
+        labels = [t for t in ax.get_xticklabels() if t.get_text()]
+        extents = [t.get_window_extent(renderer) for t in labels]
+        assert all(box.x0 <= e.x0 and e.x1 <= box.x1 and box.y0 <= e.y0 for e in extents)  # inside the figure
+        assert all(a.x1 < b.x0 for a, b in itertools.pairwise(extents))  # apart from each other
+        assert ax.get_position().height > 0.4  # a panel, not a strip
+        assert [t.get_text() for t in labels] == ["A", "B", "C", "D"]
+    key = "\n".join(t.get_text() for t in fig.texts)
+    assert all(f"{letter}: {r['policy']}" in key for letter, r in zip("ABCD", ranked, strict=True))
+
+
+def test_short_policy_names_label_the_bars_themselves() -> None:
+    from econmotor.cli.compare import policy_labels
+
+    assert policy_labels(["holosoma:g1_29dof/ppo", "holosoma:g1_29dof/fastsac", "exports/v3.onnx"]) == (
+        ["g1_29dof/ppo", "g1_29dof/fastsac", "v3"], [])
+    assert policy_labels(["a/policy.onnx", "b/policy.onnx"]) == (["A", "B"], ["A: a/policy.onnx", "B: b/policy.onnx"])
