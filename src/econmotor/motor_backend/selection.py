@@ -45,7 +45,8 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from econmotor.economics.uncertainty import CONFIDENCE, SequentialPlan
+from econmotor.economics.sequential_rule import SequentialPlan
+from econmotor.economics.uncertainty import CONFIDENCE
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.run_dir import SELECTION_SEED_OFFSET
 from econmotor.motor_backend.sequential import FAIL, Judged, SequentialEvaluation, judge_raw
@@ -301,8 +302,8 @@ class Selection:
 
 
 def fit_to_run(selection: Selection | None, max_steps: int, episode_steps: int, eval_episodes: int,
-               ) -> tuple[Selection | None, list[str]]:
-    """Bound a run's evaluations by its size, said before it starts: ``(selection to use, notes)``.
+               say: Callable[[str], Any]) -> Selection | None:
+    """Bound a run's evaluations by its size, each bound ``say``-d before the run starts: the selection to use.
 
     Costs are in env steps, the unit of ``max_steps``: a look (one batch of ``selection.config.batch`` episodes of up
     to ``episode_steps`` control steps) and the evaluation after training (``eval_episodes`` such episodes). A
@@ -311,20 +312,19 @@ def fit_to_run(selection: Selection | None, max_steps: int, episode_steps: int, 
     run asked of a whole-course task (the G1's 240 s episodes: 16 x 12,000 steps a look) spent minutes on each
     look it started. An explicit ``--select-every`` or ``--until-deployable`` is kept as asked. An evaluation
     after training that walks more steps than the training is announced with how to skip it."""
-    notes = []
     if selection is not None and selection.config.max_share is not None and not selection.config.until_deployable:
         share, look = selection.config.max_share, selection.config.batch * episode_steps
         if look * share > (1.0 - share) * max_steps:
-            notes.append(f"no held-out selection: one look ({selection.config.batch} episodes of up to "
+            say(f"no held-out selection: one look ({selection.config.batch} episodes of up to "
                          f"{episode_steps:,} control steps, {look:,} env steps) is more than {share:.0%} of this "
                          f"{max_steps:,}-step run, so the last weights are kept; --select-every N asks for them")
             selection = None
     walked = eval_episodes * episode_steps
     if walked > max_steps:
-        notes.append(f"after training, the evaluation walks {eval_episodes} episode(s) of up to {episode_steps:,} "
+        say(f"after training, the evaluation walks {eval_episodes} episode(s) of up to {episode_steps:,} "
                      f"control steps: up to {walked:,} env steps, {walked / max_steps:.3g}x the {max_steps:,} "
                      "trained; --eval-episodes 0 skips it")
-    return selection, notes
+    return selection
 
 
 def evaluation_cost_text(cost: Mapping[str, Any]) -> str:

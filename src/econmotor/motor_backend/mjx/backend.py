@@ -321,11 +321,9 @@ class MjxBackend(MotorBackendBase):
             cfg, initial, extra["init_policy"] = self._warm_start(init_policy, resume, env, cfg, hyperparameters,
                                                                   seed, progress)
         batch = self.evaluation_batch(task_id)
-        selection, notes = fit_to_run(selection_for(self.catalog.get(task_id), objective, select_every_steps,
-                                                    select_episodes, until_deployable, seed, self.held_out_cadence,
-                                                    batch), int(max_steps), env.max_episode_steps, eval_episodes)
-        for text in notes:
-            progress(f"mjx: {text}", 1.0, 1.0)
+        selection = fit_to_run(selection_for(self.catalog.get(task_id), objective, select_every_steps, select_episodes,
+                                             until_deployable, seed, self.held_out_cadence, batch), int(max_steps),
+                               env.max_episode_steps, eval_episodes, lambda text: progress(f"mjx: {text}", 1.0, 1.0))
         run = MjxTrainingRun(
             run_dir=self.run_dir(output_dir, task_id, seed), env=train_env, described=described, cfg=cfg,
             requested_hyperparameters=hyperparameters, num_envs=used_envs, max_steps=int(max_steps), seed=int(seed),

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import pytest
 
+from econmotor.cli.options import resolve_objective
 from econmotor.motor_backend.mjx.backend import MjxBackend
 from econmotor.motor_backend.selection import fit_to_run, selection_for
-from econmotor.cli.options import resolve_objective
 
 G1 = "humanoid_locomotion_g1"
 
@@ -33,15 +33,17 @@ def selection(g1, every=None, until_deployable=False):
 def test_a_short_whole_course_run_starts_no_look_and_says_what_its_evaluation_costs(g1) -> None:
     steps = g1[3]
     assert steps == 12_000  # the whole course: 240 s at 50 Hz
-    kept, notes = fit_to_run(selection(g1), 400, steps, 5)
-    assert kept is None
+    notes: list[str] = []
+    assert fit_to_run(selection(g1), 400, steps, 5, notes.append) is None
     assert "no held-out selection" in notes[0] and "--select-every N" in notes[0] and "400-step run" in notes[0]
     assert "up to 60,000 env steps" in notes[1] and "--eval-episodes 0 skips it" in notes[1]
 
 
 def test_what_was_asked_for_or_a_run_that_pays_for_its_looks_keeps_its_selection(g1) -> None:
     steps = g1[3]
+    notes: list[str] = []
     for asked in (selection(g1, every=80), selection(g1, until_deployable=True)):
-        assert fit_to_run(asked, 400, steps, 0) == (asked, [])
+        assert fit_to_run(asked, 400, steps, 0, notes.append) is asked
     default = selection(g1)
-    assert fit_to_run(default, 10_000_000, steps, 5) == (default, [])  # the catalog's run: looks cost under 10%
+    assert fit_to_run(default, 10_000_000, steps, 5, notes.append) is default  # the catalog's run: looks cost <10%
+    assert notes == []
