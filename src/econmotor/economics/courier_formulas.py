@@ -112,7 +112,8 @@ def electrical_power_w(mechanical_w: Any, drivetrain_efficiency: float, idle_pow
 
 def mechanical_from_electrical_w(electrical_w: Any, drivetrain_efficiency: float, idle_power_w: float,
                                  heat_w: Any = 0.0) -> Any:
-    """The inverse of :func:`electrical_power_w`: ``P_mech = (P_el - P_heat - idle_power_w) * drivetrain_efficiency`` (W)."""
+    """The inverse of :func:`electrical_power_w`, W:
+    ``P_mech = (P_el - P_heat - idle_power_w) * drivetrain_efficiency``."""
     return (electrical_w - heat_w - idle_power_w) * drivetrain_efficiency
 
 

@@ -14,7 +14,13 @@ Sources (``tests/integration/test_robot_cards.py`` holds every value to them):
 
 from __future__ import annotations
 
-from econmotor.robots.card import HOLOSOMA_LOCOMOTION, RobotCard, StatedRuntime, locomotion_observation, scaled_heat_model
+from econmotor.robots.card import (
+    HOLOSOMA_LOCOMOTION,
+    RobotCard,
+    StatedRuntime,
+    locomotion_observation,
+    scaled_heat_model,
+)
 
 EFFORT_LIMITS = (
     88.0, 139.0, 88.0, 139.0, 50.0, 50.0,

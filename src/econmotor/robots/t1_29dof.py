@@ -13,7 +13,13 @@ Sources (``tests/integration/test_robot_cards.py`` holds every value to them):
 
 from __future__ import annotations
 
-from econmotor.robots.card import HOLOSOMA_LOCOMOTION, RobotCard, StatedRuntime, locomotion_observation, scaled_heat_model
+from econmotor.robots.card import (
+    HOLOSOMA_LOCOMOTION,
+    RobotCard,
+    StatedRuntime,
+    locomotion_observation,
+    scaled_heat_model,
+)
 
 EFFORT_LIMITS = (
     7.0, 7.0,

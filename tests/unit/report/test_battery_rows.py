@@ -11,7 +11,8 @@ from econmotor.economics.pricing import PricingPolicy, price_evaluation
 from econmotor.motor_backend.results import summarize_episodes
 from econmotor.objectives import EconomicObjectiveSpec
 from econmotor.report.document import ReportContext, build_document
-from econmotor.report.render import BATTERY_ROWS, PRICE_ROWS, fmt, render_markdown, table_rows
+from econmotor.report.render import render_markdown
+from econmotor.report.text import BATTERY_ROWS, PRICE_ROWS, fmt, table_rows
 from econmotor.tasks import get_task
 
 # ten one-hour shifts of 60 dishes on 100 Wh (E_r 0.1 kWh/h, 1/0.6 Wh per dish)
@@ -70,5 +71,6 @@ def test_the_runtime_row_says_the_makers_runtime_where_the_evaluation_records_on
     doc["runs"] = {**(doc.get("runs") or {}), "eval": {"config": {PROVENANCE_KEY: {
         "stated_runtime_h": 2.0, "stated_runtime": "continuous operation", "stated_runtime_source": "spec sheet"}}}}
     rows = {r[0]: r for r in table_rows(doc)}
-    label = "runtime per charge (battery capacity / robot energy per hour; the maker states 2 h of continuous operation)"
+    label = ("runtime per charge (battery capacity / robot energy per hour; the maker states 2 h of continuous "
+             "operation)")
     assert label in rows and rows[label][1] == "4"  # the meter's figure beside the maker's (console, md, html)

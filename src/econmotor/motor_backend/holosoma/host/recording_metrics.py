@@ -29,12 +29,12 @@ from econmotor.couriers.walker_task import meter_constants
 from econmotor.economics import courier_formulas as cf
 from econmotor.economics.termination import TerminationReason
 from econmotor.errors import BackendError
-from econmotor.robots import card as robot_card
 from econmotor.motor_backend.holosoma.econ_formulas import (
     base_tilt_rad,
     commanded_progress_m_per_s,
     novelty_step,
 )
+from econmotor.robots import card as robot_card
 
 REQUIRED_CHANNELS = ("dof_pos", "torques_substep", "dof_vel_substep", "root_quat_xyzw", "reset", "time_out",
                      "reward", "base_lin_vel")
