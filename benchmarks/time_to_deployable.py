@@ -61,7 +61,7 @@ from econmotor.cli.demo import (
     DEMO_SELECT_EVERY,
     DEMO_TASK,
 )
-from econmotor.economics.uncertainty import SequentialPlan
+from econmotor.economics.sequential_rule import SequentialPlan
 from econmotor.motor_backend.factory import make_motor_backend
 from econmotor.motor_backend.selection import Selection, SelectionConfig
 from econmotor.motor_backend.sequential import evaluate_sequentially

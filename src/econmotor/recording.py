@@ -19,7 +19,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from econmotor.economics.uncertainty import SequentialPlan
+from econmotor.economics.sequential_rule import SequentialPlan
 from econmotor.errors import BackendError, ConfigError, UnknownNameError
 from econmotor.motor_backend.base import ProgressFn, no_progress
 from econmotor.motor_backend.datapacks import DatapackConfig

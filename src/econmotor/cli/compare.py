@@ -44,7 +44,7 @@ from econmotor.cli.validation import (
 )
 from econmotor.config.acceptance import ERROR_RATE_CHECK
 from econmotor.economics.pricing import PricingPolicy
-from econmotor.economics.uncertainty import SequentialPlan
+from econmotor.economics.sequential_rule import SequentialPlan
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.factory import backend_class, load_checked_catalog
 from econmotor.motor_backend.results import PROVENANCE_KEY

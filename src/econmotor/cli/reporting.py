@@ -47,7 +47,7 @@ from econmotor.cli.validation import (
     note_abandoned,
 )
 from econmotor.economics.pricing import PricingPolicy
-from econmotor.economics.uncertainty import SequentialPlan
+from econmotor.economics.sequential_rule import SequentialPlan
 from econmotor.errors import ConfigError, UnknownNameError
 from econmotor.motor_backend.datapacks import DatapackConfig
 from econmotor.motor_backend.factory import DEFAULT_BACKEND, backend_class, known_backends, load_checked_catalog

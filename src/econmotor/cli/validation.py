@@ -134,7 +134,7 @@ def evaluation_plan(backend: Any, task_id: str, eval_episodes: int | None, max_e
     sequential plan (episodes in the backend's batches until the verdict is decided, or a cap). Bad
     combinations are errors naming the flag: ``--eval-episodes 0``, a cap below one batch, a negative cap,
     a cap beside a fixed count."""
-    from econmotor.economics.uncertainty import DEFAULT_MAX_EPISODES, DEFAULT_MAX_WALL_S, SequentialPlan
+    from econmotor.economics.sequential_rule import DEFAULT_MAX_EPISODES, DEFAULT_MAX_WALL_S, SequentialPlan
 
     check_flags(eval_episodes=eval_episodes, eval_max_episodes=max_episodes, eval_max_seconds=max_seconds)
     if eval_episodes is not None:

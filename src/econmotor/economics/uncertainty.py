@@ -24,15 +24,9 @@ module says how uncertain it is and whether the robot may be priced at all.
   rate's upper bound is within the task's acceptance limit (``max_error_rate``, the
   human's rate unless the catalog says otherwise) and the MPL lower bound reaches the
   task's ``min_units_per_hour``. Otherwise the reasons say why, in words.
-- **Evidence sized to the verdict** (:class:`SequentialPlan`, :func:`look_outcome`): a sequential
-  evaluation runs episodes in batches and judges them after every batch (the looks, up to a cap)
-  until the rule is decided: pass (every bound inside its limit), fail (a bound's favourable end
-  outside it, :func:`certainly_fails`), or a cap is reached. The bounds stay valid however early it
-  stops (:data:`SEQUENTIAL_METHOD`): the error rate's are a confidence sequence
-  (:func:`error_rate_sequence`, valid at ``confidence`` at every look at once), the bootstrap ones
-  are at ``1 - (1 - confidence) / K`` for K looks (alpha-spending, Bonferroni). A policy whose true
-  rate equals the limit is judged deployable at most ``1 - confidence`` of the time
-  (tests/unit/economics/test_sequential.py).
+- **Evidence sized to the verdict**: a sequential evaluation judges its episodes after every batch
+  (:mod:`econmotor.economics.sequential_rule`); the error rate's bounds are then a confidence
+  sequence (:func:`error_rate_sequence`, valid at ``confidence`` at every look at once).
 """
 
 from __future__ import annotations
@@ -49,7 +43,6 @@ from econmotor.config.acceptance import ERROR_RATE_CHECK, Acceptance
 from econmotor.config.task_economics import TaskEconomics
 from econmotor.economics import labour
 from econmotor.economics.pricing import PricingPolicy, TaskPrice, price_task
-from econmotor.errors import ConfigError
 
 #: one-sided confidence of every bound (each end of a 90% interval).
 CONFIDENCE = 0.95
@@ -292,7 +285,8 @@ class Verdict:
                 "checks": list(self.checks), "acceptance": self.acceptance.to_dict()}
 
 
-def _g(value: float) -> str:
+def number_text(value: float) -> str:
+    """A figure in a sentence: thousands separators from 1000 on, else 3 significant digits."""
     return f"{value:,.0f}" if abs(value) >= 1000 else f"{value:.3g}"
 
 
@@ -318,7 +312,7 @@ def judge(economics: TaskEconomics, acceptance: Acceptance, unit: str, episodes:
     the one judgement a report prints and evaluation-driven training selects checkpoints by.
     ``confidence``: of each bound; ``sequential``: a sequential evaluation's look (judged at its plan's
     ``look_confidence``, the error rate by its confidence sequence at ``sequence_confidence``: the plan's
-    ``confidence``, :class:`SequentialPlan`)."""
+    ``confidence``, :class:`~econmotor.economics.sequential_rule.SequentialPlan`)."""
     uncertainty = assess(economics, episodes, point, policy, confidence,
                          sequence_rate=acceptance.max_error_rate if sequential else None,
                          sequence_confidence=sequence_confidence)
@@ -336,7 +330,8 @@ def decide(acceptance: Acceptance, uncertainty: Uncertainty, human_error_rate: f
 
     worked = ev.units_completed > 0
     checks.append({"name": "completes work", "measured": ev.units_completed, "limit": 0.0, "passed": worked,
-                   "text": f"{_g(ev.units_completed)} units ({unit}) completed in {ev.episodes} episodes"})
+                   "text": f"{number_text(ev.units_completed)} units ({unit}) completed in {ev.episodes} "
+                           "episodes"})
     if not worked:
         reasons.append(f"completed no unit ({unit}) in {ev.episodes} evaluation episodes")
 
@@ -344,109 +339,19 @@ def decide(acceptance: Acceptance, uncertainty: Uncertainty, human_error_rate: f
     err_ok = err.high <= acceptance.max_error_rate
     in_episodes = (f"in {ev.episodes_with_errors} of {ev.episodes} episodes" if ev.episodes_with_errors
                    else f"in none of {ev.episodes} episodes")
-    text = (f"{_plural(name, 2)} {in_episodes} ({_g(ev.errors)} in {_g(ev.units_attempted)} attempted); "
-            f"{err_pct} upper bound on the {name} rate {_g(err.high)} vs {_g(acceptance.max_error_rate)} accepted "
-            f"({_g(human_error_rate)} for a human)")
+    text = (f"{_plural(name, 2)} {in_episodes} ({number_text(ev.errors)} in {number_text(ev.units_attempted)} "
+            f"attempted); {err_pct} upper bound on the {name} rate {number_text(err.high)} vs "
+            f"{number_text(acceptance.max_error_rate)} accepted ({number_text(human_error_rate)} for a human)")
     checks.append({"name": ERROR_RATE_CHECK, "measured": err.point, "bound": err.high,
                    "limit": acceptance.max_error_rate, "passed": err_ok, "text": text})
     if not err_ok and worked:
         reasons.append(text)
 
     mpl_ok = worked and mpl.low >= acceptance.min_units_per_hour
-    text = (f"{pct} lower bound on throughput {_g(mpl.low)} units/h vs at least "
-            f"{_g(acceptance.min_units_per_hour)} required")
+    text = (f"{pct} lower bound on throughput {number_text(mpl.low)} units/h vs at least "
+            f"{number_text(acceptance.min_units_per_hour)} required")
     checks.append({"name": "throughput", "measured": mpl.point, "bound": mpl.low,
                    "limit": acceptance.min_units_per_hour, "passed": mpl_ok, "text": text})
     if worked and not mpl_ok:
         reasons.append(text)
     return Verdict(not reasons, tuple(reasons), tuple(checks), acceptance)
-
-
-# --- evidence sized to the verdict: the sequential rule -----------------------------------------
-
-#: the anytime-valid method of a sequential evaluation, as the report and docs/architecture.md name it.
-SEQUENTIAL_METHOD = ("a look after every batch; the error rate's bounds a confidence sequence (beta-binomial "
-                     "mixture, Ville's inequality: valid at every look at once), the bootstrap bounds alpha-spending "
-                     "over the looks (Bonferroni: each of the K looks at (1 - confidence) / K); each bound is wrong at "
-                     "most 1 - confidence of the time, whenever the evaluation stops")
-#: a sequential evaluation's defaults where the user gives no cap: episodes and wall seconds.
-DEFAULT_MAX_EPISODES = 640
-DEFAULT_MAX_WALL_S = 900.0
-
-
-@dataclass(frozen=True)
-class SequentialPlan:
-    """How a sequential evaluation looks at its episodes (the schedule is fixed before any episode runs).
-
-    Looks come after every batch: ``batch``, ``2 batch``, ``3 batch``, ... episodes and at
-    ``max_episodes`` (the cap); each look judges the first ``n_k`` episodes (in seed order). The error
-    rate's bounds are its confidence sequence (:func:`error_rate_sequence`), valid at ``confidence``
-    at every look at once; each bootstrap bound is at :attr:`look_confidence` = ``1 - (1 - confidence)
-    / K``: one wrong at some look is wrong at one of the K looks, so by the union bound the chance that
-    it is wrong at any look is at most ``1 - confidence``. Stopping at the first look that decides keeps
-    every bound valid (:data:`SEQUENTIAL_METHOD`). A wall-time cap only removes looks.
-
-    Attributes:
-        batch: episodes of the first look (the backend's evaluation batch).
-        max_episodes: the cap on episodes (the last look).
-        max_wall_s: the cap on wall seconds (checked at each look that did not decide).
-        confidence: the one-sided confidence of every bound over all looks together.
-    """
-
-    batch: int
-    max_episodes: int = DEFAULT_MAX_EPISODES
-    max_wall_s: float = DEFAULT_MAX_WALL_S
-    confidence: float = CONFIDENCE
-
-    def __post_init__(self) -> None:
-        if self.batch < 1:
-            raise ConfigError("<sequential evaluation>", "batch", f"must be >= 1, got {self.batch}")
-        if self.max_episodes < self.batch:
-            raise ConfigError("--eval-max-episodes", None, f"{self.max_episodes} is below one evaluation batch "
-                              f"({self.batch} episodes)", f"{self.batch} or more")
-        if not (self.max_wall_s > 0 and math.isfinite(self.max_wall_s)):
-            raise ConfigError("--eval-max-seconds", None, f"must be a positive number of seconds, "
-                              f"got {self.max_wall_s}")
-
-    @property
-    def looks(self) -> tuple[int, ...]:
-        """Episode counts at which the evaluation is judged: every ``batch`` below the cap, then the cap."""
-        return (*range(self.batch, self.max_episodes, self.batch), self.max_episodes)
-
-    @property
-    def look_confidence(self) -> float:
-        """The confidence of each look's bootstrap bounds: ``1 - (1 - confidence) / len(looks)``."""
-        return 1.0 - (1.0 - self.confidence) / len(self.looks)
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"batch": self.batch, "max_episodes": self.max_episodes, "max_wall_s": self.max_wall_s,
-                "confidence": self.confidence, "looks": list(self.looks), "look_confidence": self.look_confidence,
-                "method": SEQUENTIAL_METHOD}
-
-
-#: a look's outcomes: every bound inside its limit / a bound certainly outside / not decided yet.
-PASS, FAIL, CONTINUE = "pass", "fail", "continue"
-
-
-def certainly_fails(acceptance: Acceptance, uncertainty: Uncertainty) -> str | None:
-    """Why the acceptance rule certainly fails (a bound's favourable end is outside its limit), or None:
-    the error rate's lower bound above ``max_error_rate``, or throughput's upper bound below
-    ``min_units_per_hour``."""
-    err, mpl = uncertainty.intervals["error_rate"], uncertainty.intervals["mpl_units_per_hour"]
-    pct, name = percent(uncertainty.confidence), acceptance.error_name
-    if err.low > acceptance.max_error_rate:
-        err_pct = percent(err.confidence) if err.confidence is not None else pct
-        return (f"the {name} rate is above {_g(acceptance.max_error_rate)} ({err_pct} lower bound "
-                f"{_g(err.low)})")
-    if acceptance.min_units_per_hour > 0 and math.isfinite(mpl.high) and mpl.high < acceptance.min_units_per_hour:
-        return (f"throughput is below {_g(acceptance.min_units_per_hour)} units/h ({pct} upper bound "
-                f"{_g(mpl.high)})")
-    return None
-
-
-def look_outcome(acceptance: Acceptance, uncertainty: Uncertainty, verdict: Verdict) -> tuple[str, str]:
-    """``(PASS | FAIL | CONTINUE, why)`` of one look judged at its confidence."""
-    if verdict.deployable:
-        return PASS, "every bound inside its limit"
-    why = certainly_fails(acceptance, uncertainty)
-    return (FAIL, why) if why else (CONTINUE, "; ".join(verdict.reasons))

@@ -1,6 +1,6 @@
 """Sequential evaluation: run episodes in batches until the task's acceptance rule is decided.
 
-The rule and its looks are :class:`econmotor.economics.uncertainty.SequentialPlan` (a look after every
+The rule and its looks are :class:`econmotor.economics.sequential_rule.SequentialPlan` (a look after every
 batch; the error rate's confidence sequence and alpha-spending for the other bounds keep them valid under
 this optional stopping). This module drives a
 backend's evaluation with it: a backend's ``evaluate_policy(..., stop=...)`` (or a held-out
@@ -10,7 +10,7 @@ those rows reach and answers True once the evaluation is decided:
 
 - **pass**: every bound inside its limit (the error rate's confidence sequence, the others at the look's
   confidence);
-- **fail**: a bound certainly outside its limit (:func:`~econmotor.economics.uncertainty.certainly_fails`),
+- **fail**: a bound certainly outside its limit (:func:`~econmotor.economics.sequential_rule.certainly_fails`),
   or the rule cannot pass by the cap even if every episode still to run matched the best one so far
   (fall-free first, then the most units): early checkpoints that fall in most episodes cost one batch;
 - **episode cap** / **time cap**: the last look, or a look after ``max_wall_s``, did not decide.
@@ -28,18 +28,8 @@ from pathlib import Path
 from typing import Any
 
 from econmotor.economics.pricing import PricingSummary, price_evaluation
-from econmotor.economics.uncertainty import (
-    CONFIDENCE,
-    CONTINUE,
-    FAIL,
-    PASS,
-    SEQUENTIAL_METHOD,
-    SequentialPlan,
-    Uncertainty,
-    Verdict,
-    judge,
-    look_outcome,
-)
+from econmotor.economics.sequential_rule import CONTINUE, FAIL, PASS, SEQUENTIAL_METHOD, SequentialPlan, look_outcome
+from econmotor.economics.uncertainty import CONFIDENCE, Uncertainty, Verdict, judge
 from econmotor.motor_backend.results import MotorEvalResult, evaluation_result, summarize_episodes
 
 #: how an evaluation ended, beyond pass and fail.

@@ -216,7 +216,7 @@ def evaluation_facts(priced: Any, num_episodes: int) -> dict[str, Any]:
 def assess_context(ctx: ReportContext) -> tuple[Uncertainty, Verdict]:
     """Intervals and the deployability verdict of the priced episodes. The intervals are at the report's
     confidence; a sequential evaluation's verdict is judged as its looks were (the bounds that stay valid
-    under its optional stopping, :class:`~econmotor.economics.uncertainty.SequentialPlan`)."""
+    under its optional stopping, :class:`~econmotor.economics.sequential_rule.SequentialPlan`)."""
     args = (ctx.task.economics, ctx.task.acceptance, ctx.task.unit, ctx.episodes, ctx.pricing.aggregate,
             ctx.pricing.policy)
     uncertainty, verdict = judge(*args)

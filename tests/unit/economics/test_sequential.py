@@ -14,18 +14,14 @@ import pytest
 
 from econmotor.config.acceptance import Acceptance
 from econmotor.economics.pricing import PricingPolicy, price_task
+from econmotor.economics.sequential_rule import CONTINUE, FAIL, PASS, SequentialPlan, look_outcome
 from econmotor.economics.uncertainty import (
-    CONTINUE,
-    FAIL,
-    PASS,
     Evidence,
     Interval,
-    SequentialPlan,
     Uncertainty,
     clopper_pearson,
     decide,
     error_rate_sequence,
-    look_outcome,
 )
 from econmotor.errors import ConfigError
 from econmotor.tasks import get_task

@@ -9,21 +9,16 @@ import pytest
 from econmotor.config.acceptance import Acceptance
 from econmotor.config.task_economics import TaskEconomics
 from econmotor.economics.pricing import PricingPolicy, price_evaluation, price_task
+from econmotor.economics.sequential_rule import CONTINUE, FAIL, PASS, SEQUENTIAL_METHOD, SequentialPlan, look_outcome
 from econmotor.economics.uncertainty import (
-    CONTINUE,
-    FAIL,
-    PASS,
-    SEQUENTIAL_METHOD,
     Evidence,
     Interval,
-    SequentialPlan,
     Uncertainty,
     assess,
     clopper_pearson,
     counted,
     decide,
     judge,
-    look_outcome,
     percent,
 )
 from econmotor.errors import ConfigError

@@ -8,7 +8,7 @@ from __future__ import annotations
 import pytest
 
 from econmotor.cli.demo import DEMO_OBJECTIVE
-from econmotor.economics.uncertainty import SequentialPlan
+from econmotor.economics.sequential_rule import SequentialPlan
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.capabilities import HeldOutCadence
 from econmotor.motor_backend.selection import SELECTION_SEED_OFFSET, Selection, SelectionConfig, selection_for

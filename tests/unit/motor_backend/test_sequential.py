@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from econmotor.economics.uncertainty import SequentialPlan, error_rate_sequence
+from econmotor.economics.sequential_rule import SequentialPlan
+from econmotor.economics.uncertainty import error_rate_sequence
 from econmotor.motor_backend.sequential import SequentialEvaluation
 from econmotor.tasks import get_task
 

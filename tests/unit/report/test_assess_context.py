@@ -6,7 +6,7 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 from econmotor.economics.pricing import PricingPolicy, price_evaluation
-from econmotor.economics.uncertainty import SequentialPlan
+from econmotor.economics.sequential_rule import SequentialPlan
 from econmotor.motor_backend.results import summarize_episodes
 from econmotor.motor_backend.sequential import SequentialEvaluation
 from econmotor.objectives import EconomicObjectiveSpec
