@@ -49,7 +49,7 @@ from econmotor.errors import ConfigError
 from econmotor.motor_backend.factory import backend_class, load_checked_catalog
 from econmotor.motor_backend.results import PROVENANCE_KEY
 from econmotor.motor_backend.run_dir import REPORT_EVAL_SEED_OFFSET
-from econmotor.report.render import fmt
+from econmotor.report.text import fmt
 
 #: intervals narrower than this fraction of the price cannot tell policies apart: the episodes barely
 #: differ (nominal conditions vary only the start pose), which is not evidence of how a difference holds

@@ -54,7 +54,7 @@ from econmotor.motor_backend.factory import DEFAULT_BACKEND, backend_class, know
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.recording import TrainRequest, evaluate_and_record
 from econmotor.report.pipeline import ReportOutcome, pick_runs, report_after_training, report_from_registry
-from econmotor.report.render import (
+from econmotor.report.text import (
     INTERVAL_COLUMN,
     headline,
     imported_policy_text,

@@ -21,15 +21,8 @@ from econmotor.report.document import (
     build_document,
 )
 from econmotor.report.plots import episode_distributions, render_plots, training_curve, unit_costs
-from econmotor.report.render import (
-    fmt,
-    headline,
-    render_html,
-    render_markdown,
-    started_from_text,
-    table_rows,
-    write_report,
-)
+from econmotor.report.render import render_html, render_markdown, write_report
+from econmotor.report.text import fmt, headline, started_from_text, table_rows
 from econmotor.tasks import get_task
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -168,7 +161,7 @@ def test_a_run_started_from_a_walker_says_so_in_the_document_and_the_report():
 
 def test_the_evaluated_line_reads_the_recorded_provenance_not_a_backends_keys():
     from econmotor.motor_backend.results import EvalProvenance
-    from econmotor.report.render import imported_policy_text
+    from econmotor.report.text import imported_policy_text
 
     walked = EvalProvenance(evaluator="sim2sim", figures_from="MuJoCo sim-to-sim (the card)", imported=True,
                             commanded_speed_m_per_s=0.8, achieved_speed_m_per_s=0.66)
