@@ -6,7 +6,7 @@ registry's 120 s busy timeout), a long C routine. So the signal also wakes a wat
 (``signal.set_wakeup_fd``: the interpreter's C-level handler writes the signal number to a socket
 at once, whatever the main thread is doing). If the command has not ended
 :data:`INTERRUPT_GRACE_S` seconds later, the watcher records this process's running runs as
-``interrupted`` (:func:`econmotor.store.registry.interrupt_own_runs`), says so in one line (with
+``interrupted`` (:func:`econmotor.store.owners.interrupt_own_runs`), says so in one line (with
 the command's note of what it kept and how to resume, :func:`set_deadline_note`) and ends the
 process with the shell's status for the signal (:func:`interrupted_exit_code`: 130 for SIGINT,
 143 for SIGTERM). While it does, an ``alarm`` of :data:`LAST_RESORT_S` seconds
@@ -42,7 +42,7 @@ from typing import Any, NoReturn
 
 from typer.core import TyperGroup
 
-from econmotor.store.registry import interrupt_own_runs
+from econmotor.store.owners import interrupt_own_runs
 
 #: seconds a command has, after SIGINT or SIGTERM, to stop by itself (it records what it was doing)
 INTERRUPT_GRACE_S = 6.0

@@ -25,7 +25,8 @@ from econmotor.motor_backend.factory import backend_class, known_backends
 from econmotor.objectives import load_objective_spec, objective_from_vector
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.recording import with_objective_name
-from econmotor.store.registry import DB_URL_ENV, Registry, registry_exists
+from econmotor.store.engine import DB_URL_ENV, registry_exists
+from econmotor.store.registry import Registry
 from econmotor.valuation import default_objective_vector
 
 # pricing commands (report, compare)

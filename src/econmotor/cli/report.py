@@ -33,7 +33,7 @@ from econmotor.cli.options import (
 from econmotor.cli.reporting import NO_BACKEND, ReportArgs, run_report
 from econmotor.motor_backend.factory import DEFAULT_BACKEND, known_backends
 from econmotor.motor_backend.run_dir import REPORT_EVAL_SEED_OFFSET
-from econmotor.store.registry import DB_URL_ENV
+from econmotor.store.engine import DB_URL_ENV
 
 # the command's own flags (module-level, as Typer allows and ruff's B008 prefers)
 MOTOR_BACKEND = typer.Option(DEFAULT_BACKEND, "--motor-backend",

@@ -62,7 +62,8 @@ from econmotor.report.text import (
     started_from_text,
     table_rows,
 )
-from econmotor.store.registry import Registry, registry_exists
+from econmotor.store.engine import registry_exists
+from econmotor.store.registry import Registry
 
 #: ``--motor-backend none``: price recorded runs, train nothing
 NO_BACKEND = "none"

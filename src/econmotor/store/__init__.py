@@ -3,9 +3,10 @@
 See :mod:`econmotor.store.registry` for usage.
 """
 
+from econmotor.store.engine import DB_URL_ENV, default_db_url, registry_exists
 from econmotor.store.models import EPISODE_COLUMNS, RUN_KINDS, RUN_STATUSES, SCHEMA_VERSION
 from econmotor.store.records import EpisodeRecord, ReportRecord, RunRecord
-from econmotor.store.registry import DB_URL_ENV, Registry, default_db_url, registry_exists
+from econmotor.store.registry import Registry
 
 __all__ = [
     "DB_URL_ENV",
