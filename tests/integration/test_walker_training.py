@@ -4,7 +4,8 @@
 - episodes start at random points of the course (legs, dwells, elapsed time) and, from the start,
   span the whole course with its dwells; the runaway rule ends a training episode as a fall;
 - the minibatch size is the recipe's, the learning rate follows the KL, the anchor holds the reference;
-- the economic step reward sums to the overlay's J at the priced episode (hand-checked rates);
+- one J: an episode's economic step rewards sum to the J its report scores it by (divided by the gain),
+  on the report's own path (the meter's summary of the episode's raw metrics, ``objective_j``);
 - a tiny fine-tune end to end on the CLI: train (from the shipped G1 PPO), export in Holosoma's format,
   price the export beside the shipped walker with ``compare``; a run resumes from its checkpoint.
 """
@@ -18,6 +19,7 @@ import numpy as np
 import pytest
 import torch
 
+from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.couriers import course as crs
 from econmotor.couriers.onnx_actor import policy_file, read_actor
 from econmotor.couriers.policy_import import batched_onnx_policy, resolve_contract
@@ -26,14 +28,17 @@ from econmotor.couriers.walker_env import WalkerBatch
 from econmotor.couriers.walker_model import WalkerModel
 from econmotor.couriers.walker_task import MeterSettings
 from econmotor.couriers.walker_train import PRIVILEGED_DIM, WalkerLearningEnv, start_point
-from econmotor.economics import courier_formulas as cf
 from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, Rollout, WalkerPPO, WalkerPPOConfig
+from econmotor.motor_backend.results import summarize_episodes
+from econmotor.objectives.loader import objective_from_vector, objective_j
+from econmotor.tasks import get_task
 
 METER = MeterSettings(leg_distance_m=2.0, drivetrain_efficiency=0.8, idle_power_w=50.0, tilt_margin_rad=0.2,
                       fall_tilt_rad=0.8)
 SHORT = crs.CourseSettings(leg_m=2.0, dwell_s=1.0, speed_m_per_s=0.8, legs=2)
 WEIGHTS = {"tracking_lin_vel": 2.0, "tracking_ang_vel": 1.5, "penalty_orientation": -10.0, "alive": 1.0}
-RATES = cf.OverlayRates(unit=1.0, wh=-0.1, error=-10.0, risk=-1e-3)
+OBJECTIVE = objective_from_vector(ObjectiveVector.from_preset("energy_saver"), "energy_saver")
+ECONOMICS = get_task("humanoid_locomotion_g1").economics
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +50,7 @@ def _env(contract, n: int, course: crs.CourseSettings = SHORT, random_start: boo
          stress: Stress | None = None) -> WalkerLearningEnv:
     walker = WalkerModel.build(contract.card, np.asarray(contract.kp), np.asarray(contract.kd))
     batch = WalkerBatch(walker, course, METER, stress or Stress(), episode_s, n, contract.command_ranges)
-    return WalkerLearningEnv(batch, RATES, 2.0, WEIGHTS, seed=5, random_start=random_start)
+    return WalkerLearningEnv(batch, OBJECTIVE, ECONOMICS, 2.0, WEIGHTS, seed=5, random_start=random_start)
 
 
 @pytest.mark.parametrize("policy", ["holosoma:g1_29dof/ppo", "holosoma:t1_29dof/ppo"])
@@ -118,6 +123,7 @@ def test_a_training_episode_from_the_start_spans_the_course(g1_ppo) -> None:
 
 def test_runaway_ends_a_training_episode_as_a_fall(g1_ppo) -> None:
     env = _env(g1_ppo, 2, random_start=False)
+    env.weights = {}  # the economic part only
     obs, _ = env.reset()
     b = env.batch
     qvel = b._qvel(b.state[0])
@@ -126,36 +132,60 @@ def test_runaway_ends_a_training_episode_as_a_fall(g1_ppo) -> None:
     out = env.step(batched_onnx_policy(g1_ppo)(obs))
     assert out.terminated[0] and not out.truncated[0]
     assert out.episodes[0]["errors"] == 1.0
-    assert out.reward[0] < RATES.error * env.gain * 0.9  # the fall's price reached the learner
+    # the fall's price reached the learner: its one-step episode's J, whose safety term (a catastrophic end)
+    # and error rate a fall-free episode of the same steps does not pay
+    fell = out.episodes[0]
+    upright = {**fell, "errors": 0.0, "units_attempted": fell["units_completed"], "termination_reason": "max_steps"}
+    assert out.reward[0] / env.gain == pytest.approx(_report_j(fell), rel=1e-9)
+    assert _report_j(fell) < _report_j(upright) - 0.9 * (OBJECTIVE.risk_weight + OBJECTIVE.error_weight)
     env.close()
 
 
-def test_economic_step_reward_sums_to_the_linearised_j(g1_ppo) -> None:
-    env = _env(g1_ppo, 2, random_start=False)
+def _report_j(raw_episode: dict) -> float:
+    """The episode's J as a report scores it: the meter's summary of its raw metrics, then ``objective_j``."""
+    [summary] = summarize_episodes([raw_episode], ECONOMICS)[2]
+    return objective_j(OBJECTIVE, summary, ECONOMICS)
+
+
+@pytest.mark.parametrize("random_start", [False, True])
+def test_one_j_an_episodes_economic_rewards_sum_to_its_reported_j(g1_ppo, random_start: bool) -> None:
+    env = _env(g1_ppo, 2, random_start=random_start, episode_s=6.0)
     env.weights = {}  # the economic part only
     obs, _ = env.reset()
     policy = batched_onnx_policy(g1_ppo)
-    total = np.zeros(2)
-    for _ in range(200):
+    total, ended = np.zeros(2), []
+    while len(ended) < 3:
         out = env.step(policy(obs))
         obs, total = out.obs, total + out.reward
-    s = env.batch.sums
-    expected = env.gain * (RATES.unit * s.units + RATES.wh * s.energy_wh + RATES.error * s.errors
-                           + RATES.risk * s.risk_sum)
-    np.testing.assert_allclose(total, expected, rtol=1e-9)
+        done = np.flatnonzero(out.terminated | out.truncated)
+        for row, episode in zip(done, out.episodes, strict=True):
+            ended.append((total[row] / env.gain, _report_j(episode), episode))
+            total[row] = 0.0
+    assert any(episode["units_completed"] > 0.1 for *_, episode in ended)  # they walked ...
+    for summed, reported, episode in ended:
+        assert episode["energy_wh"] > 0  # ... and drew power
+        assert summed == pytest.approx(reported, rel=1e-9, abs=1e-9)
     env.close()
 
 
-def test_overlay_rates_hand_checked() -> None:
-    # energy_saver on the G1 task: f_mpl = 1 / 120 legs/h, f_energy = -3 / (50 W * 240 s / 3.6e6 kWh),
-    # f_err = -1 / 0.01, f_risk = -1; a 240 s episode of 3 legs at 200 Hz physics
-    factors = {"mpl_per_hour": 1 / 120, "energy_kwh": -3 / (50 * 240 / 3.6e6), "error_rate": -100.0,
-               "risk_score": -1.0}
-    r = cf.overlay_rates(factors, 240.0, 0.005, 3.0)
-    assert r.unit == pytest.approx(3600 / 240 / 120)  # one more leg in the episode: 15 legs/h more, / 120
-    assert r.wh == pytest.approx(-0.9)  # one Wh: 3 / 3.333 Wh
-    assert r.error == pytest.approx(-100 / 3)  # one fall in three legs: error rate 1/3, / 0.01
-    assert r.risk == pytest.approx(-0.005 / 240)  # risk 1 for one physics step of 48,000
+def test_one_j_a_fall_is_paid_as_the_report_scores_it(g1_ppo) -> None:
+    env = _env(g1_ppo, 2, random_start=False)
+    env.weights = {}
+    obs, _ = env.reset()
+    policy = batched_onnx_policy(g1_ppo)
+    total = np.zeros(2)
+    for _ in range(20):
+        out = env.step(policy(obs))
+        obs, total = out.obs, total + out.reward
+    b = env.batch
+    b._qvel(b.state[0])[0] = 50.0  # robot 0 blows up: a fall
+    b.load_state(np.array([0]))
+    out = env.step(policy(obs))
+    assert out.terminated[0]
+    summed = (total[0] + out.reward[0]) / env.gain
+    assert summed == pytest.approx(_report_j(out.episodes[0]), rel=1e-9)
+    assert out.episodes[0]["termination_reason"] == "fall"
+    env.close()
 
 
 def _rollout(cfg: WalkerPPOConfig, obs_dim: int, act_dim: int, seed: int = 0) -> tuple[Rollout, torch.Tensor]:
@@ -250,8 +280,10 @@ def test_tiny_fine_tune_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture
                  "--db-url", db, "--output-dir", str(tmp_path / "report")]) == 0
     document = json.loads((tmp_path / "report" / "humanoid_locomotion_g1_run1.json").read_text())
     seen = document["learned_with"]  # the report says what the learner saw
-    assert seen["econ_gain"] == config["econ_gain"] and seen["per_error"] < 0 < seen["per_unit"]
-    assert seen["per_wh"] < 0 and "tracking_lin_vel" in seen["locomotion"]
+    assert seen["econ_gain"] == config["econ_gain"]
+    assert seen["objective_weights"] == {"r_mpl": 1.0, "r_error": 1.0, "r_energy": 3.0, "r_safety": 1.0,
+                                         "r_novelty": 0.0}  # energy_saver's: the report's J is the learner's
+    assert seen["per_wh"] == pytest.approx(-3.0 * config["econ_gain"]) and "tracking_lin_vel" in seen["locomotion"]
     assert document["started_from"]["policy"] == "holosoma:g1_29dof/ppo"
     assert "learned with" in (tmp_path / "report" / "humanoid_locomotion_g1_run1.md").read_text()
     exported = read_actor(run / "policy.onnx")

@@ -8,10 +8,12 @@ prices the G1 and T1: the same model, course, stress, meter and fall rule) for a
   there and the time the course would have taken so far counted against the episode's limit
   (:func:`start_point`); an episode then runs to the course's end, a fall or the time limit, so
   the learner practises standing starts, dwells and every leg the priced course has;
-- **the step reward** ``r = sum_k w_k term_k dt + gain * rates . (d units, d Wh, d falls, d risk)``:
-  Holosoma's locomotion terms that a base-state reading supports (:data:`BASE_TERMS`,
-  :mod:`econmotor.couriers.locomotion_rewards`) plus the economic overlay linearised at the priced
-  episode (:func:`econmotor.economics.courier_formulas.overlay_rates`) times ``gain``;
+- **the step reward** ``r = sum_k w_k term_k dt + gain * (J(t) - J(t - 1))``: Holosoma's locomotion
+  terms that a base-state reading supports (:data:`BASE_TERMS`, :mod:`econmotor.couriers.locomotion_rewards`)
+  plus ``gain`` times the increment of the objective's J, the very J selection and the report score an
+  episode by (:func:`econmotor.objectives.loader.running_objective_j` on the meter's running sums, from
+  ``J = 0`` at the episode's start): an episode's economic rewards sum to ``gain * J`` of that episode,
+  with its own length and legs;
 - **terminated** only by a fall (the card's rule, the runaway rule included); the course's end and the
   time limit **truncate** (the trainer bootstraps them with the critic);
 - **a privileged view** for the critic (:meth:`WalkerLearningEnv.privileged`): the base's velocity
@@ -32,7 +34,8 @@ import numpy as np
 from econmotor.couriers import course as crs
 from econmotor.couriers import locomotion_rewards as lr
 from econmotor.couriers.walker_env import WalkerBatch
-from econmotor.economics import courier_formulas as cf
+from econmotor.objectives.economic_objective import EconomicObjectiveSpec
+from econmotor.objectives.loader import running_objective_j
 from econmotor.robots.observation import projected_gravity
 
 #: Holosoma's locomotion terms computed from the base's state and the actions (no feet or pose terms)
@@ -93,21 +96,23 @@ class WalkerLearningEnv:
 
     Args:
         batch: the walker env (its course, meter and stress are the priced ones).
-        rates: the overlay's coefficients (:func:`~econmotor.economics.courier_formulas.overlay_rates`).
-        gain: the overlay's weight against the locomotion terms (reward units per unit of J).
+        objective / economics: the objective whose J the learner is paid in, and the task's economics (its
+            electricity price, for an objective that prices energy).
+        gain: J's weight against the locomotion terms (reward units per unit of J).
         weights / params: locomotion term weights and parameters (keys of :data:`BASE_TERMS`).
         seed: episode ``i`` started by this env is seeded ``seed + i``.
         random_start: start episodes at random points of the course (else at its start).
     """
 
-    def __init__(self, batch: WalkerBatch, rates: cf.OverlayRates, gain: float, weights: Mapping[str, float],
-                 params: Mapping[str, Mapping[str, Any]] | None = None, seed: int = 0,
+    def __init__(self, batch: WalkerBatch, objective: EconomicObjectiveSpec, economics: Any, gain: float,
+                 weights: Mapping[str, float], params: Mapping[str, Mapping[str, Any]] | None = None, seed: int = 0,
                  random_start: bool = True) -> None:
         unknown = sorted(set(weights) - set(BASE_TERMS))
         if unknown:
             raise ValueError(f"locomotion terms {unknown} need feet or pose readings; the walker trainer has "
                              f"{list(BASE_TERMS)}")
-        self.batch, self.rates, self.gain = batch, rates, float(gain)
+        self.batch, self.objective, self.economics, self.gain = batch, objective, economics, float(gain)
+        self._j = np.zeros(batch.n)  # each slot's episode J so far
         self.weights, self.params = dict(weights), {k: dict(v) for k, v in (params or {}).items()}
         self.next_seed, self.random_start = int(seed), bool(random_start)
         self.slots = np.arange(batch.n)
@@ -120,6 +125,7 @@ class WalkerLearningEnv:
     def _start(self, slot: int) -> None:
         b = self.batch
         b.start(slot, self.next_seed, self.next_seed)
+        self._j[slot] = 0.0
         if self.random_start:
             rng = np.random.default_rng([self.next_seed, 1])  # the episode's own draws stay the evaluator's
             x, state, elapsed = start_point(b.course, rng, b.card.control_dt_s, b.control_steps)
@@ -162,17 +168,22 @@ class WalkerLearningEnv:
         total = sum(float(self.weights[k]) * raw[k] for k in self.weights) * dt
         return np.asarray(total, dtype=np.float64), {k: float(np.mean(v)) for k, v in raw.items()}
 
+    def episode_j(self, slots: np.ndarray) -> np.ndarray:
+        """The J each slot's episode would report if it ended now (:func:`running_objective_j`)."""
+        s = self.batch.sums
+        return running_objective_j(self.objective, self.economics, units=s.units[slots], errors=s.errors[slots],
+                                   energy_wh=s.energy_wh[slots],
+                                   length_s=s.steps[slots] * self.batch.card.physics_dt_s, fell=s.errors[slots] > 0)
+
     def step(self, actions: np.ndarray) -> StepOut:
         """One control step of every robot with ``actions`` ``[N, num_dofs]``; ended episodes restart."""
         b, slots = self.batch, self.slots
-        s = b.sums
-        before = [getattr(s, k)[slots].copy() for k in ("units", "energy_wh", "errors", "risk_sum")]
+        errors_before = b.sums.errors[slots].copy()
         last_action = b.last_action[slots].copy()
         done = b.act(slots, actions)
-        r = self.rates
-        deltas = [getattr(s, k)[slots] - v for k, v in zip(("units", "energy_wh", "errors", "risk_sum"), before,
-                                                            strict=True)]
-        econ = self.gain * (r.unit * deltas[0] + r.wh * deltas[1] + r.error * deltas[2] + r.risk * deltas[3])
+        j = self.episode_j(slots)
+        econ = self.gain * (j - self._j[slots])
+        self._j[slots] = j
         loco, terms = self._locomotion(slots, b.last_action[slots], last_action)
         n, dim = b.n, b.card.obs_dim
         out = StepOut(obs=self._obs, privileged=np.zeros((n, PRIVILEGED_DIM), np.float32),
@@ -184,7 +195,7 @@ class WalkerLearningEnv:
         if len(ended):
             out.terminal_obs[ended] = b.observation(ended)
             out.terminal_privileged[ended] = self.privileged(ended)
-            fell = deltas[2][ended] > 0
+            fell = b.sums.errors[slots][ended] > errors_before[ended]
             out.terminated[ended], out.truncated[ended] = fell, ~fell
             for slot in ended:
                 out.episodes.append(b.finish(int(slot)))

@@ -276,35 +276,3 @@ def episode_metric(raw_episode: Mapping[str, Any], key: str) -> float:
     if key == "energy_kwh":
         return float(raw_episode["energy_wh"]) / WH_PER_KWH
     return float(raw_episode.get(key, 0.0))
-
-
-class OverlayRates(NamedTuple):
-    """Per-increment coefficients of the overlay for a learner (:func:`overlay_rates`)."""
-
-    unit: float  # per unit gained (forward legs)
-    wh: float  # per electrical Wh
-    error: float  # per error (fall)
-    risk: float  # per physics step's tilt risk
-
-
-def overlay_rates(factors: Mapping[str, float], episode_s: float, physics_dt_s: float,
-                  units_per_episode: float) -> OverlayRates:
-    """The overlay ``J = sum_k factor_k * m_k`` linearised at the priced episode, as coefficients on the
-    meter's increments, so a learner's step reward is ``rate . (d units, d Wh, d errors, d risk_sum)``::
-
-        mpl_per_hour = units * 3600 / episode_s          -> unit  = f_mpl * 3600 / episode_s
-        error_rate   = errors / units_per_episode        -> error = f_err / units_per_episode
-        energy_kwh   = Wh / 1000                         -> wh    = f_energy / 1000
-        risk_score   = risk_sum * physics_dt / episode_s -> risk  = f_risk * physics_dt_s / episode_s
-
-    Over an episode of the priced length ``episode_s`` that attempts ``units_per_episode`` units the
-    sum is the episode's J exactly for energy and risk, and for throughput and errors at those
-    denominators; unlike :func:`overlay_potential`'s running ratios, no step's reward depends on how
-    long the episode has run (an episode started part-way along the course, or cut by a fall, sees
-    the same price per leg, Wh and fall).
-    """
-    f = {k: float(v) for k, v in factors.items()}
-    return OverlayRates(unit=f.get("mpl_per_hour", 0.0) * SECONDS_PER_HOUR / episode_s,
-                        wh=f.get("energy_kwh", 0.0) / WH_PER_KWH,
-                        error=f.get("error_rate", 0.0) / max(units_per_episode, 1e-9),
-                        risk=f.get("risk_score", 0.0) * physics_dt_s / episode_s)

@@ -30,11 +30,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from econmotor.config.loading import as_float, as_str, check_keys, path_name, read_yaml_mapping, require_mapping
 from econmotor.config.objective_profile import ENERGY_TERMS, OBJECTIVE_PRESETS, ObjectiveVector
 from econmotor.errors import ConfigError
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
-from econmotor.valuation.reward_builder import episode_j
+from econmotor.valuation.reward_builder import combine_terms, energy_price_of, episode_j, reward_terms_from_metrics
 
 _FLAT_KEYS = ("mpl_weight", "energy_weight", "error_weight", "novelty_weight", "risk_weight")
 _ALL_KEYS = (*_FLAT_KEYS, "extra_weights", "objective_vector", "objective_preset", "name", "energy_term")
@@ -72,6 +74,27 @@ def objective_j(spec: EconomicObjectiveSpec, summary: Any, economics: Any) -> fl
     (:func:`objective_weights_vector`) with its own energy term (``spec.energy_term``; ``"usd"`` reads
     ``economics``' electricity price). The J a report prints and held-out selection keeps a checkpoint by."""
     return episode_j(summary, objective_weights_vector(spec), economics, spec.energy_term)
+
+
+def running_objective_j(spec: EconomicObjectiveSpec, economics: Any, *, units: Any, errors: Any, energy_wh: Any,
+                        length_s: Any, fell: Any) -> Any:
+    """The J an episode would report if it ended now: :func:`objective_j`'s formula on a meter's running
+    sums, over NumPy arrays of episodes (or floats).
+
+    ``mpl = units * 3600 / length_s`` (0 before any time has passed), ``error_rate = errors / (units +
+    errors)`` (0 before anything was attempted), ``energy_wh`` as metered, a fall catastrophic, no novelty:
+    the summary the meter makes of the episode's raw metrics. Its increments, summed over an episode's
+    steps from ``J = 0`` at the start, are that episode's J (a learner paid them is paid what selection and
+    the report score); rates use the episode's own length and legs, not an assumed one.
+    """
+    units, errors, length_s = (np.asarray(v, dtype=float) for v in (units, errors, length_s))
+    attempted = units + errors
+    mpl = np.where(length_s > 0, units * 3600.0 / np.where(length_s > 0, length_s, 1.0), 0.0)
+    error_rate = np.where(attempted > 0, errors / np.where(attempted > 0, attempted, 1.0), 0.0)
+    terms = reward_terms_from_metrics(mpl, error_rate, np.asarray(energy_wh, dtype=float),
+                                      np.asarray(fell, dtype=bool), 0.0, energy_term=spec.energy_term,
+                                      energy_price_usd_per_kwh=energy_price_of(economics))
+    return combine_terms(objective_weights_vector(spec), terms)
 
 
 def parse_objective_spec(data: Any, source: str | Path = "<objective>") -> EconomicObjectiveSpec:

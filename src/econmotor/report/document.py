@@ -29,9 +29,9 @@ Schema ``econmotor.task_pricing_report`` version :data:`REPORT_SCHEMA_VERSION`::
                  backend's ``init_policy`` record): {policy, sha256, hidden_sizes, activation,
                  critic_warmup_iterations}
     learned_with: null, or the reward the training run's learner saw, where the backend records it (the
-                 mujoco backend's walker trainer): {econ_gain, per_unit, per_wh, per_error, locomotion
-                 {term: weight}, datapack_ids}: the objective's overlay in reward units per leg, Wh and
-                 fall, beside the locomotion terms
+                 mujoco backend's walker trainer): {econ_gain, objective_weights {term: weight}, per_wh,
+                 locomotion {term: weight}, datapack_ids}: econ_gain times each step's increment of the
+                 objective's J (this report's J; per_wh: its reward per Wh drawn), beside the locomotion terms
     evaluation:  how the episode count was chosen and why the evaluation stopped: {rule: sequential |
                  fixed | after training, episodes, and for a sequential one method, plan {batch, max_episodes,
                  max_wall_s, looks, look_confidence}, looks [{episodes, outcome, why, wall_s}], outcome
@@ -61,6 +61,7 @@ from econmotor.economics.uncertainty import CONFIDENCE, Uncertainty, Verdict, ju
 from econmotor.objectives import compile_economic_overlay
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.objectives.loader import objective_j, objective_weights_vector
+from econmotor.valuation.reward_builder import REWARD_TERM_NAMES
 
 REPORT_SCHEMA = "econmotor.task_pricing_report"
 # 2: TaskPrice gained damage_usd_per_unit, customer_saving_after_damage_usd_per_hour
@@ -166,11 +167,13 @@ def started_from(train_run: Any) -> dict[str, Any] | None:
 def learned_with(train_run: Any) -> dict[str, Any] | None:
     """The document's ``learned_with`` (module docstring) from the training run's recorded config."""
     config = (getattr(train_run, "config", None) or {}).get("backend_config") or {}
-    if "econ_gain" not in config or "overlay_rates" not in config:
+    if "econ_gain" not in config or "objective_weights" not in config:
         return None
-    gain, rates = float(config["econ_gain"]), config["overlay_rates"]
-    return {"econ_gain": gain, "per_unit": gain * rates["unit"], "per_wh": gain * rates["wh"],
-            "per_error": gain * rates["error"],
+    gain, weights = float(config["econ_gain"]), dict(zip(REWARD_TERM_NAMES, config["objective_weights"], strict=True))
+    priced = (config.get("objective") or {}).get("energy_term") == "usd"
+    usd_per_wh = float((config.get("economics") or {}).get("energy_price_usd_per_kwh", 0.0)) / 1000.0
+    return {"econ_gain": gain, "objective_weights": weights,
+            "per_wh": -gain * float(weights["r_energy"]) * (usd_per_wh if priced else 1.0),
             "locomotion": {k: v.get("weight") for k, v in (config.get("locomotion_rewards") or {}).items()},
             "datapack_ids": list(config.get("datapack_ids") or [])}
 

@@ -234,9 +234,9 @@ def learned_with_text(seen: Mapping[str, Any] | None) -> str | None:
         return None
     terms = ", ".join(f"{k} {fmt(v)}" for k, v in seen["locomotion"].items()) or "none"
     packs = ", ".join(seen["datapack_ids"]) or "nominal conditions"
-    return (f"the objective's overlay x {fmt(seen['econ_gain'])} (reward per unit {fmt(seen['per_unit'])}, per Wh "
-            f"{fmt(seen['per_wh'])}, per error {fmt(seen['per_error'])}) beside the locomotion terms ({terms}), "
-            f"under {packs}")
+    weights = ", ".join(f"{k.removeprefix('r_')} {fmt(v)}" for k, v in seen["objective_weights"].items())
+    return (f"this report's J x {fmt(seen['econ_gain'])} (each step's increment of the episode's J; weights "
+            f"{weights}; reward per Wh {fmt(seen['per_wh'])}) beside the locomotion terms ({terms}), under {packs}")
 
 
 def imported_policy_text(eval_run: Mapping[str, Any] | None) -> str:

@@ -152,12 +152,18 @@ def objective_weights(vector: Sequence[float] | ObjectiveVector | RewardWeights)
     return dict(zip(REWARD_TERM_NAMES, (float(w) for w in weights), strict=True))
 
 
+def combine_terms(vector: Sequence[float] | ObjectiveVector | RewardWeights, terms: Mapping[str, Any]) -> Any:
+    """``sum_i w_i * r_i``: over ``[r_mpl, r_error, r_energy, r_safety, r_novelty]`` for an objective
+    vector, over ``[r_mpl, r_ep, r_error, r_energy, r_safety, r_novelty]`` for RewardWeights; on floats
+    or on equal-shaped NumPy arrays of terms (:func:`reward_terms_from_metrics`)."""
+    return sum(w * terms[name] for name, w in objective_weights(vector).items())
+
+
 def combine_reward(
     vector: Sequence[float] | ObjectiveVector | RewardWeights, terms: Mapping[str, float]
 ) -> float:
-    """``sum_i w_i * r_i``: over ``[r_mpl, r_error, r_energy, r_safety, r_novelty]`` for an objective
-    vector, over ``[r_mpl, r_ep, r_error, r_energy, r_safety, r_novelty]`` for RewardWeights."""
-    return float(sum(w * terms[name] for name, w in objective_weights(vector).items()))
+    """:func:`combine_terms` as one float."""
+    return float(combine_terms(vector, terms))
 
 
 def energy_term_of(objective: Any) -> str:

@@ -4,8 +4,9 @@ A task whose ``backends.mujoco`` entry holds ``walker:`` (``tasks/holosoma.yaml`
 its robot, course, meter and sim-to-sim settings are the task's walker entry (``backends.holosoma``,
 :func:`econmotor.couriers.walker_task.task_settings`), and its ``walker:`` mapping holds the trainer's:
 
-- ``econ_gain``: the economic overlay's weight against the locomotion terms (reward units per unit of
-  the objective's J; :func:`econmotor.economics.courier_formulas.overlay_rates`);
+- ``econ_gain``: the objective's J against the locomotion terms (reward units per unit of J: the learner
+  is paid ``econ_gain`` times each step's increment of the J selection and the report score,
+  :func:`econmotor.objectives.loader.running_objective_j`);
 - ``rewards``: Holosoma's locomotion terms the trainer keeps (``{name: {weight, ...params}}``, names in
   :data:`econmotor.couriers.walker_train.BASE_TERMS`);
 - ``ppo``: the recipe (:class:`~econmotor.motor_backend.mujoco.walker_ppo.WalkerPPOConfig`), under the
@@ -28,11 +29,9 @@ import numpy as np
 
 from econmotor.config.loading import as_float
 from econmotor.couriers.onnx_actor import policy_file, read_actor
-from econmotor.couriers.overlay import human_baseline_references
-from econmotor.couriers.walker_setup import WalkerSetup, walker_setup
+from econmotor.couriers.walker_setup import walker_setup
 from econmotor.couriers.walker_task import task_settings
 from econmotor.couriers.walker_train import BASE_TERMS
-from econmotor.economics import courier_formulas as cf
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.capabilities import HeldOutCadence
 from econmotor.motor_backend.datapacks import DatapackProvider
@@ -40,7 +39,8 @@ from econmotor.motor_backend.mujoco.walker_ppo import WalkerPPOConfig
 from econmotor.motor_backend.mujoco.walker_training import ONNX_FILE, TRAIN_SEED_BASE, WalkerTrainingRun
 from econmotor.motor_backend.run_dir import read_run_config
 from econmotor.motor_backend.selection import SELECTION_SEED_OFFSET, Selection
-from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
+from econmotor.objectives.economic_objective import EconomicObjectiveSpec
+from econmotor.objectives.loader import objective_weights_vector
 
 WALKER_KEYS = ("econ_gain", "rewards", "ppo", "checkpoint_every_s")
 
@@ -91,20 +91,6 @@ def holosoma_settings(spec: Any) -> dict[str, Any]:
     return task_settings(spec.task_id, spec.backend_entry("holosoma"), spec.source)
 
 
-def overlay(spec: Any, objective: EconomicObjectiveSpec, setup: WalkerSetup) -> tuple[dict[str, float],
-                                                                                         cf.OverlayRates]:
-    """The objective's overlay factors (scales over the human-baseline references at the priced episode) and
-    their rates on the meter's increments."""
-    scales = dict(compile_economic_overlay(objective))
-    economics = spec.economics
-    refs = human_baseline_references(economics.mp_human_units_per_hour, economics.error_rate_human,
-                                     setup.meter.idle_power_w, setup.episode_s)
-    factors = cf.overlay_factors(scales, {k: v for k, v in refs.items() if k in scales})
-    units = float(setup.course.legs) if setup.course.legs else setup.episode_s * setup.course.speed_m_per_s / \
-        setup.course.leg_m
-    return factors, cf.overlay_rates(factors, setup.episode_s, setup.card.physics_dt_s, units)
-
-
 def train_walker(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[Any], run_dir: Path, *,
                  num_envs: int, max_steps: int, seed: int, init_policy: str | None,
                  hyperparameters: Mapping[str, Any] | None, selection: Selection | None, resume: bool,
@@ -126,13 +112,12 @@ def train_walker(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[An
     if resume:  # a resumed run keeps its recorded recipe (the loop refuses a request for another)
         ppo = dict(read_run_config(run_dir, "mujoco")["hyperparameters"])
     cfg = WalkerPPOConfig.from_mapping(ppo, "--hyperparameters")
-    factors, rates = overlay(spec, objective, setup)
     c = setup.contract
     config = {
         **described, "backend": "mujoco", "trainer": "walker", "task_id": spec.task_id, "robot": setup.card.name,
         "algorithm": "ppo", "seed": int(seed), "max_steps": int(max_steps), "max_wall_s": max_wall_s,
-        "hyperparameters": cfg.to_dict(), "objective": objective.to_dict(), "overlay_factors": factors,
-        "overlay_rates": rates._asdict(), "econ_gain": trainer.econ_gain,
+        "hyperparameters": cfg.to_dict(), "objective": objective.to_dict(),
+        "objective_weights": objective_weights_vector(objective), "econ_gain": trainer.econ_gain,
         "locomotion_rewards": {k: {"weight": w, **trainer.params.get(k, {})} for k, w in trainer.weights.items()},
         "course": asdict(setup.course), "meter": asdict(setup.meter), "episode_s": setup.episode_s,
         "stress": asdict(setup.stress), "selection_stress": asdict(nominal.stress),
@@ -144,7 +129,8 @@ def train_walker(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[An
                   "selection_from": int(seed) + SELECTION_SEED_OFFSET},
         "onnx": str(run_dir / ONNX_FILE)}
     run = WalkerTrainingRun(
-        run_dir=run_dir, setup=setup, cfg=cfg, rates=rates, gain=trainer.econ_gain, weights=trainer.weights,
+        run_dir=run_dir, setup=setup, cfg=cfg, objective=objective, economics=spec.economics,
+        gain=trainer.econ_gain, weights=trainer.weights,
         params=trainer.params, seed=int(seed), max_steps=int(max_steps), init=init,
         max_wall_s=float(max_wall_s) if max_wall_s else math.inf, checkpoint_every_s=trainer.checkpoint_every_s,
         selection=selection, metadata=_onnx_metadata(config),
@@ -155,7 +141,7 @@ def train_walker(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[An
 
 
 def _onnx_metadata(config: Mapping[str, Any]) -> dict[str, Any]:
-    keys = ("task_id", "objective", "overlay_factors", "econ_gain", "datapack_ids", "economics", "algorithm",
+    keys = ("task_id", "objective", "objective_weights", "econ_gain", "datapack_ids", "economics", "algorithm",
             "seed", "robot", "trainer")
     out = {k: config.get(k) for k in keys}
     if config.get("init_policy"):

@@ -50,6 +50,7 @@ from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, Rollout, Walk
 from econmotor.motor_backend.selection import Selection
 from econmotor.motor_backend.training_loop import Learner as LoopLearner
 from econmotor.motor_backend.training_loop import StopFn, TrainingLoop, TrainingOutcome
+from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 
 #: training episodes are seeded from here on (apart from selection's and a report's seeds)
 TRAIN_SEED_BASE = 10_000_000
@@ -67,7 +68,8 @@ class WalkerTrainingRun:
     run_dir: Path
     setup: WalkerSetup
     cfg: WalkerPPOConfig
-    rates: cf.OverlayRates
+    objective: EconomicObjectiveSpec
+    economics: Any
     gain: float
     weights: Mapping[str, float]
     params: Mapping[str, Mapping[str, Any]]
@@ -235,8 +237,8 @@ class WalkerLearner(LoopLearner):
     def learn(self, until_steps: int) -> dict[str, Any]:
         run = self.run
         if self.env is None:  # from the start, or from the restored checkpoint's next seed
-            self.env = WalkerLearningEnv(run.batch(run.cfg.num_envs), run.rates, run.gain, run.weights, run.params,
-                                         seed=self.next_seed)
+            self.env = WalkerLearningEnv(run.batch(run.cfg.num_envs), run.objective, run.economics, run.gain,
+                                         run.weights, run.params, seed=self.next_seed)
             self.obs = self.env.reset()
         while True:
             t0 = time.perf_counter()
