@@ -28,7 +28,7 @@ import numpy as np
 from econmotor.couriers.walker_eval import WalkerEvaluation, _run
 from econmotor.couriers.walker_setup import walker_setup
 from econmotor.couriers.walker_task import task_settings
-from econmotor.motor_backend.datapacks import DatapackProvider
+from econmotor.config.datapacks import DatapackProvider
 from econmotor.robots.card import scaled_heat_model
 from econmotor.tasks import get_task
 

@@ -19,10 +19,10 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from econmotor.config.datapacks import DatapackConfig
 from econmotor.economics.sequential_rule import SequentialPlan
 from econmotor.errors import BackendError, ConfigError, UnknownNameError
 from econmotor.motor_backend.base import ProgressFn, no_progress
-from econmotor.motor_backend.datapacks import DatapackConfig
 from econmotor.motor_backend.run_dir import REPORT_EVAL_SEED_OFFSET, new_run_dir
 from econmotor.motor_backend.sequential import evaluate_sequentially
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec

@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from econmotor.config.datapacks import parse_datapack
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.envs import DishwashingEnv
 from econmotor.errors import BackendError, ConfigError, UnknownNameError
 from econmotor.motor_backend import make_motor_backend
-from econmotor.motor_backend.datapacks import parse_datapack
 from econmotor.objectives import objective_from_vector
 
 THROUGHPUT = objective_from_vector(ObjectiveVector.from_preset("throughput"), "throughput")

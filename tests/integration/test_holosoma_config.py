@@ -14,16 +14,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from econmotor.config.datapacks import (
+    DatapackProvider,
+    load_datapack_configs,
+    parse_datapack,
+)
 from econmotor.couriers import policy_import
 from econmotor.couriers.datapack_mapping import map_datapacks, validate_motion_npz
 from econmotor.couriers.walker_task import meter_constants, meter_settings
 from econmotor.economics import courier_formulas as cf
 from econmotor.errors import BackendError, ConfigError
-from econmotor.motor_backend.datapacks import (
-    DatapackProvider,
-    load_datapack_configs,
-    parse_datapack,
-)
 from econmotor.motor_backend.holosoma.econ_formulas import (
     base_tilt_rad,
     commanded_progress_m_per_s,

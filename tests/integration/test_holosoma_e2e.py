@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from econmotor.config.datapacks import load_datapack_configs
 from econmotor.couriers.policy_import import find_holosoma_python
 from econmotor.errors import BackendError
-from econmotor.motor_backend.datapacks import load_datapack_configs
 from econmotor.motor_backend.factory import make_motor_backend
 from econmotor.motor_backend.holosoma.host.jobs import run_job
 from econmotor.motor_backend.holosoma.job_specs import parse_job

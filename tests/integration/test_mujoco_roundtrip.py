@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from econmotor.cli import main
+from econmotor.config.datapacks import load_datapack_configs, parse_datapack
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.datapacks import load_datapack_configs, parse_datapack
 from econmotor.motor_backend.factory import make_motor_backend
 from econmotor.motor_backend.mujoco.evaluation import load_policy
 from econmotor.objectives import EconomicObjectiveSpec, compile_economic_overlay

@@ -19,7 +19,7 @@ ROUNDS = 20
 def _writer(url: str, task_ids: list[str], barrier, results, index: int) -> None:
     """One writer: each round, wait for the others, then record the task, its datapack, its
     robot and a run (start + finish), exactly as a report's first training run does."""
-    from econmotor.motor_backend.datapacks import DatapackConfig
+    from econmotor.config.datapacks import DatapackConfig
     from econmotor.store import Registry
     from econmotor.tasks import get_task
 

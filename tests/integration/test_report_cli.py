@@ -258,7 +258,7 @@ def test_an_interrupted_training_run_is_recorded_as_interrupted(workdir: Path, s
 
 def test_datapacks_flag_takes_commas_repeats_and_spaces(workdir: Path) -> None:
     from econmotor.cli.options import split_datapack_values
-    from econmotor.motor_backend.datapacks import parse_datapack
+    from econmotor.config.datapacks import parse_datapack
 
     assert split_datapack_values(["a.yaml,b", "c d", " e "]) == ["a.yaml", "b", "c", "d", "e"]
     url = f"sqlite:///{workdir / 'reg.sqlite'}"

@@ -100,7 +100,8 @@ def test_every_module_imports():
 
 
 BACKENDS = ("dishwashing", "mujoco", "mjx", "holosoma")
-#: what the backends share and build on: these import no backend
+#: what the backends share and build on: these import no backend, nor anything of ``motor_backend`` (the
+#: backend contract is above them)
 SHARED = ("econmotor.couriers", "econmotor.robots", "econmotor.economics", "econmotor.objectives",
           "econmotor.valuation", "econmotor.config", "econmotor.tasks")
 
@@ -121,6 +122,8 @@ def layer_violations(graph: dict[str, set[str]]) -> list[str]:
                 bad.append(f"{module} -> {target} (backends are peers)")
             if theirs and module.startswith(SHARED):
                 bad.append(f"{module} -> {target} (a shared package imports a backend)")
+            elif target.startswith("econmotor.motor_backend") and module.startswith(SHARED):
+                bad.append(f"{module} -> {target} (a shared package imports the backend contract above it)")
             venv = "econmotor.motor_backend.holosoma.venv"
             if target.startswith(venv) and not module.startswith(venv):
                 bad.append(f"{module} -> {target} (holosoma's host side imports its venv side)")
@@ -131,8 +134,10 @@ def test_the_layer_rule_sees_a_crossing():
     graph = {"econmotor.motor_backend.mjx.backend": {"econmotor.motor_backend.holosoma.host.plan"},
              "econmotor.couriers.course": {"econmotor.motor_backend.mjx.env"},
              "econmotor.motor_backend.holosoma.host.backend": {"econmotor.motor_backend.holosoma.venv.runner"},
-             "econmotor.motor_backend.holosoma.venv.runner": {"econmotor.motor_backend.holosoma.job_specs"}}
-    assert len(layer_violations(graph)) == 3
+             "econmotor.motor_backend.holosoma.venv.runner": {"econmotor.motor_backend.holosoma.job_specs"},
+             "econmotor.couriers.datapack_mapping": {"econmotor.motor_backend.datapacks"}}
+    assert len(layer_violations(graph)) == 4
+    assert any("backend contract above it" in v for v in layer_violations(graph))
 
 
 def test_backends_are_peers_and_shared_packages_import_none():

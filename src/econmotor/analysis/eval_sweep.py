@@ -29,11 +29,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
 
+from econmotor.config.datapacks import DatapackConfig
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.couriers.policy_import import NAME_PREFIX
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import ProgressFn
-from econmotor.motor_backend.datapacks import DatapackConfig
 from econmotor.motor_backend.results import MotorEvalResult
 from econmotor.motor_backend.run_dir import REPORT_EVAL_SEED_OFFSET, RUN_CONFIG_FILE
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec

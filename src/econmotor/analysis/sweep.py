@@ -36,10 +36,10 @@ from pathlib import Path
 from typing import Any, ClassVar, Protocol
 
 from econmotor.analysis.objective_surface import Objective
+from econmotor.config.datapacks import DatapackConfig
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import ProgressFn, no_progress
-from econmotor.motor_backend.datapacks import DatapackConfig
 from econmotor.motor_backend.results import MotorTrainingResult
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.objectives.loader import objective_from_vector

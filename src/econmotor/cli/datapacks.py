@@ -16,8 +16,8 @@ from rich.table import Table
 
 from econmotor.cli._app import console, datapacks_app, fits_unwrapped
 from econmotor.cli.validation import check_choice
+from econmotor.config.datapacks import DatapackConfig, load_datapack_configs
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_configs
 from econmotor.motor_backend.factory import backend_class, known_backends
 
 COLUMNS = ("id", "clips", "domain_randomization", "curriculum", "backends", "file")

@@ -17,10 +17,10 @@ from typing import Any
 import typer
 
 from econmotor.cli.validation import check_flags, check_input_files
+from econmotor.config.datapacks import DatapackConfig, load_datapack_configs
 from econmotor.config.objective_profile import OBJECTIVE_PRESETS, ObjectiveVector
 from econmotor.errors import ConfigError, did_you_mean
 from econmotor.motor_backend.base import MotorBackendBase
-from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_configs
 from econmotor.motor_backend.factory import backend_class, known_backends
 from econmotor.objectives import load_objective_spec, objective_from_vector
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec

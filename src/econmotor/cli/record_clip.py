@@ -9,8 +9,8 @@ import typer
 
 from econmotor.cli._app import console, datapacks_app, make_backend, set_cpu_threads
 from econmotor.cli.validation import check_flags, check_name, check_output_file
+from econmotor.config.datapacks import DatapackConfig, MotionClipRef, save_datapack_config
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.datapacks import DatapackConfig, MotionClipRef, save_datapack_config
 from econmotor.motor_backend.factory import DEFAULT_BACKEND, backend_class, known_backends
 
 

@@ -46,10 +46,10 @@ from econmotor.cli.validation import (
     evaluation_plan,
     note_abandoned,
 )
+from econmotor.config.datapacks import DatapackConfig
 from econmotor.economics.pricing import PricingPolicy
 from econmotor.economics.sequential_rule import SequentialPlan
 from econmotor.errors import ConfigError, UnknownNameError
-from econmotor.motor_backend.datapacks import DatapackConfig
 from econmotor.motor_backend.factory import DEFAULT_BACKEND, backend_class, known_backends, load_checked_catalog
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.recording import TrainRequest, evaluate_and_record

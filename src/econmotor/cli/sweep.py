@@ -27,10 +27,10 @@ from econmotor.cli.validation import (
     parse_seed_list,
     simplex_size,
 )
+from econmotor.config.datapacks import DatapackConfig, load_datapack_configs
 from econmotor.couriers.policy_import import is_imported_policy
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import MotorBackendBase
-from econmotor.motor_backend.datapacks import DatapackConfig, load_datapack_configs
 from econmotor.motor_backend.factory import backend_class, environment_options
 from econmotor.tasks import load_catalog
 

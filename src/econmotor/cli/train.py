@@ -39,9 +39,9 @@ from econmotor.cli.validation import (
     check_output_file,
     check_task_backend,
 )
+from econmotor.config.datapacks import load_datapack_configs
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import MotorBackendBase
-from econmotor.motor_backend.datapacks import load_datapack_configs
 from econmotor.motor_backend.factory import DEFAULT_BACKEND, backend_class, known_backends
 from econmotor.motor_backend.selection import evaluation_cost_text
 from econmotor.recording import TrainRequest

@@ -43,9 +43,9 @@ from typing import Any
 
 import numpy as np
 
+from econmotor.config.datapacks import DatapackBundle, DatapackConfig
 from econmotor.config.loading import as_float, as_range, as_str
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.datapacks import DatapackBundle, DatapackConfig
 
 MOTION_NPZ_KEYS = ("fps", "joint_pos", "joint_vel", "body_pos_w", "body_quat_w", "body_lin_vel_w",
                    "body_ang_vel_w", "joint_names", "body_names")

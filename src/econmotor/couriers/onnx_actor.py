@@ -108,7 +108,7 @@ def policy_command_ranges(policy: str) -> dict[str, Any]:
 
 
 def _decode(value: str) -> Any:
-    from econmotor.motor_backend.onnx_policy import json_or_text
+    from econmotor.couriers.onnx_metadata import json_or_text
 
     return json_or_text(value)
 

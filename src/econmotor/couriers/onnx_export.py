@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from econmotor.motor_backend.onnx_policy import ECONMOTOR_PREFIX, METADATA_KEY
+from econmotor.couriers.onnx_metadata import ECONMOTOR_PREFIX, METADATA_KEY
 
 #: VecNormalize's epsilon inside the square root (the mjx normaliser's too)
 NORM_EPS = 1e-8

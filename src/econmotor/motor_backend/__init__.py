@@ -1,13 +1,13 @@
 """Motor backends: train, evaluate and deploy motor policies (spec: motor_backends.md)."""
 
-from econmotor.motor_backend.base import MotorBackendBase, PolicyHandle, ProgressFn
-from econmotor.motor_backend.datapacks import (
+from econmotor.config.datapacks import (
     DatapackBundle,
     DatapackConfig,
     DatapackProvider,
     load_datapack_configs,
     save_datapack_config,
 )
+from econmotor.motor_backend.base import MotorBackendBase, PolicyHandle, ProgressFn
 from econmotor.motor_backend.factory import known_backends, make_motor_backend, register_motor_backend
 from econmotor.motor_backend.results import EvalProvenance, MotorEvalResult, MotorTrainingResult, summarize_episodes
 

@@ -1,7 +1,7 @@
 """The one onnxruntime handle of an exported policy, for every backend that deploys ONNX.
 
-Two metadata formats: econmotor's (the mujoco and mjx backends' couriers' ``policy.onnx``), one
-``econmotor`` entry (JSON: task id, compiled overlay, datapack ids, economic assumptions, observation /
+Two metadata formats (:mod:`econmotor.couriers.onnx_metadata`): econmotor's (the mujoco and mjx backends'
+couriers' ``policy.onnx``), one ``econmotor`` entry (JSON: task id, compiled overlay, datapack ids, economic assumptions, observation /
 action layout); and Holosoma's (the holosoma backend's runs and imports, the mjx backend's real robots),
 Holosoma's own entries (``dof_names``, ``kp``, ``kd``, ``action_scale``, ...) each JSON-encoded, with
 econmotor's facts beside them as ``econmotor_<key>`` entries. :class:`OnnxPolicyHandle` reads either
@@ -11,35 +11,14 @@ where the sim-to-sim evaluator steps it.
 
 from __future__ import annotations
 
-import json
-from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from econmotor.couriers.onnx_metadata import ECONMOTOR_PREFIX, METADATA_KEY, econmotor_metadata, json_or_text
 from econmotor.errors import BackendError
 from econmotor.motor_backend.base import StepAlias
-
-#: the ONNX ``metadata_props`` key of the JSON metadata.
-METADATA_KEY = "econmotor"
-#: in Holosoma-format files, econmotor's metadata entries are ``econmotor_<key>`` (JSON values)
-ECONMOTOR_PREFIX = "econmotor_"
-
-
-def json_or_text(value: str) -> Any:
-    """A metadata value decoded from JSON, or the text itself when it is not JSON."""
-    try:
-        return json.loads(value)
-    except (json.JSONDecodeError, TypeError):
-        return value
-
-
-def econmotor_metadata(entries: Mapping[str, str]) -> dict[str, Any]:
-    """econmotor's metadata of an ONNX file's entries: the ``econmotor`` entry, else the ``econmotor_<key>`` ones."""
-    if METADATA_KEY in entries:
-        return json.loads(entries[METADATA_KEY])
-    return {k[len(ECONMOTOR_PREFIX):]: json_or_text(v) for k, v in entries.items() if k.startswith(ECONMOTOR_PREFIX)}
 
 
 class OnnxPolicyHandle(StepAlias):

@@ -16,13 +16,13 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from econmotor.config.datapacks import DatapackProvider
 from econmotor.couriers.policy_import import model_text
 from econmotor.couriers.walker_eval import WalkerEvaluation
 from econmotor.couriers.walker_eval import evaluate as evaluate_walkers
 from econmotor.couriers.walker_setup import walker_setup
 from econmotor.economics.courier_formulas import mechanical_from_electrical_w
 from econmotor.motor_backend.base import ProgressFn, StopFn
-from econmotor.motor_backend.datapacks import DatapackProvider
 from econmotor.motor_backend.results import (
     EvalProvenance,
     MotorEvalResult,

@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 from sqlalchemy import select
 
+from econmotor.config.datapacks import DatapackConfig, parse_datapack
 from econmotor.errors import UnknownNameError
-from econmotor.motor_backend.datapacks import DatapackConfig, parse_datapack
 from econmotor.store.database import RegistryDatabase
 from econmotor.store.models import EPISODE_COLUMNS, DatapackRow, EpisodeRow, ReportRow, RunRow
 from econmotor.store.queries import filter_runs

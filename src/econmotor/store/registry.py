@@ -52,8 +52,8 @@ from typing import Any
 
 from sqlalchemy import func, select
 
+from econmotor.config.datapacks import DatapackConfig
 from econmotor.errors import RegistryError
-from econmotor.motor_backend.datapacks import DatapackConfig
 from econmotor.motor_backend.results import PROVENANCE_KEY
 from econmotor.store.models import (
     RUN_KINDS,

@@ -3,8 +3,8 @@
 import pytest
 
 from econmotor.analysis.eval_sweep import EvalCell, plan_eval_sweep, policy_fingerprint
+from econmotor.config.datapacks import parse_datapack
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.datapacks import parse_datapack
 from econmotor.motor_backend.run_dir import REPORT_EVAL_SEED_OFFSET
 
 TASK, POLICY = "humanoid_locomotion_g1", "holosoma:g1_29dof/ppo"

@@ -5,8 +5,8 @@ import pytest
 
 from econmotor.analysis.objective_surface import parse_vector_objective, preset_objectives
 from econmotor.analysis.sweep import completed_cell_keys, plan_sweep, run_sweep
+from econmotor.config.datapacks import parse_datapack
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.datapacks import parse_datapack
 from econmotor.store import Registry
 
 GOOD = parse_datapack({"id": "dw_plain", "domain_randomization": {"p_min_range": [0.0, 0.01]}})

@@ -11,7 +11,7 @@ from rich.console import Console
 from econmotor.cli import main
 from econmotor.cli._app import console
 from econmotor.cli.datapacks import COLUMNS, datapacks_table
-from econmotor.motor_backend.datapacks import load_datapack_configs
+from econmotor.config.datapacks import load_datapack_configs
 
 REPO = Path(__file__).resolve().parents[3]
 

@@ -7,8 +7,8 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from econmotor.config.datapacks import load_datapack_configs
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.datapacks import load_datapack_configs
 from econmotor.objectives import load_objective_spec
 from econmotor.tasks.catalog import load_catalog
 from econmotor.valuation import load_constraint_set, load_constraint_sets

@@ -54,7 +54,7 @@ def test_curriculum_ramps_from_nominal_to_full_range():
 def test_shipped_dishwashing_datapacks_are_valid():
     from pathlib import Path
 
-    from econmotor.motor_backend.datapacks import load_datapack_configs
+    from econmotor.config.datapacks import load_datapack_configs
 
     root = Path(__file__).resolve().parents[3] / "configs" / "datapacks"
     packs = load_datapack_configs(sorted(root.glob("dishwashing_*.yaml")))

@@ -4,8 +4,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from econmotor.config.datapacks import parse_datapack
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.datapacks import parse_datapack
 from econmotor.motor_backend.mujoco.backend import MujocoBackend
 from econmotor.motor_backend.mujoco.randomization import (
     Curriculum,
@@ -113,7 +113,7 @@ def test_bad_datapack_keys_name_the_datapack_and_key(dr, cur, key, tmp_path):
 def test_shipped_mujoco_datapacks_are_valid_for_every_courier():
     from pathlib import Path
 
-    from econmotor.motor_backend.datapacks import load_datapack_configs
+    from econmotor.config.datapacks import load_datapack_configs
 
     files = sorted((Path(__file__).parents[3] / "configs" / "datapacks").glob("mujoco_*.yaml"))
     assert files

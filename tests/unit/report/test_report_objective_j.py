@@ -6,9 +6,9 @@ from types import SimpleNamespace
 
 import pytest
 
+from econmotor.config.datapacks import parse_datapack
 from econmotor.config.objective_profile import ObjectiveVector
 from econmotor.economics.pricing import PricingPolicy, price_evaluation
-from econmotor.motor_backend.datapacks import parse_datapack
 from econmotor.motor_backend.results import summarize_episodes
 from econmotor.objectives import objective_from_vector
 from econmotor.report.document import ReportContext, build_document

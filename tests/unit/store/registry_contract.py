@@ -9,8 +9,8 @@ import math
 import pytest
 from sqlalchemy import update
 
+from econmotor.config.datapacks import parse_datapack
 from econmotor.errors import RegistryError, UnknownNameError
-from econmotor.motor_backend.datapacks import parse_datapack
 from econmotor.motor_backend.results import MotorEvalResult, MotorTrainingResult, summarize_episodes
 from econmotor.objectives import EconomicObjectiveSpec
 from econmotor.store import Registry

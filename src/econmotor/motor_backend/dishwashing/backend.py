@@ -32,6 +32,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from econmotor.config.datapacks import DatapackConfig, DatapackProvider
 from econmotor.config.econ_params import ECON_PRESETS, EconParams, econ_params_with
 from econmotor.config.loading import as_str, check_keys, require_mapping
 from econmotor.config.task_economics import TaskEconomics
@@ -40,7 +41,6 @@ from econmotor.envs.dishwashing_randomization import EconRandomization, parse_ec
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import MotorBackendBase, ProgressFn, StepAlias, StopFn, no_progress
 from econmotor.motor_backend.capabilities import BackendCapabilities, RunSize, ShadowEnv
-from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.motor_backend.results import (
     EvalProvenance,
     MotorEvalResult,

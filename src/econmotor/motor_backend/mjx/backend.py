@@ -35,13 +35,13 @@ from typing import Any, ClassVar
 
 import jax
 
+from econmotor.config.datapacks import DatapackConfig, DatapackProvider
 from econmotor.couriers.onnx_actor import policy_file, read_actor
 from econmotor.couriers.onnx_export import export_onnx
 from econmotor.couriers.policy_import import VENV_ENV, holosoma_export_metadata
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import MotorBackendBase, ProgressFn, StopFn, no_progress
 from econmotor.motor_backend.capabilities import BackendCapabilities, HeldOutCadence, RunSize
-from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.motor_backend.mjx import ppo
 from econmotor.motor_backend.mjx.compile import CompiledAhead
 from econmotor.motor_backend.mjx.onnx_import import warm_start

@@ -98,7 +98,7 @@ def parse_humanoid_stress(datapacks: Sequence[Any], push_preset: Mapping[str, An
 
 def check_humanoid_datapack(pack: Any, source: str) -> None:
     """A datapack the humanoid couriers can apply (:func:`parse_humanoid_stress`), else its ConfigError."""
-    from econmotor.motor_backend.datapacks import DatapackBundle
+    from econmotor.config.datapacks import DatapackBundle
 
     bundle = DatapackBundle(task_id="<check>", datapack_ids=(pack.id,), motion_clips=tuple(pack.motion_clips or ()),
                             domain_randomization=dict(pack.domain_randomization or {}),

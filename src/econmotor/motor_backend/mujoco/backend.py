@@ -26,13 +26,13 @@ from typing import Any
 import gymnasium as gym
 import torch
 
+from econmotor.config.datapacks import DatapackConfig, DatapackProvider
 from econmotor.couriers.datapack_mapping import map_datapacks
 from econmotor.couriers.onnx_actor import policy_file, read_actor
 from econmotor.couriers.overlay import human_baseline_references
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import MotorBackendBase, ProgressFn, StopFn, no_progress
 from econmotor.motor_backend.capabilities import BackendCapabilities, RunSize, ShadowEnv
-from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.motor_backend.mujoco.clips import check_clip_file, load_bundle_clips, record_clip
 from econmotor.motor_backend.mujoco.env_factory import EnvRecipe, make_env
 from econmotor.motor_backend.mujoco.evaluation import load_policy, rollout_episodes

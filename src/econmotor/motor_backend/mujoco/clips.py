@@ -26,8 +26,8 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
+from econmotor.config.datapacks import DatapackBundle
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.datapacks import DatapackBundle
 
 
 @dataclass(frozen=True, eq=False)

@@ -25,8 +25,9 @@ import numpy as np
 import torch
 from torch import nn
 
+from econmotor.couriers.onnx_metadata import METADATA_KEY
 from econmotor.errors import BackendError
-from econmotor.motor_backend.onnx_policy import METADATA_KEY, OnnxPolicyHandle
+from econmotor.motor_backend.onnx_policy import OnnxPolicyHandle
 
 __all__ = ["METADATA_KEY", "DeterministicActor", "OnnxPolicyHandle", "export_onnx"]
 

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from econmotor.config.datapacks import DatapackProvider
 from econmotor.config.loading import as_float
 from econmotor.couriers.onnx_actor import policy_file, read_actor
 from econmotor.couriers.walker_setup import walker_setup
@@ -34,7 +35,6 @@ from econmotor.couriers.walker_task import task_settings
 from econmotor.couriers.walker_train import BASE_TERMS
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.capabilities import HeldOutCadence
-from econmotor.motor_backend.datapacks import DatapackProvider
 from econmotor.motor_backend.mujoco.walker_ppo import WalkerPPOConfig
 from econmotor.motor_backend.mujoco.walker_training import ONNX_FILE, TRAIN_SEED_BASE, WalkerTrainingRun
 from econmotor.motor_backend.run_dir import read_run_config

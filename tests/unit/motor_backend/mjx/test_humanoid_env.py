@@ -47,7 +47,7 @@ _ENVS: dict[str, JittedEnv] = {}
 def stress_bundle(task: str):
     """The stress datapack (``humanoid_stress.yaml``: friction, payload, pushes, start noise) plus
     kp/kd ranges, as the backend hands datapacks to the env."""
-    from econmotor.motor_backend.datapacks import DatapackBundle, load_datapack_configs
+    from econmotor.config.datapacks import DatapackBundle, load_datapack_configs
 
     [pack] = load_datapack_configs([REPO / "configs" / "datapacks" / "humanoid_stress.yaml"])
     dr = {**pack.domain_randomization, "kp_range": [0.9, 1.1], "kd_range": [0.8, 1.2]}

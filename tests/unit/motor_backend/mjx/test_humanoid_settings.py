@@ -8,9 +8,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from econmotor.config.datapacks import DatapackBundle, load_datapack_configs
 from econmotor.couriers import locomotion_rewards as lr
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.datapacks import DatapackBundle, load_datapack_configs
 from econmotor.motor_backend.mjx.humanoid_env import HumanoidWalkerEnv, parse_humanoid_stress, parse_locomotion
 from econmotor.robots import G1_29DOF
 from econmotor.tasks import load_catalog

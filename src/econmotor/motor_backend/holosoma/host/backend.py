@@ -42,7 +42,9 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 
+from econmotor.config.datapacks import DatapackConfig, DatapackProvider
 from econmotor.couriers.datapack_mapping import map_datapacks
+from econmotor.couriers.onnx_metadata import ECONMOTOR_PREFIX
 from econmotor.couriers.policy_import import (
     NAME_PREFIX,
     VENV_ENV,
@@ -57,7 +59,6 @@ from econmotor.couriers.walker_task import (
 from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import MotorBackendBase, ProgressFn, StopFn, no_progress
 from econmotor.motor_backend.capabilities import BackendCapabilities, RunSize
-from econmotor.motor_backend.datapacks import DatapackConfig, DatapackProvider
 from econmotor.motor_backend.holosoma.econ_formulas import OVERLAY_TERM_KEYS
 from econmotor.motor_backend.holosoma.host.jobs import run_job
 from econmotor.motor_backend.holosoma.host.plan import (
@@ -68,7 +69,7 @@ from econmotor.motor_backend.holosoma.host.plan import (
 )
 from econmotor.motor_backend.holosoma.host.recording_metrics import episodes_from_recording
 from econmotor.motor_backend.holosoma.job_specs import EvaluateJob, Overlay, ProbeJob, TrainJob
-from econmotor.motor_backend.onnx_policy import ECONMOTOR_PREFIX, OnnxPolicyHandle
+from econmotor.motor_backend.onnx_policy import OnnxPolicyHandle
 from econmotor.motor_backend.results import (
     EvalProvenance,
     MotorEvalResult,

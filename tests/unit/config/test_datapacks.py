@@ -1,12 +1,12 @@
 import pytest
 
-from econmotor.errors import ConfigError, UnknownNameError
-from econmotor.motor_backend.datapacks import (
+from econmotor.config.datapacks import (
     DatapackProvider,
     load_datapack_configs,
     parse_datapack,
     save_datapack_config,
 )
+from econmotor.errors import ConfigError, UnknownNameError
 
 SPEC_EXAMPLE = """\
 id: logging_v1_base
