@@ -52,7 +52,8 @@ SMOKE_ARGS: list[str] = ["--num-envs", "1", "--max-steps", "20", "--eval-episode
 def arm(args: argparse.Namespace) -> dict:
     """One arm, in this process (``econmotor`` from ``PYTHONPATH``): the run's timeline as a dict."""
     started = time.perf_counter()
-    from econmotor.motor_backend.mjx.backend import MjxBackend, device_description
+    from econmotor.motor_backend.mjx.backend import MjxBackend
+    from econmotor.motor_backend.mjx.device import device_description
     from econmotor.objectives import EconomicObjectiveSpec
 
     messages: list[str] = []

@@ -156,7 +156,8 @@ def _rate(stamps: list[tuple[float, float]]) -> float:
 
 def mjx_ppo_throughput(steps: int, num_envs: int, seed: int = 0) -> tuple[float, int, str]:
     """(env steps/s, num_envs used, device) of ``MjxBackend.train_policy`` after compilation."""
-    from econmotor.motor_backend.mjx.backend import MjxBackend, device_description
+    from econmotor.motor_backend.mjx.backend import MjxBackend
+    from econmotor.motor_backend.mjx.device import device_description
     from econmotor.objectives import EconomicObjectiveSpec
 
     backend = MjxBackend()

@@ -27,7 +27,8 @@ os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_
 import jax  # noqa: E402
 
 from econmotor.motor_backend.mjx import ppo  # noqa: E402
-from econmotor.motor_backend.mjx.backend import MjxBackend, device_description  # noqa: E402
+from econmotor.motor_backend.mjx.backend import MjxBackend  # noqa: E402
+from econmotor.motor_backend.mjx.device import device_description  # noqa: E402
 from econmotor.motor_backend.mjx.training import evaluate_episodes  # noqa: E402
 from econmotor.motor_backend.results import summarize_episodes  # noqa: E402
 from econmotor.objectives import EconomicObjectiveSpec  # noqa: E402

@@ -15,11 +15,12 @@ learning, its checkpoints, its policy files and its export. What a loop-driven r
     <policy files>     # the kept policy (Learner.save_policy: the best held-out one, else the last)
     policy.onnx        # its export (Learner.export)
 
-Held-out evaluations run between chunks, or, for a learner that gives a :class:`PolicySnapshot`
-(:meth:`Learner.snapshot`: the mjx backend's, whose compiled evaluation leaves the GIL), beside training:
-one thread evaluates the snapshots in the order they were taken (at most :data:`MAX_BACKLOG` waiting) and
-the loop enters each result after the chunk it ended in, so the same policies are judged as between chunks
-and the kept one is the snapshot that passed, not the weights learned while it was judged.
+Held-out evaluations run between chunks, or, for a learner that gives a
+:class:`~econmotor.motor_backend.beside_training.PolicySnapshot` (:meth:`Learner.snapshot`: the mjx backend's,
+whose compiled evaluation leaves the GIL), beside training (``beside_training.py``: one thread evaluates the
+snapshots in the order they were taken, at most ``MAX_BACKLOG`` waiting) and the loop enters each result after
+the chunk it ended in, so the same policies are judged as between chunks and the kept one is the snapshot that
+passed, not the weights learned while it was judged.
 
 A run stops at ``max_steps`` env steps, at ``max_wall_s`` or once deployable (``--until-deployable``).
 Interrupted (Ctrl-C, SIGTERM), it writes a checkpoint first when the learner keeps them, so ``--resume``
@@ -31,9 +32,7 @@ from __future__ import annotations
 import json
 import math
 import os
-import queue
 import shutil
-import threading
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -41,6 +40,7 @@ from pathlib import Path
 from typing import Any
 
 from econmotor.motor_backend.base import ProgressFn, no_progress
+from econmotor.motor_backend.beside_training import MAX_BACKLOG, BesideTraining, PolicySnapshot
 from econmotor.motor_backend.run_dir import check_resume_request, read_run_config, write_run_config
 from econmotor.motor_backend.selection import HeldOutResult, Selection
 
@@ -113,81 +113,6 @@ class Learner:
         """Release envs and writers."""
 
 
-class PolicySnapshot:
-    """A learner's policy at one moment (:meth:`Learner.snapshot`): evaluated and saved while learning goes on."""
-
-    def evaluate(self, num_episodes: int, first_seed: int, stop: StopFn) -> list[dict[str, Any]]:
-        """As :meth:`Learner.evaluate`, of the frozen policy."""
-        raise NotImplementedError
-
-    def save_policy(self, directory: Path) -> None:
-        """As :meth:`Learner.save_policy`, of the frozen policy."""
-        raise NotImplementedError
-
-
-class _Beside:
-    """Held-out evaluations of snapshots, assessed in the order they were taken by one thread while the
-    learner learns on; the loop enters each finished one into the selection (:meth:`TrainingLoop._settle`).
-
-    At most :data:`MAX_BACKLOG` wait or run at once: taking one more first waits for the oldest, so a run
-    whose evaluations are slower than its training learns no further than that ahead of them."""
-
-    def __init__(self, selection: Selection) -> None:
-        self.selection, self.cancel = selection, threading.Event()
-        self.todo: queue.Queue[tuple[int, PolicySnapshot] | None] = queue.Queue()
-        self.done: list[tuple[PolicySnapshot, HeldOutResult | None, BaseException | None]] = []
-        self.ended = threading.Condition()
-        self.taken = self.returned = 0
-        # not a daemon: an interpreter never exits under a running XLA computation
-        self.thread = threading.Thread(target=self._work, name="econmotor-held-out", daemon=False)
-        self.thread.start()
-
-    def _work(self) -> None:
-        while (item := self.todo.get()) is not None:
-            env_steps, snapshot = item
-            if self.cancel.is_set():  # closing: what is queued is not evaluated
-                continue
-
-            def evaluate(num_episodes: int, first_seed: int, stop: StopFn, snapshot=snapshot) -> list[dict[str, Any]]:
-                return snapshot.evaluate(num_episodes, first_seed, lambda rows: self.cancel.is_set() or stop(rows))
-
-            result, error = None, None
-            try:
-                result = self.selection.assess(env_steps, evaluate, beside_training=True)
-            except BaseException as exc:  # raised in the loop's thread when it enters this evaluation
-                error = exc
-            with self.ended:
-                self.done.append((snapshot, result, error))
-                self.ended.notify_all()
-
-    def take(self, env_steps: int, snapshot: PolicySnapshot) -> None:
-        """Queue the evaluation of ``snapshot``, taken at ``env_steps``."""
-        self.taken += 1
-        self.todo.put((env_steps, snapshot))
-
-    def finished(self, wait_for: int = 0) -> list[tuple[PolicySnapshot, HeldOutResult]]:
-        """The evaluations ended since the last call, in order, once at least ``wait_for`` have ended in all;
-        an evaluation's error is raised here."""
-        with self.ended:
-            self.ended.wait_for(lambda: len(self.done) >= min(wait_for, self.taken))
-            ended, self.returned = self.done[self.returned:], len(self.done)
-        for _, _, error in ended:
-            if error is not None:
-                raise error
-        return [(snapshot, result) for snapshot, result, _ in ended]  # type: ignore[misc]
-
-    def close(self, cancel: bool = False) -> None:
-        """End the thread after the queued evaluations (``cancel``: each stops at its next batch)."""
-        if cancel:
-            self.cancel.set()
-        self.todo.put(None)
-        self.thread.join()
-
-
-#: held-out evaluations beside training that may wait or run at once (:class:`_Beside`)
-MAX_BACKLOG = 4
-
-
 @dataclass(frozen=True)
 class TrainingOutcome:
     """What a run gives its backend: the curve, the run config as written, where the export went."""
@@ -225,7 +150,7 @@ class TrainingLoop:
     label: str = "train"
     _curve: list[dict[str, float]] = field(default_factory=list)
     _previous: dict[str, Any] | None = None
-    _beside: _Beside | None = None
+    _beside: BesideTraining | None = None
 
     # ------------------------------------------------------------------ resume
     def previous(self) -> dict[str, Any]:
@@ -351,7 +276,7 @@ class TrainingLoop:
             self._enter(learner, self.selection.assess(learner.env_steps, learner.evaluate), learner.save_policy)
             return
         if self._beside is None:
-            self._beside = _Beside(self.selection)
+            self._beside = BesideTraining(self.selection)
         self._settle(learner, backlog=MAX_BACKLOG - 1)  # room for this one
         if not self.selection.should_stop:
             self._beside.take(learner.env_steps, snapshot)

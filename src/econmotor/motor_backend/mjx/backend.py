@@ -18,8 +18,8 @@ exported ONNX) record ``init_policy``. A task on a real robot (an env with a rob
 in Holosoma's format (``export.py``), so Holosoma's inference stack and the sim-to-sim evaluator
 run what was trained here.
 
-XLA compiles each jitted function once per process; a persistent compilation cache
-(``compilation_cache_dir``, default ``~/.cache/econmotor/jax``; the CLI passes
+XLA compiles each jitted function once per process; a persistent compilation cache (``device.py``,
+``compilation_cache_dir``, default ``~/.cache/econmotor/jax``; the CLI passes
 ``$ECONMOTOR_JAX_CACHE_DIR`` when set, see :attr:`MjxBackend.environment_options`) lets later
 processes skip most of it.
 """
@@ -37,13 +37,14 @@ import jax
 
 from econmotor.config.datapacks import DatapackConfig, DatapackProvider
 from econmotor.couriers.onnx_actor import policy_file, read_actor
-from econmotor.couriers.onnx_export import export_onnx
-from econmotor.couriers.policy_import import VENV_ENV, holosoma_export_metadata
+from econmotor.couriers.policy_import import VENV_ENV
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import MotorBackendBase, ProgressFn, StopFn, no_progress
 from econmotor.motor_backend.capabilities import BackendCapabilities, HeldOutCadence, RunSize
 from econmotor.motor_backend.mjx import ppo
 from econmotor.motor_backend.mjx.compile import CompiledAhead
+from econmotor.motor_backend.mjx.device import device_description, enable_compilation_cache
+from econmotor.motor_backend.mjx.export import ONNX_FILE, export_run_policy
 from econmotor.motor_backend.mjx.onnx_import import warm_start
 from econmotor.motor_backend.mjx.settings import MjxTaskSettings, parse_mjx_settings
 from econmotor.motor_backend.mjx.training import (
@@ -66,13 +67,9 @@ from econmotor.motor_backend.results import (
 from econmotor.motor_backend.selection import fit_to_run, selection_for
 from econmotor.motor_backend.training_loop import CURVE_FILE
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
-from econmotor.robots import card as robot_card
 from econmotor.robots.gym_couriers import robot_name
 from econmotor.tasks.catalog import TaskCatalog
 
-ONNX_FILE = "policy.onnx"
-ONNX_METADATA_KEYS = ("task_id", "overlay", "overlay_references", "objective", "datapack_ids", "economics",
-                      "algorithm", "obs_layout", "action_layout", "seed", "init_policy")
 CACHE_ENV = "ECONMOTOR_JAX_CACHE_DIR"
 #: a run that needs its evaluator within this many iterations (its first held-out evaluation, or its end)
 #: compiles it from the start, beside the iteration's compilation; a longer one after its first iteration,
@@ -84,21 +81,6 @@ COMPILE_AHEAD_ITERATIONS = 8
 #: step (the callback, the meter's small ops), so 48 fall-free hopper episodes cost 1.6x 16 of them, and 96
 #: cost 3.3 s instead of 5.2 s (one core); a fast hopper (~1.4 legs an episode) passes at the first look
 CPU_EVAL_BATCH = {"mjx": 16, "mujoco": 48}
-
-
-def device_description() -> str:
-    """The device JAX trains on, e.g. ``GPU (NVIDIA H100 80GB HBM3)`` or ``CPU (cpu)``."""
-    device = jax.devices()[0]
-    return f"{device.platform.upper()} ({device.device_kind})"
-
-
-def enable_compilation_cache(path: str | Path | None) -> None:
-    """Point JAX's persistent compilation cache at ``path`` unless the user configured one."""
-    if path is None or jax.config.jax_compilation_cache_dir:
-        return
-    Path(path).mkdir(parents=True, exist_ok=True)
-    jax.config.update("jax_compilation_cache_dir", str(path))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
 
 
 def env_class(settings: MjxTaskSettings) -> type:
@@ -315,7 +297,7 @@ class MjxBackend(MotorBackendBase):
             raise ConfigError("<train>", "output_dir", "resume needs the run directory to continue")
         extra = {"device": device_description(), "num_envs_requested": int(num_envs), "num_envs_note": note}
         if getattr(env, "card", None) is not None:
-            extra["robot"] = env.card.name  # exported in Holosoma's format (_export)
+            extra["robot"] = env.card.name  # exported in Holosoma's format (export.py)
         initial = None
         if init_policy is not None:
             cfg, initial, extra["init_policy"] = self._warm_start(init_policy, resume, env, cfg, hyperparameters,
@@ -333,7 +315,7 @@ class MjxBackend(MotorBackendBase):
             self._compile_evaluator_ahead(run, env)
         run.held_out = lambda learner, n, first_seed, stop: evaluate_episodes(
             self._evaluator(env, run.cfg), batch, env, learner, n, first_seed, stop=stop)
-        run.export = lambda run_dir, learner: self._export(run_dir, learner, run.cfg, run.config)
+        run.export = lambda run_dir, learner: export_run_policy(run_dir, learner, run.cfg, run.config)
         curve = run.train(resume=resume, progress=progress)
         config = run.config
         artifacts = {"policy": str(run.run_dir / "policy.npz"), "tensorboard": str(run.run_dir / "tb"),
@@ -397,17 +379,5 @@ class MjxBackend(MotorBackendBase):
         config = read_run_config(policy_id)  # an mjx run directory, checked before anything is loaded
         if not path.is_file():
             cfg = ppo.PPOConfig.from_mapping(config["hyperparameters"], str(Path(policy_id) / RUN_CONFIG_FILE))
-            self._export(Path(policy_id), load_learner(policy_id, config, cfg), cfg, config)
+            export_run_policy(Path(policy_id), load_learner(policy_id, config, cfg), cfg, config)
         return OnnxPolicyHandle(path)
-
-    # --- extras ------------------------------------------------------------------------------
-    @staticmethod
-    def _export(run_dir: Path, learner: ppo.Learner, cfg: ppo.PPOConfig, config: dict[str, Any]) -> Path:
-        """Write ``policy.onnx`` with the mujoco backend's metadata keys (bounds from the run config)."""
-        learner = jax.device_get(learner)
-        stats = (learner.stats.mean, learner.stats.var) if cfg.normalize_obs else None
-        metadata = {key: config.get(key) for key in ONNX_METADATA_KEYS}
-        action = config["action_layout"]
-        holosoma = holosoma_export_metadata(robot_card(config["robot"])) if config.get("robot") else None
-        return export_onnx(learner.params, stats, cfg.clip_obs, action["low"], action["high"],
-                           run_dir / ONNX_FILE, metadata, activation=cfg.activation, holosoma=holosoma)

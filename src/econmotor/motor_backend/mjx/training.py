@@ -39,13 +39,14 @@ import numpy as np
 from econmotor.errors import BackendError
 from econmotor.motor_backend import run_dir as run_dirs
 from econmotor.motor_backend.base import ProgressFn, no_progress
+from econmotor.motor_backend.beside_training import PolicySnapshot
 from econmotor.motor_backend.mjx import checkpoint as ckpt
 from econmotor.motor_backend.mjx import ppo
 from econmotor.motor_backend.mjx.compile import CacheWatch, CompiledAhead
 from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE
 from econmotor.motor_backend.selection import Selection
 from econmotor.motor_backend.training_loop import Learner as LoopLearner
-from econmotor.motor_backend.training_loop import PolicySnapshot, StopFn, TrainingLoop
+from econmotor.motor_backend.training_loop import StopFn, TrainingLoop
 
 POLICY_FILE = "policy.npz"
 

@@ -10,7 +10,8 @@ import pytest
 
 from econmotor.errors import ConfigError, UnknownNameError
 from econmotor.motor_backend.factory import known_backends, make_motor_backend
-from econmotor.motor_backend.mjx.backend import MjxBackend, device_description
+from econmotor.motor_backend.mjx.backend import MjxBackend
+from econmotor.motor_backend.mjx.device import device_description
 from econmotor.objectives import EconomicObjectiveSpec
 
 

@@ -27,24 +27,21 @@ preset per algorithm (``humanoid_locomotion_g1`` -> ``g1_29dof`` / ``g1_29dof_fa
   ours (``econmotor_*``: task, objective, overlay weights, task economics).
 
 ``output_dir`` is the run directory (default: a new one under ``runs_dir``); a trained run holds
-``run_config.json`` and ``policy.onnx``. ``policy_id`` names that directory, or an imported policy:
-an ONNX file in Holosoma's export format or a shipped one, ``holosoma:<robot>/<algo>``
-(:mod:`.holosoma.policy_import`).
+``run_config.json`` and ``policy.onnx`` (:mod:`.holosoma.host.run_record`). ``policy_id`` names that
+directory, or an imported policy: an ONNX file in Holosoma's export format or a shipped one,
+``holosoma:<robot>/<algo>`` (:mod:`.holosoma.policy_import`).
 """
 
 from __future__ import annotations
 
-import json
 import math
 import os
-import shutil
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 
 from econmotor.config.datapacks import DatapackConfig, DatapackProvider
 from econmotor.couriers.datapack_mapping import map_datapacks
-from econmotor.couriers.onnx_metadata import ECONMOTOR_PREFIX
 from econmotor.couriers.policy_import import (
     NAME_PREFIX,
     VENV_ENV,
@@ -68,6 +65,7 @@ from econmotor.motor_backend.holosoma.host.plan import (
     plan_training,
 )
 from econmotor.motor_backend.holosoma.host.recording_metrics import episodes_from_recording
+from econmotor.motor_backend.holosoma.host.run_record import read_run_record, record_run, training_log
 from econmotor.motor_backend.holosoma.job_specs import EvaluateJob, Overlay, ProbeJob, TrainJob
 from econmotor.motor_backend.onnx_policy import OnnxPolicyHandle
 from econmotor.motor_backend.results import (
@@ -76,7 +74,7 @@ from econmotor.motor_backend.results import (
     MotorTrainingResult,
     evaluation_result,
 )
-from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, read_run_config, write_run_config
+from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE
 from econmotor.motor_backend.walker_pricing import WalkerPricing, price_walker
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
 from econmotor.robots import card as robot_card
@@ -87,32 +85,6 @@ __all__ = ["HolosomaBackend", "find_holosoma_python"]
 SIMULATOR_ENV = "ECONMOTOR_HOLOSOMA_SIMULATOR"
 ALGO_ENV = "ECONMOTOR_HOLOSOMA_ALGO"
 CPU_STEPS_ENV = "ECONMOTOR_HOLOSOMA_CPU_MAX_ENV_STEPS"
-LEGACY_MANIFEST = "policy.json"  # the run record before run_config.json
-
-
-def attach_econmotor_metadata(onnx_path: str | Path, metadata: dict[str, Any]) -> None:
-    """Add ``econmotor_<key>`` entries (JSON values) to an ONNX file's metadata, replacing old ones."""
-    import onnx
-
-    model = onnx.load(str(onnx_path))
-    keep = [p for p in model.metadata_props if not p.key.startswith(ECONMOTOR_PREFIX)]
-    del model.metadata_props[:]
-    model.metadata_props.extend(keep)
-    for key, value in metadata.items():
-        entry = model.metadata_props.add()
-        entry.key, entry.value = f"{ECONMOTOR_PREFIX}{key}", json.dumps(value, default=str)
-    tmp = Path(str(onnx_path) + ".tmp")
-    onnx.save(model, str(tmp))
-    tmp.replace(onnx_path)
-
-
-def _training_log(outcome: Any, result: Mapping[str, Any]) -> dict[str, Any]:
-    """What a training job's protocol logged: the econ terms, reward terms, wall time and iteration times."""
-    return {"econ_term_log": {k: v for c in outcome.curve for k, v in c.get("econ", {}).items()},
-            "reward_terms": result["reward_terms"], "train_wall_s": outcome.wall_s,
-            "econ_term_seconds": result.get("econ_term_seconds", 0.0),
-            "iteration_times_s": [{"collection_s": c.get("collection_s"), "learn_s": c.get("learn_s")}
-                                  for c in outcome.curve]}
 
 
 class HolosomaBackend(MotorBackendBase):
@@ -267,33 +239,19 @@ class HolosomaBackend(MotorBackendBase):
         ours = {"task_id": task_id, "objective": objective.to_dict(), "overlay_weights": weights,
                 "overlay_gain": settings["overlay_gain"], "task_economics": spec.economics.to_dict(),
                 "settings": settings}
-        policy_onnx = self._record_run(run_dir, ours, result, {"simulator": plan.simulator, "algo": algo,
-                                                                 "seed": int(seed)})
+        policy_onnx = record_run(run_dir, ours, result, {"simulator": plan.simulator, "algo": algo, "seed": int(seed)},
+                                 self.name, self.final_policy_file)
         curve = [{"timesteps": float(c["timesteps"]), "mean_return": float(c["mean_return"])}
                  for c in outcome.curve if c.get("mean_return") is not None]
         config: dict[str, Any] = {
             "seed": seed, "objective": objective.to_dict(), "datapacks": list(bundle.datapack_ids),
             "overrides": overrides.to_dict(), "plan": {**plan.__dict__, "messages": list(plan.messages)},
-            "overlay_weights": weights, "messages": messages, **_training_log(outcome, result)}
+            "overlay_weights": weights, "messages": messages, **training_log(outcome, result)}
         evaluation = self.evaluate_after_training(run_dir, task_id, objective, eval_episodes, seed,
                                                   datapack_configs=datapack_configs, progress=progress)
         artifacts = {"policy": str(run_dir), "checkpoint": result["checkpoint"], "onnx": str(policy_onnx),
                      "tensorboard": result["experiment_dir"], "train_log": outcome.log_path}
         return self.training_result(run_dir, task_id, evaluation, curve, config, artifacts)
-
-    def _record_run(self, run_dir: Path, ours: dict[str, Any], result: dict[str, Any],
-                    extra: dict[str, Any]) -> Path:
-        """The run's ``policy.onnx`` (Holosoma's export with econmotor's metadata ``ours`` attached) and its
-        ``run_config.json``; returns the ONNX's path."""
-        attach_econmotor_metadata(result["onnx"], ours)
-        policy_onnx = run_dir / self.final_policy_file  # the run's policy, where every backend keeps its final one
-        shutil.copyfile(result["onnx"], policy_onnx)
-        write_run_config(run_dir, {
-            **ours, "checkpoint": result["checkpoint"], "onnx": str(policy_onnx),
-            "holosoma_onnx": result["onnx"], "experiment_dir": result["experiment_dir"],
-            "episode_length_s": result["episode_length_s"], "control_dt_s": result["control_dt_s"], **extra},
-            self.name)
-        return policy_onnx
 
     def evaluate_policy(
         self,
@@ -321,7 +279,7 @@ class HolosomaBackend(MotorBackendBase):
         spec, settings = self._task(task_id)
         imported = is_imported_policy(policy_id)
         self.check_policy(policy_id)
-        record = None if imported else self._run_config(policy_id)
+        record = None if imported else read_run_record(policy_id, self.name)
         run_dir = self.run_dir(output_dir, task_id, seed).resolve()
         if settings["progress_mode"] == "velocity":
             policy = str(policy_id) if str(policy_id).startswith(NAME_PREFIX) else \
@@ -392,7 +350,7 @@ class HolosomaBackend(MotorBackendBase):
             onnx_path = find_shipped_policy(str(policy_id), self._holosoma_python())
         else:
             path = Path(policy_id)
-            onnx_path = path if path.suffix == ".onnx" else Path(self._run_config(policy_id)["onnx"])
+            onnx_path = path if path.suffix == ".onnx" else Path(read_run_record(policy_id, self.name)["onnx"])
         if not onnx_path.is_file():
             raise BackendError(f"no ONNX policy at {onnx_path}")
         return OnnxPolicyHandle(onnx_path)
@@ -413,11 +371,4 @@ class HolosomaBackend(MotorBackendBase):
             if not Path(policy_id).is_file():
                 raise ConfigError("--policy", str(policy_id), "no such ONNX file")
         else:
-            self._run_config(policy_id)
-
-    def _run_config(self, policy_id: str) -> dict[str, Any]:
-        """The run's ``run_config.json`` (a run written before it had one: its ``policy.json``)."""
-        legacy = Path(policy_id) / LEGACY_MANIFEST
-        if not (Path(policy_id) / RUN_CONFIG_FILE).is_file() and legacy.is_file():
-            return json.loads(legacy.read_text(encoding="utf-8"))
-        return read_run_config(policy_id, self.name)
+            read_run_record(policy_id, self.name)
