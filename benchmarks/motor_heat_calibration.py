@@ -32,14 +32,17 @@ from econmotor.config.datapacks import DatapackProvider
 from econmotor.robots.card import scaled_heat_model
 from econmotor.tasks import get_task
 
+SMOKE_ARGS: list[str] = ["--episodes", "2", "--episode-s", "4", "--stand-s", "1"]
 
-def draw(task_id: str, policy: str, episodes: int, seed: int, heat_at_limit: float | None) -> dict[str, float]:
+
+def draw(task_id: str, policy: str, episodes: int, seed: int, heat_at_limit: float | None,
+         episode_s: float | None = None) -> dict[str, float]:
     """Mean electrical, heat and mechanical power (W) over ``episodes`` of the task's course, the card's
     motor model replaced by ``scaled_heat_model(a=heat_at_limit)`` where given."""
     spec = get_task(task_id)
     settings = task_settings(task_id, spec.backend_entry("holosoma"), spec.source)
     bundle = DatapackProvider().resolve(task_id, [], [])
-    setup = walker_setup(spec, settings, bundle, [], policy)
+    setup = walker_setup(spec, settings, bundle, [], policy, episode_s=episode_s)
     contract = setup.contract
     if heat_at_limit is not None:
         card = dataclasses.replace(contract.card, motor_model=scaled_heat_model(
@@ -88,12 +91,14 @@ def main() -> None:
     ap.add_argument("--policy", default="holosoma:g1_29dof/ppo")
     ap.add_argument("--episodes", type=int, default=16)
     ap.add_argument("--seed", type=int, default=1000)
+    ap.add_argument("--episode-s", type=float, default=None, help="episode time limit (default: the task's)")
+    ap.add_argument("--stand-s", type=float, default=20.0, help="seconds of standing metered")
     ap.add_argument("--stated-runtime-h", type=float, default=None,
                     help="the maker's runtime per charge (default: the robot card's)")
     args = ap.parse_args()
     spec = get_task(args.task_id)
     capacity_wh = spec.economics.battery_capacity_wh
-    unit = draw(args.task_id, args.policy, args.episodes, args.seed, 1.0)
+    unit = draw(args.task_id, args.policy, args.episodes, args.seed, 1.0, args.episode_s)
     p0 = unit["mean_power_w"] - unit["mean_heat_power_w"]
     from econmotor.couriers.policy_import import resolve_contract
 
@@ -105,13 +110,15 @@ def main() -> None:
     if stated:
         a = (capacity_wh / stated - p0) / unit["mean_heat_power_w"]
         out.update(stated_runtime_h=stated, target_w=capacity_wh / stated, fitted_heat_at_limit_w_per_nm=a,
-                   **{f"fitted_{k}": v for k, v in standing(args.task_id, args.policy, a).items()})
+                   **{f"fitted_{k}": v for k, v in standing(args.task_id, args.policy, a, args.stand_s).items()})
     if card.motor_model is not None:
-        now = draw(args.task_id, args.policy, args.episodes, args.seed, None)
+        now = draw(args.task_id, args.policy, args.episodes, args.seed, None, args.episode_s)
         out.update(card_mean_power_w=now["mean_power_w"], card_heat_w=now["mean_heat_power_w"],
                    card_runtime_h=capacity_wh / now["mean_power_w"], card_wh_per_leg=now["energy_wh_per_leg"],
-                   **{f"card_{k}": v for k, v in standing(args.task_id, args.policy, None).items()})
+                   **{f"card_{k}": v for k, v in standing(args.task_id, args.policy, None, args.stand_s).items()})
     print(json.dumps(out, indent=1))
+    print(f"runtime per charge: without heat {out['runtime_without_heat_h']:.3f} h, with the card's motor model "
+          f"{out.get('card_runtime_h', float('nan')):.3f} h, the maker's {stated or float('nan'):g} h")
 
 
 if __name__ == "__main__":

@@ -45,6 +45,7 @@ FIGURES = {
     "g1_objectives.py": "energy_saver - throughput, Wh/leg",
     "hypervolume.py": "ratio HSO/grid",
     "mjx_compile.py": "ratio flags / default, compile_iteration_s:",
+    "motor_heat_calibration.py": "runtime per charge: without heat",
     "mjx_eval_timeline.py": "evaluation per episode: before",
     "mjx_humanoid_throughput.py": "ratio",
     "mjx_model_options.py": "ratio",

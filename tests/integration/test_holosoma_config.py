@@ -160,12 +160,13 @@ def test_meter_settings_come_from_the_catalog_entry_and_name_a_missing_key() -> 
         meter_settings(spec.task_id, {**entry, "robot": "g9"}, spec.source)
 
 
-def _recording(path: Path, steps: int, fall_at: int) -> None:
+def _recording(path: Path, steps: int, fall_at: int, joints: int = 29) -> None:
     reset = np.zeros(steps, bool)
     reset[fall_at] = True
     arrays = {
-        "dof_pos": np.zeros((steps, 2)), "torques_substep": np.full((steps, 4, 2), 10.0),
-        "dof_vel_substep": np.full((steps, 4, 2), 1.0), "root_quat_xyzw": np.tile([0.0, 0.0, 0.0, 1.0], (steps, 1)),
+        "dof_pos": np.zeros((steps, joints)), "torques_substep": np.full((steps, 4, joints), 10.0),
+        "dof_vel_substep": np.full((steps, 4, joints), 1.0),
+        "root_quat_xyzw": np.tile([0.0, 0.0, 0.0, 1.0], (steps, 1)),
         "reset": reset, "time_out": np.zeros(steps, bool), "reward": np.ones(steps),
         "base_lin_vel": np.tile([0.5, 0.0, 0.0], (steps, 1)),
         "commanded_velocity": np.tile([0.5, 0.0, 0.0], (steps, 1)),
@@ -185,7 +186,10 @@ def test_recording_is_split_into_episodes_with_econ_raw_metrics(tmp_path: Path) 
     first = episodes[0]
     assert first["termination_reason"] == "fall" and first["errors"] == 1
     assert first["units_completed"] == pytest.approx(0.5 * 30 * 0.02 / 10.0)
-    assert first["energy_wh"] == pytest.approx((20.0 / 0.8 + meter["idle_power_w"]) * 30 * 0.02 / 3600)
+    # 29 joints at 10 N m and 1 rad/s: 290 W mechanical, and the G1 card's winding heat sum_j k_j 10^2
+    heat_w = 100.0 * float(card(settings["robot"]).heat_coeff().sum())
+    assert heat_w > 100.0
+    assert first["energy_wh"] == pytest.approx((290.0 / 0.8 + heat_w + meter["idle_power_w"]) * 30 * 0.02 / 3600)
     assert first["risk_score"] == 0 and first["return"] == 30
 
 

@@ -1,8 +1,9 @@
 """The one onnxruntime handle of an exported policy, for every backend that deploys ONNX.
 
 Two metadata formats (:mod:`econmotor.couriers.onnx_metadata`): econmotor's (the mujoco and mjx backends'
-couriers' ``policy.onnx``), one ``econmotor`` entry (JSON: task id, compiled overlay, datapack ids, economic assumptions, observation /
-action layout); and Holosoma's (the holosoma backend's runs and imports, the mjx backend's real robots),
+couriers' ``policy.onnx``), one ``econmotor`` entry (JSON: task id, compiled overlay, datapack ids,
+economic assumptions, observation / action layout); and Holosoma's (the holosoma backend's runs and
+imports, the mjx backend's real robots),
 Holosoma's own entries (``dof_names``, ``kp``, ``kd``, ``action_scale``, ...) each JSON-encoded, with
 econmotor's facts beside them as ``econmotor_<key>`` entries. :class:`OnnxPolicyHandle` reads either
 (:func:`econmotor_metadata`). No torch or jax here: the handle also runs in .venv-holosoma (numpy 1.x),
