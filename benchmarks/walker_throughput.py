@@ -11,11 +11,20 @@ as control steps per wall second (50 Hz policy steps; 4 physics steps each) and 
 - **env_1**: the batched env (:mod:`econmotor.couriers.walker_eval`) in this process, ``--slots`` robots;
 - **env_threads**: one process, ``2 x --slots`` robots, ``mujoco.rollout`` on two C threads;
 - **env_processes**: two worker processes of ``--slots`` robots each (the evaluator's default), with
-  their start-up (spawn, imports, the model, the ONNX session) timed apart as ``startup_s``.
+  their start-up (spawn, imports, the model, the ONNX session) timed apart as ``startup_s``;
+- **train_1 / train_2**: the CPU trainer's PPO iterations (:mod:`econmotor.motor_backend.mujoco.walker_training`,
+  the task catalog's recipe, reward and gain, ``--train-envs`` robots from the policy's actor, random starts on
+  the same course): its robots stepped in its own process (``collect_workers: 1``) / in two collect workers
+  (``collect_workers: 2``, :mod:`econmotor.motor_backend.mujoco.walker_collect`), the update in the trainer's
+  process; env steps per wall second over ``--train-iterations`` iterations after a first one (the workers'
+  start-up) untimed, the update included (``collect_1`` / ``collect_2``: collection alone).
 
-Printed last: ``env_processes / raw_2``, the share of the machine's MuJoCo speed a price gets.
+Printed last: the trainer's ``train_2 / raw_2`` (the share of the machine's MuJoCo speed a training run
+gets on both cores; issue 54 asks for 0.5), then ``env_processes / raw_2``, the share a price gets.
+``--trainer-only`` measures the raw floors and the trainer's arms alone. On idle cores:
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/walker_throughput.py
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/walker_throughput.py --trainer-only
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/walker_throughput.py --policy holosoma:t1_29dof/ppo
 """
 
@@ -29,7 +38,8 @@ import time
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 #: the smallest run (tests/integration/test_benchmarks.py)
-SMOKE_ARGS: list[str] = ["--episode-s", "0.4", "--episodes", "4", "--slots", "2"]
+SMOKE_ARGS: list[str] = ["--episode-s", "0.4", "--episodes", "4", "--slots", "2", "--train-envs", "4",
+                          "--train-steps", "8", "--train-iterations", "1"]
 
 
 def _evaluation(policy: str, episode_s: float, slots: int):
@@ -158,12 +168,61 @@ def env_threads(ev, episodes: int) -> float:
     return wall
 
 
+def train_rate(ev, workers: int, num_envs: int, steps: int, iterations: int) -> tuple[float, float]:
+    """(env steps per wall second, of collection alone) of the trainer's iterations with ``workers`` collect
+    workers (after a first iteration, untimed: the workers' start-up)."""
+    import numpy as np
+
+    from econmotor.config.objective_profile import ObjectiveVector
+    from econmotor.couriers.onnx_actor import policy_file, read_actor
+    from econmotor.couriers.policy_import import resolve_contract
+    from econmotor.couriers.walker_setup import WalkerSetup
+    from econmotor.motor_backend.mujoco.walker_backend import walker_train_settings
+    from econmotor.motor_backend.mujoco.walker_ppo import WalkerPPOConfig
+    from econmotor.motor_backend.mujoco.walker_training import WalkerLearner, WalkerTrainingRun
+    from econmotor.objectives.loader import objective_from_vector
+    from econmotor.tasks import get_task
+
+    c = resolve_contract(ev.policy)
+    task = "humanoid_locomotion_g1" if c.card.name.startswith("g1") else "humanoid_locomotion_t1"
+    spec = get_task(task)
+    trainer = walker_train_settings(spec)
+    recipe = {**trainer.ppo, "num_envs": num_envs, "steps_per_iteration": steps}
+    if (num_envs * steps) % int(recipe.get("num_minibatches", 1)):
+        recipe["num_minibatches"] = 1
+    setup = WalkerSetup(contract=c, card=c.card, course=ev.course, meter=ev.meter, stress=ev.stress,
+                        episode_s=ev.episode_s, notes=(), datapack_ids=())
+    run = WalkerTrainingRun(
+        run_dir=None, setup=setup, cfg=WalkerPPOConfig.from_mapping(recipe),  # type: ignore[arg-type]
+        objective=objective_from_vector(ObjectiveVector.from_preset("energy_saver"), "energy_saver"),
+        economics=spec.economics, gain=trainer.econ_gain, weights=trainer.weights, params=trainer.params, seed=0,
+        max_steps=10**12, init=read_actor(policy_file(ev.policy), ev.policy), kp=np.asarray(c.kp),
+        kd=np.asarray(c.kd), command_ranges=c.command_ranges, collect_workers=workers)
+    learner = WalkerLearner(run)
+    try:
+        learner.learn(learner.env_steps + 1)  # one iteration: the workers' start-up
+        t0, collect_s = time.perf_counter(), 0.0
+        for _ in range(iterations):
+            collect_s += learner.learn(learner.env_steps + 1)["collect_s"]
+        wall = time.perf_counter() - t0
+    finally:
+        learner.close()
+    env_steps = iterations * num_envs * steps
+    return env_steps / wall, env_steps / collect_s
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--policy", default="holosoma:g1_29dof/ppo")
     parser.add_argument("--episode-s", type=float, default=20.0, help="simulated seconds per episode")
     parser.add_argument("--episodes", type=int, default=16)
     parser.add_argument("--slots", type=int, default=8, help="robots per process")
+    parser.add_argument("--train-envs", type=int, default=32, help="the trainer's robots (the catalog's: 32)")
+    parser.add_argument("--train-steps", type=int, default=128,
+                        help="the trainer's control steps per iteration (the catalog's: 128)")
+    parser.add_argument("--train-iterations", type=int, default=4, help="timed trainer iterations per arm")
+    parser.add_argument("--trainer-only", action="store_true",
+                        help="the raw floors and the trainer's arms only (no evaluator arms)")
     args = parser.parse_args()
 
     from econmotor.couriers.walker_eval import evaluate
@@ -180,29 +239,40 @@ def main() -> None:
         t0 = time.perf_counter()
         pool.map(_replay_worker, [(ev, starts[:half], targets[:half]), (ev, starts[half:], targets[half:])])
         rates["raw_2"] = control_steps / (time.perf_counter() - t0)
-    rates["one_robot"] = control_steps / one_robot(ev, min(args.episodes, 4)) * min(args.episodes, 4) / args.episodes
-    t0 = time.perf_counter()
-    evaluate(ev, args.episodes, workers=1)
-    rates["env_1"] = control_steps / (time.perf_counter() - t0)
-    rates["env_threads"] = control_steps / env_threads(ev, args.episodes)
-    tiny = _evaluation(args.policy, 0.02, args.slots)
-    t0 = time.perf_counter()
-    evaluate(tiny, 2, workers=2)
-    startup_s = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    evaluate(ev, args.episodes, workers=2)
-    wall = time.perf_counter() - t0
-    rates["env_processes"] = control_steps / max(wall - startup_s, 1e-9)
+    if not args.trainer_only:
+        rates["one_robot"] = (control_steps / one_robot(ev, min(args.episodes, 4)) * min(args.episodes, 4)
+                              / args.episodes)
+        t0 = time.perf_counter()
+        evaluate(ev, args.episodes, workers=1)
+        rates["env_1"] = control_steps / (time.perf_counter() - t0)
+        rates["env_threads"] = control_steps / env_threads(ev, args.episodes)
+        tiny = _evaluation(args.policy, 0.02, args.slots)
+        t0 = time.perf_counter()
+        evaluate(tiny, 2, workers=2)
+        startup_s = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        evaluate(ev, args.episodes, workers=2)
+        wall = time.perf_counter() - t0
+        rates["env_processes"] = control_steps / max(wall - startup_s, 1e-9)
+    for workers in (1, 2):
+        rates[f"train_{workers}"], rates[f"collect_{workers}"] = train_rate(
+            ev, workers, args.train_envs, args.train_steps, args.train_iterations)
     print(f"policy {args.policy}: {args.episodes} episodes x {args.episode_s:g} s = {sim_s:g} simulated s, "
-          f"{control_steps} control steps; {args.slots} robots per process; cores: {os.cpu_count()}")
+          f"{control_steps} control steps; {args.slots} robots per process; cores: {os.cpu_count()}; trainer: "
+          f"{args.train_envs} robots x {args.train_steps} steps per iteration, {args.train_iterations} timed")
     for name, rate in rates.items():
         print(f"{name:>14}: {rate:8.0f} control steps/s  {rate * 0.02:6.1f} x real time")
-    print(f"env_processes start-up: {startup_s:.2f} s (spawn, imports, model, ONNX session); "
-          f"wall with it {wall:.2f} s")
-    ratio = {name: rates[name] / rates["raw_1" if name in ("env_1", "one_robot") else "raw_2"] for name in rates}
-    print(f"env_1 / raw_1: {ratio['env_1']:.3f}; one_robot / raw_1: {ratio['one_robot']:.3f}; "
-          f"env_threads / raw_2: {ratio['env_threads']:.3f}")
-    print(f"env_processes / raw_2: {rates['env_processes'] / rates['raw_2']:.3f}")
+    ratio = {name: rates[name] / rates["raw_1" if name.endswith("_1") or name == "one_robot" else "raw_2"]
+             for name in rates}
+    print(f"train_1 / raw_1: {ratio['train_1']:.3f}; collect_1 / raw_1: {ratio['collect_1']:.3f}; "
+          f"collect_2 / raw_2: {ratio['collect_2']:.3f}; train_2 / train_1: {rates['train_2'] / rates['train_1']:.3f}")
+    print(f"train_2 / raw_2: {ratio['train_2']:.3f}")
+    if not args.trainer_only:
+        print(f"env_processes start-up: {startup_s:.2f} s (spawn, imports, model, ONNX session); "
+              f"wall with it {wall:.2f} s")
+        print(f"env_1 / raw_1: {ratio['env_1']:.3f}; one_robot / raw_1: {ratio['one_robot']:.3f}; "
+              f"env_threads / raw_2: {ratio['env_threads']:.3f}")
+        print(f"env_processes / raw_2: {ratio['env_processes']:.3f}")
 
 
 if __name__ == "__main__":

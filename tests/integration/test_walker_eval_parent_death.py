@@ -72,21 +72,8 @@ def test_the_workers_end_when_their_parent_is_killed() -> None:
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     parent = subprocess.Popen([sys.executable, "-c", PARENT], env=env, start_new_session=True,
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    workers: list[int] = []
     try:
-        deadline = time.monotonic() + 60
-        # stepping: both started and past their imports (a second of CPU each)
-        while not (len(workers) == 2 and all(cpu_s(w) > 1.0 for w in workers)):
-            assert parent.poll() is None, parent.stderr.read().decode()
-            assert time.monotonic() < deadline, f"the workers did not start stepping: {workers}"
-            time.sleep(0.2)
-            workers = workers_of(parent.pid)
-        parent.kill()  # SIGKILL: no cleanup runs in the parent
-        parent.wait()
-        deadline = time.monotonic() + 5
-        while any(alive(w) for w in workers) and time.monotonic() < deadline:
-            time.sleep(0.1)
-        assert not [w for w in workers if alive(w)], "workers kept running after their parent was killed"
+        kill_once_stepping(parent, 2, start_s=60)
     finally:
         try:
             os.killpg(parent.pid, signal.SIGKILL)  # the parent's group: it, its workers, their resource tracker
@@ -94,3 +81,21 @@ def test_the_workers_end_when_their_parent_is_killed() -> None:
             pass
         parent.wait()
         parent.stderr.close()
+
+
+def kill_once_stepping(parent: subprocess.Popen, count: int, start_s: float) -> None:
+    """SIGKILL ``parent`` once its ``count`` workers step (started and past their imports: a second of CPU
+    each, within ``start_s``); all of them must be gone within 5 s."""
+    workers: list[int] = []
+    deadline = time.monotonic() + start_s
+    while not (len(workers) == count and all(cpu_s(w) > 1.0 for w in workers)):
+        assert parent.poll() is None, parent.stderr.read().decode()
+        assert time.monotonic() < deadline, f"the workers did not start stepping: {workers}"
+        time.sleep(0.2)
+        workers = workers_of(parent.pid)
+    parent.kill()  # SIGKILL: no cleanup runs in the parent
+    parent.wait()
+    deadline = time.monotonic() + 5
+    while any(alive(w) for w in workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not [w for w in workers if alive(w)], "workers kept running after their parent was killed"

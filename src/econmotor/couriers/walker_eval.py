@@ -11,8 +11,9 @@ through :class:`~econmotor.couriers.walker_env.WalkerBatch`:
   holding both threads back (``benchmarks/walker_throughput.py`` measures both; docs/architecture.md).
 - every ``batch`` episodes finished in order, ``stop(episodes)`` may end the evaluation (a sequential
   verdict); the workers are then stopped. An episode's figures depend on its seed only.
-- a worker ends when its parent process does (:func:`_exit_with_parent`): a parent killed with
-  SIGKILL runs no cleanup, and its orphaned workers would step their remaining episodes at full CPU.
+- a worker ends when its parent process does (:func:`exit_with_parent`, which the walker trainer's collect
+  workers call too): a parent killed with SIGKILL runs no cleanup, and its orphaned workers would step their
+  remaining episodes at full CPU.
 """
 
 from __future__ import annotations
@@ -84,7 +85,7 @@ def _run(ev: WalkerEvaluation, indices: list[int], emit: Callable[[int, dict[str
 ORPHANED_EXIT = 70
 
 
-def _exit_with_parent() -> None:
+def exit_with_parent() -> None:
     """End this process as soon as its parent dies, from a daemon thread that waits on the parent's
     sentinel (multiprocessing's pipe from the parent, whose end of it closes only when the parent exits).
     Waiting instead of polling ``os.getppid()``: no wake-ups, and no window in which a reused pid passes."""
@@ -101,7 +102,7 @@ def _exit_with_parent() -> None:
 
 def _worker(ev: WalkerEvaluation, contract: PolicyContract, indices: list[int], out: Any, stop: Any) -> None:
     """A worker process: episodes to ``out`` as ``("episode", index, metrics)``; ``("end", None, None)``."""
-    _exit_with_parent()
+    exit_with_parent()
     try:
         _run(ev, indices, lambda i, episode: out.put(("episode", i, episode)) or stop.is_set(), contract)
         out.put(("end", None, None))

@@ -100,13 +100,14 @@ class WalkerLearningEnv:
             electricity price, for an objective that prices energy).
         gain: J's weight against the locomotion terms (reward units per unit of J).
         weights / params: locomotion term weights and parameters (keys of :data:`BASE_TERMS`).
-        seed: episode ``i`` started by this env is seeded ``seed + i``.
+        seed: episode ``i`` started by this env is seeded ``seed + i * seed_stride`` (a stride of ``W``: one of
+            ``W`` envs that share a run's seed range, each started ``w`` apart).
         random_start: start episodes at random points of the course (else at its start).
     """
 
     def __init__(self, batch: WalkerBatch, objective: EconomicObjectiveSpec, economics: Any, gain: float,
                  weights: Mapping[str, float], params: Mapping[str, Mapping[str, Any]] | None = None, seed: int = 0,
-                 random_start: bool = True) -> None:
+                 random_start: bool = True, seed_stride: int = 1) -> None:
         unknown = sorted(set(weights) - set(BASE_TERMS))
         if unknown:
             raise ValueError(f"locomotion terms {unknown} need feet or pose readings; the walker trainer has "
@@ -114,7 +115,7 @@ class WalkerLearningEnv:
         self.batch, self.objective, self.economics, self.gain = batch, objective, economics, float(gain)
         self._j = np.zeros(batch.n)  # each slot's episode J so far
         self.weights, self.params = dict(weights), {k: dict(v) for k, v in (params or {}).items()}
-        self.next_seed, self.random_start = int(seed), bool(random_start)
+        self.next_seed, self.random_start, self.seed_stride = int(seed), bool(random_start), int(seed_stride)
         self.slots = np.arange(batch.n)
         self._obs = np.zeros((batch.n, batch.card.obs_dim), np.float32)
 
@@ -130,7 +131,7 @@ class WalkerLearningEnv:
             rng = np.random.default_rng([self.next_seed, 1])  # the episode's own draws stay the evaluator's
             x, state, elapsed = start_point(b.course, rng, b.card.control_dt_s, b.control_steps)
             b.place(slot, x, state, elapsed)
-        self.next_seed += 1
+        self.next_seed += self.seed_stride
 
     def reset(self) -> tuple[np.ndarray, np.ndarray]:
         """Start every robot's episode; their first observations and privileged views."""

@@ -10,8 +10,13 @@ What a run does (:class:`WalkerTrainingRun`):
 3. learns in the shared :class:`~econmotor.motor_backend.training_loop.TrainingLoop` as its
    :class:`WalkerLearner`: each chunk is ``steps_per_iteration`` control steps of every robot, then one PPO
    update; its row goes to the training curve (``curve.jsonl``: legs per hour, Wh per leg and falls of the
-   episodes that ended, the reward's locomotion and economic parts, KL, learning rate, std);
-4. checkpoints (``checkpoints/latest.pt``: learner, iteration, env steps, next seed) every
+   episodes that ended, the reward's locomotion and economic parts, KL, learning rate, std, the seconds
+   collection took);
+   the robots are stepped in ``collect_workers`` worker processes (:mod:`.walker_collect`: each steps its
+   share of the robots with the actor the trainer sends it; the critic's values and the update run here),
+   or in this process with ``collect_workers: 1``; by default one worker per usable CPU with at least 8
+   robots each (:func:`~.walker_collect.default_workers`);
+4. checkpoints (``checkpoints/latest.pt``: learner, iteration, env steps, each worker's next seed) every
    ``checkpoint_every_s`` of wall time, at the end and when interrupted: ``--resume`` continues from it;
 5. held-out selection (:mod:`econmotor.motor_backend.selection`): at its cadence, the deterministic
    actor walks held-out seeds of the priced course in this process under ``select_stress`` (the mujoco
@@ -20,7 +25,8 @@ What a run does (:class:`WalkerTrainingRun`):
 6. stops at ``max_steps`` env steps or ``max_wall_s``; the kept actor is the run's ``policy.onnx``, in
    Holosoma's ONNX format (holosoma_inference's loader and the sim-to-sim evaluator read it).
 
-Seeds: training episodes ``TRAIN_SEED_BASE + seed * 10**6 + i``; held-out selection's
+Seeds: training episodes ``TRAIN_SEED_BASE + seed * 10**6 + i`` (worker ``w`` of ``W`` takes the ``i`` with
+``i % W == w``); held-out selection's
 ``seed + SELECTION_SEED_OFFSET + i`` (the selection module's); both ranges are recorded in
 ``run_config.json`` so a comparison can stay apart from them.
 """
@@ -43,10 +49,11 @@ from econmotor.couriers.stress import Stress
 from econmotor.couriers.walker_env import WalkerBatch, run_episodes
 from econmotor.couriers.walker_model import WalkerModel
 from econmotor.couriers.walker_setup import WalkerSetup
-from econmotor.couriers.walker_train import PRIVILEGED_DIM, WalkerLearningEnv
+from econmotor.couriers.walker_train import PRIVILEGED_DIM
 from econmotor.economics import courier_formulas as cf
 from econmotor.motor_backend.base import ProgressFn, no_progress
-from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, Rollout, WalkerPPO, WalkerPPOConfig
+from econmotor.motor_backend.mujoco import walker_collect as wc
+from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, WalkerPPO, WalkerPPOConfig
 from econmotor.motor_backend.selection import Selection
 from econmotor.motor_backend.training_loop import Learner as LoopLearner
 from econmotor.motor_backend.training_loop import StopFn, TrainingLoop, TrainingOutcome
@@ -85,6 +92,8 @@ class WalkerTrainingRun:
     command_ranges: Mapping[str, Any] | None = None
     #: the conditions held-out selection prices under (None: the training's stress)
     select_stress: Stress | None = None
+    #: worker processes that step the robots (1: in this process; None: :func:`.walker_collect.default_workers`)
+    collect_workers: int | None = None
 
     def __post_init__(self) -> None:
         card = self.setup.card
@@ -92,11 +101,34 @@ class WalkerTrainingRun:
         self.kd = np.asarray(self.kd if self.kd is not None else card.kd, float)
         self.command_ranges = dict(self.command_ranges or card.command_ranges)
         self.walker = WalkerModel.build(card, self.kp, self.kd)
+        n = self.cfg.num_envs
+        workers = wc.default_workers(n) if self.collect_workers is None else int(self.collect_workers)
+        if not 1 <= workers <= n:
+            raise ValueError(f"collect_workers must be between 1 and num_envs ({n}), got {workers}")
+        self.collect_workers = workers
 
     # ------------------------------------------------------------------ the pieces
     def batch(self, slots: int, stress: Stress | None = None) -> WalkerBatch:
         s = self.setup
         return WalkerBatch(self.walker, s.course, s.meter, stress or s.stress, s.episode_s, slots, self.command_ranges)
+
+    def env_spec(self) -> wc.EnvSpec:
+        """What the learning envs (this process's or the workers') are built from."""
+        s = self.setup
+        return wc.EnvSpec(s.card, self.kp, self.kd, s.course, s.meter, s.stress, s.episode_s,
+                          dict(self.command_ranges), self.objective.to_dict(), self.economics, self.gain,
+                          dict(self.weights), {k: dict(v) for k, v in self.params.items()})
+
+    def collector(self, seeds: list[int], iteration: int) -> wc.LocalCollector | wc.CollectPool:
+        """The run's collection (:mod:`.walker_collect`), each worker's next episode seed ``seeds``;
+        ``iteration``: the iteration it starts at (seeds the workers' action generators)."""
+        cfg, workers = self.cfg, int(self.collect_workers or 1)
+        if workers == 1:
+            return wc.LocalCollector(self.env_spec(), cfg.num_envs, seeds[0], cfg.steps_per_iteration,
+                                     self.walker)
+        rng_seeds = [wc.worker_rng_seed(self.seed, w, workers, iteration) for w in range(workers)]
+        return wc.CollectPool(self.env_spec(), wc.split(cfg.num_envs, workers), seeds, rng_seeds,
+                              cfg.steps_per_iteration)
 
     def learner(self) -> WalkerPPO:
         card = self.setup.card
@@ -121,34 +153,9 @@ class WalkerTrainingRun:
                             progress=progress)
         return loop.run(WalkerLearner(self), resume)
 
-    def _collect(self, env: WalkerLearningEnv, learner: WalkerPPO, obs: np.ndarray, priv: np.ndarray
-                 ) -> tuple[Rollout, torch.Tensor, list[dict[str, Any]], dict[str, float]]:
-        """``steps_per_iteration`` control steps of every robot (truncations bootstrapped into the reward)."""
-        cfg = self.cfg
-        keys = ("obs", "privileged", "actions", "log_probs", "means", "values")
-        buf: dict[str, list[torch.Tensor]] = {k: [] for k in (*keys, "rewards", "dones")}
-        episodes: list[dict[str, Any]] = []
-        parts: dict[str, float] = {}
-        for _ in range(cfg.steps_per_iteration):
-            action, taken = learner.act(obs, priv)
-            out = env.step(action)
-            reward = out.reward.copy()
-            if out.truncated.any():
-                rows = np.flatnonzero(out.truncated)
-                reward[rows] += cfg.gamma * learner.value(out.terminal_obs[rows], out.terminal_privileged[rows])
-            for k in keys:
-                buf[k].append(taken[k])
-            buf["rewards"].append(torch.as_tensor(reward, dtype=torch.float32))
-            buf["dones"].append(torch.as_tensor(out.terminated | out.truncated, dtype=torch.float32))
-            episodes += out.episodes
-            for k, v in out.terms.items():
-                parts[k] = parts.get(k, 0.0) + v / cfg.steps_per_iteration
-            obs, priv = out.obs, out.privileged
-        last_value = torch.as_tensor(learner.value(obs, priv), dtype=torch.float32)
-        return Rollout(**{k: torch.stack(v) for k, v in buf.items()}), last_value, episodes, parts
-
     def _curve_row(self, iteration: int, stats: Mapping[str, float], episodes: list[dict[str, Any]],
-                   parts: Mapping[str, float], iteration_s: float) -> dict[str, Any]:
+                   parts: Mapping[str, float], iteration_s: float, collect_s: float | None = None
+                   ) -> dict[str, Any]:
         units = sum(ep["units_completed"] for ep in episodes)
         hours = sum(ep["episode_length_s"] for ep in episodes) / cf.SECONDS_PER_HOUR
         energy = sum(ep["energy_wh"] for ep in episodes)
@@ -160,6 +167,7 @@ class WalkerTrainingRun:
                 "wh_per_leg": energy / units if units > 0 else None,
                 "reward_locomotion": locomotion, "reward_economic": economic,
                 "mean_return": locomotion + economic,  # the reward per control step of the iteration
+                **({"collect_s": round(collect_s, 3)} if collect_s is not None else {}),
                 **{k: float(v) for k, v in stats.items()}}
 
     # ------------------------------------------------------------------ selection
@@ -229,26 +237,32 @@ class WalkerLearner(LoopLearner):
         self.run, self.ppo = run, run.learner()
         self.chunk_steps = run.cfg.num_envs * run.cfg.steps_per_iteration
         self.env_steps, self.iteration = 0, 0
-        self.next_seed = TRAIN_SEED_BASE + run.seed * 1_000_000
-        self.env: WalkerLearningEnv | None = None
-        self.obs: Any = None
+        self.workers = int(run.collect_workers or 1)
+        #: each worker's next episode seed (worker w of W steps by W: walker_collect.first_seeds)
+        self.next_seeds = wc.first_seeds(TRAIN_SEED_BASE + run.seed * 1_000_000, self.workers)
+        self.collection: wc.LocalCollector | wc.CollectPool | None = None
         self.last: dict[str, Any] | None = None
+
+    def collect(self) -> tuple[Any, torch.Tensor, list[dict[str, Any]], dict[str, float]]:
+        """One iteration's rollout under the current actor, its last values, the ended episodes and the
+        reward's parts (:func:`.walker_collect.assemble`); the collection starts on the first call, from the
+        next seeds (the start's, or the restored checkpoint's)."""
+        if self.collection is None:
+            self.collection = self.run.collector(self.next_seeds, self.iteration)
+        chunks = self.collection.collect(self.ppo.net)
+        self.next_seeds = self.collection.next_seeds
+        return wc.assemble(chunks, self.ppo.net, self.run.cfg.gamma)
 
     def learn(self, until_steps: int) -> dict[str, Any]:
         run = self.run
-        if self.env is None:  # from the start, or from the restored checkpoint's next seed
-            self.env = WalkerLearningEnv(run.batch(run.cfg.num_envs), run.objective, run.economics, run.gain,
-                                         run.weights, run.params, seed=self.next_seed)
-            self.obs = self.env.reset()
         while True:
             t0 = time.perf_counter()
-            rollout, last_value, episodes, parts = run._collect(self.env, self.ppo, *self.obs)
-            self.obs = (self.env._obs, self.env.privileged(self.env.slots))
+            rollout, last_value, episodes, parts = self.collect()
+            collect_s = time.perf_counter() - t0
             stats = self.ppo.update(rollout, last_value)
             self.iteration += 1
             self.env_steps += self.chunk_steps
-            self.next_seed = self.env.next_seed
-            self.last = run._curve_row(self.iteration, stats, episodes, parts, time.perf_counter() - t0)
+            self.last = run._curve_row(self.iteration, stats, episodes, parts, time.perf_counter() - t0, collect_s)
             if self.env_steps >= until_steps:
                 return self.last
 
@@ -262,7 +276,8 @@ class WalkerLearner(LoopLearner):
         path = run_dir / CHECKPOINT_FILE
         path.parent.mkdir(parents=True, exist_ok=True)
         record = {"learner": self.ppo.state_dict(),
-                  "state": {"iteration": self.iteration, "env_steps": self.env_steps, "next_seed": self.next_seed}}
+                  "state": {"iteration": self.iteration, "env_steps": self.env_steps,
+                            "next_seeds": list(self.next_seeds), "next_seed": max(self.next_seeds)}}
         tmp = path.with_suffix(".tmp")
         torch.save(record, tmp)
         tmp.replace(path)
@@ -274,7 +289,9 @@ class WalkerLearner(LoopLearner):
         record = torch.load(path, weights_only=False)
         self.ppo.load_state_dict(record["learner"])
         state = record["state"]
-        self.iteration, self.env_steps, self.next_seed = state["iteration"], state["env_steps"], state["next_seed"]
+        self.iteration, self.env_steps = state["iteration"], state["env_steps"]
+        # the workers' own next seeds for the same worker count; else after the highest of them
+        self.next_seeds = wc.resumed_seeds(state.get("next_seeds") or [state["next_seed"]], self.workers)
         return self.env_steps
 
     def save_policy(self, directory: Path) -> None:
@@ -287,8 +304,9 @@ class WalkerLearner(LoopLearner):
         return self.run.export(self.ppo.net.layers(), run_dir / ONNX_FILE)
 
     def timing(self) -> dict[str, Any]:
-        return {"iterations": self.iteration}
+        return {"iterations": self.iteration, "collect_workers": self.workers}
 
     def close(self) -> None:
-        if self.env is not None:
-            self.env.close()
+        if self.collection is not None:
+            self.collection.close()
+            self.collection = None
