@@ -72,7 +72,7 @@ def test_the_kept_policy_is_the_best_held_out_checkpoint(easy_tasks, tmp_path):
     assert selection["kept"] == best and best["deployable"]
     # policy.zip is that checkpoint: its held-out episodes again give the recorded J
     recipe, _ = backend.recipe("hopper_easy", objective)
-    recipe = backend._eval_recipe(recipe)
+    recipe = backend.eval_recipe(recipe)
     _, act = load_policy(result.policy_id, "ppo")
     first = selection["seeds"][0]
     envs = [make_env(recipe, seed=first + i) for i in range(6)]

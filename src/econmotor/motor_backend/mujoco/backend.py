@@ -34,37 +34,18 @@ from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import MotorBackendBase, ProgressFn, StopFn, no_progress
 from econmotor.motor_backend.capabilities import BackendCapabilities, RunSize, ShadowEnv
 from econmotor.motor_backend.mujoco.clips import check_clip_file, load_bundle_clips, record_clip
-from econmotor.motor_backend.mujoco.env_factory import EnvRecipe, make_env
-from econmotor.motor_backend.mujoco.evaluation import load_policy, rollout_episodes
+from econmotor.motor_backend.mujoco.env_factory import EnvRecipe
+from econmotor.motor_backend.mujoco.evaluation import load_policy
 from econmotor.motor_backend.mujoco.export import OnnxPolicyHandle, export_onnx
 from econmotor.motor_backend.mujoco.metering import EconomicMeteringWrapper
 from econmotor.motor_backend.mujoco.randomization import parse_randomization
-from econmotor.motor_backend.mujoco.run import HELD_OUT_BATCH, TrainingRun
 from econmotor.motor_backend.mujoco.settings import MujocoTaskSettings, parse_mujoco_settings
 from econmotor.motor_backend.mujoco.step_summary import MujocoStepSummaryWrapper
+from econmotor.motor_backend.mujoco.task_kinds import TaskKind, run_kind, task_kind
 from econmotor.motor_backend.mujoco.training import obs_normalizer
-from econmotor.motor_backend.mujoco.walker_backend import (
-    WALKER_CADENCE,
-    WALKER_SELECT_BATCH,
-    holosoma_settings,
-    is_walker_task,
-    train_walker,
-    walker_train_settings,
-)
-from econmotor.motor_backend.results import (
-    EvalProvenance,
-    MotorEvalResult,
-    MotorTrainingResult,
-    aggregate_raw,
-    evaluation_result,
-    mean_power_w,
-)
+from econmotor.motor_backend.results import MotorEvalResult, MotorTrainingResult
 from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, read_run_config
-from econmotor.motor_backend.selection import selection_for
-from econmotor.motor_backend.training_loop import CURVE_FILE
-from econmotor.motor_backend.walker_pricing import WalkerPricing, price_walker
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec, compile_economic_overlay
-from econmotor.robots.gym_couriers import robot_name
 from econmotor.tasks.catalog import TaskCatalog, TaskSpec
 
 ONNX_FILE = "policy.onnx"
@@ -147,12 +128,14 @@ class MujocoBackend(MotorBackendBase):
         }
         return recipe, described
 
+    def kind(self, task_id: str) -> TaskKind:
+        """What the task is to this backend (:func:`task_kind`, the one place it is declared)."""
+        return task_kind(self.catalog.get(task_id))
+
     def evaluation_batch(self, task_id: str) -> int:
         """Held-out episodes run :data:`HELD_OUT_BATCH` envs at a time; a report's evaluation asks ``stop``
         as often (a walker task: ten episodes per worker process, as the holosoma backend's)."""
-        if is_walker_task(self.catalog.get(task_id)):
-            return 10 * self.eval_workers
-        return HELD_OUT_BATCH
+        return self.kind(task_id).evaluation_batch(self)
 
     # --- the MotorBackendBase contract ------------------------------------------------------
     def train_policy(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str],
@@ -179,35 +162,17 @@ class MujocoBackend(MotorBackendBase):
         """
         torch.set_num_threads(self.torch_threads)
         spec = self.catalog.get(task_id)
-        if is_walker_task(spec):
-            return self._train_walker(spec, objective, list(datapack_configs or ()), num_envs, max_steps, seed,
-                                      output_dir, eval_episodes, progress, resume, hyperparameters,
-                                      select_every_steps, select_episodes, until_deployable, init_policy, max_wall_s)
-        if init_policy is not None or max_wall_s is not None:
+        kind = task_kind(spec)
+        if not kind.starts_from_policies and (init_policy is not None or max_wall_s is not None):
             raise ConfigError("--init-policy/--max-minutes", task_id, "apply to the card robots' walker tasks only",
-                              [t for t in self.catalog.ids(self.name) if is_walker_task(self.catalog.get(t))])
-        recipe, described = self.recipe(task_id, objective, datapack_ids, datapack_configs)
-        settings = recipe.settings
-        if output_dir is None and resume:
-            raise ConfigError("<train>", "output_dir", "resume needs the run directory to continue")
-        run = TrainingRun(
-            run_dir=self.run_dir(output_dir, task_id, seed), recipe=recipe,
-            described={"backend": self.name, **described},
-            algorithm=algorithm or settings.algorithm, hyperparameters=hyperparameters,
-            num_envs=num_envs if num_envs > 0 else settings.num_envs, max_steps=int(max_steps), seed=int(seed),
-            vec_env=self.vec_env, checkpoint_every_steps=checkpoint_every_steps or settings.checkpoint_every_steps,
-            requested_algorithm=algorithm, eval_recipe=self._eval_recipe(recipe), onnx_metadata=self._onnx_metadata,
-            selection=selection_for(self.catalog.get(task_id), objective, select_every_steps, select_episodes,
-                                    until_deployable, seed, self.held_out_cadence, self.evaluation_batch(task_id)),
-        )
-        curve = run.train(resume=resume, progress=progress)
-        artifacts = {"policy": str(run.run_dir / "policy.zip"), "tensorboard": str(run.run_dir / "tb"),
-                     "run_config": str(run.run_dir / RUN_CONFIG_FILE), "onnx": str(run.onnx),
-                     "curve": str(run.run_dir / CURVE_FILE)}
-        evaluation = self.evaluate_after_training(run.run_dir, task_id, objective, eval_episodes, seed,
-                                                  datapack_configs=datapack_configs, progress=progress,
-                                                  datapack_ids=datapack_ids)
-        return self.training_result(run.run_dir, task_id, evaluation, curve, run.config, artifacts)
+                              self._tasks_starting_from_policies())
+        return kind.train(self, spec, objective=objective, datapack_ids=datapack_ids,
+                          datapack_configs=list(datapack_configs or ()), num_envs=num_envs, max_steps=max_steps,
+                          seed=seed, output_dir=output_dir, eval_episodes=eval_episodes, progress=progress,
+                          resume=resume, algorithm=algorithm, hyperparameters=hyperparameters,
+                          checkpoint_every_steps=checkpoint_every_steps, select_every_steps=select_every_steps,
+                          select_episodes=select_episodes, until_deployable=until_deployable,
+                          init_policy=init_policy, max_wall_s=max_wall_s)
 
     def evaluate_policy(self, policy_id: str, task_id: str, objective: EconomicObjectiveSpec, num_episodes: int,
                         seed: int, *, datapack_configs: Sequence[DatapackConfig] | None = None,
@@ -220,38 +185,21 @@ class MujocoBackend(MotorBackendBase):
         nominal task is evaluated.
         """
         config = read_run_config(policy_id, "mujoco", task_id)
-        spec = self.catalog.get(task_id)
-        if is_walker_task(spec):
-            return price_walker(WalkerPricing(
-                backend=self.name, spec=spec, settings=holosoma_settings(spec), packs=list(datapack_configs or ()),
-                policy=str(Path(policy_id).resolve() / ONNX_FILE), policy_id=str(policy_id), imported=False,
-                workers=self.eval_workers, batch=self.evaluation_batch(task_id), label="mujoco"),
-                num_episodes, seed, self.run_dir(output_dir, task_id, seed).resolve(), progress, stop)
-        torch.set_num_threads(self.torch_threads)
-        recipe, described = self.recipe(task_id, objective, datapack_ids, datapack_configs)
-        _, act = load_policy(policy_id, config["algorithm"])
-        env = make_env(self._eval_recipe(recipe), seed=seed)
-        raw_eps = rollout_episodes(env, act, num_episodes, seed, progress, stop=stop,
-                                   batch=self.evaluation_batch(task_id))
-        env.close()
-        eval_config = {**described, "policy_id": str(policy_id), "num_episodes": num_episodes, "seed": seed,
-                       "algorithm": config["algorithm"], "deterministic": True}
-        provenance = EvalProvenance(
-            evaluator="mujoco", figures_from=f"Gymnasium MuJoCo {recipe.settings.env_id} (the run's "
-            f"{config['algorithm']} policy, deterministic, metered as in training)",
-            mean_power_w=mean_power_w(aggregate_raw(raw_eps)))
-        return evaluation_result(self.name, policy_id, task_id, raw_eps, self.catalog.get(task_id).economics,
-                                 eval_config, output_dir, provenance)
+        return self.kind(task_id).evaluate(self, policy_id, self.catalog.get(task_id), objective=objective,
+                                           num_episodes=num_episodes, seed=seed, config=config,
+                                           datapack_configs=list(datapack_configs or ()), output_dir=output_dir,
+                                           progress=progress, datapack_ids=datapack_ids, stop=stop)
 
     def deploy_policy_handle(self, policy_id: str) -> OnnxPolicyHandle:
         """An onnxruntime handle on the run's ``policy.onnx`` (exported now if missing)."""
         path = Path(policy_id) / ONNX_FILE
         config = read_run_config(policy_id, self.name)  # a mujoco run directory, checked before anything is loaded
-        if not path.is_file() and config.get("trainer") == "walker":
-            raise BackendError(f"walker run {policy_id} has no {ONNX_FILE}: it did not finish (resume it)")
+        if not path.is_file() and not run_kind(config).exports_on_demand:
+            raise BackendError(f"{run_kind(config).name} run {policy_id} has no {ONNX_FILE}: it did not finish "
+                               "(resume it)")
         if not path.is_file():
             model, _ = load_policy(policy_id, config["algorithm"])
-            export_onnx(model, obs_normalizer(policy_id), path, self._onnx_metadata(config))
+            export_onnx(model, obs_normalizer(policy_id), path, self.onnx_metadata(config))
         return OnnxPolicyHandle(path)
 
     # --- declarations ----------------------------------------------------------------------------
@@ -278,9 +226,7 @@ class MujocoBackend(MotorBackendBase):
     @classmethod
     def robot_id(cls, spec: TaskSpec) -> str:
         """The couriers' robot of the task's env (``Hopper-v5`` -> ``hopper``); a walker task's robot card."""
-        if is_walker_task(spec):
-            return str(holosoma_settings(spec)["robot"])
-        return robot_name(parse_mujoco_settings(spec).env_id)
+        return task_kind(spec).robot_id(spec)
 
     @classmethod
     def check_datapack(cls, pack: DatapackConfig, source: str) -> None:
@@ -302,20 +248,18 @@ class MujocoBackend(MotorBackendBase):
     def check_task_entry(cls, spec: TaskSpec) -> None:
         """The ``backends.mujoco`` entry as a training run reads it (``parse_mujoco_settings``; a walker task's
         trainer settings and walker entry)."""
-        if is_walker_task(spec):
-            walker_train_settings(spec)
-            holosoma_settings(spec)
-            return
-        parse_mujoco_settings(spec)
+        task_kind(spec).check_entry(spec)
 
     def check_init_policy(self, policy: str, task_id: str) -> None:
         """``--init-policy`` starts the walker tasks only, from an ONNX actor this trainer can read."""
-        spec = self.catalog.get(task_id)
-        if not is_walker_task(spec):
+        if not self.kind(task_id).starts_from_policies:
             raise ConfigError("--init-policy", policy, f"task '{task_id}' trains with SB3 from scratch; the mujoco "
                               "backend starts the card robots' walker tasks from a policy",
-                              [t for t in self.catalog.ids(self.name) if is_walker_task(self.catalog.get(t))])
+                              self._tasks_starting_from_policies())
         read_actor(policy_file(policy), policy)
+
+    def _tasks_starting_from_policies(self) -> list[str]:
+        return [t for t in self.catalog.ids(self.name) if self.kind(t).starts_from_policies]
 
     @classmethod
     def is_complete_run(cls, run_dir: str | Path) -> bool:
@@ -323,32 +267,7 @@ class MujocoBackend(MotorBackendBase):
         folder = Path(run_dir)
         if not (folder / RUN_CONFIG_FILE).is_file():
             return False
-        return (folder / cls.final_policy_file).is_file() or (
-            (folder / ONNX_FILE).is_file() and read_run_config(folder).get("trainer") == "walker")
-
-    def _train_walker(self, spec: TaskSpec, objective: EconomicObjectiveSpec, packs: list[DatapackConfig],
-                      num_envs: int, max_steps: int, seed: int, output_dir: str | Path | None, eval_episodes: int,
-                      progress: ProgressFn, resume: bool, hyperparameters: dict[str, Any] | None,
-                      select_every_steps: int | None, select_episodes: int | None, until_deployable: bool,
-                      init_policy: str | None, max_wall_s: float | None) -> MotorTrainingResult:
-        """A walker task's run (``mujoco/walker_backend.py``), its post-training evaluation and result."""
-        if output_dir is None and resume:
-            raise ConfigError("<train>", "output_dir", "resume needs the run directory to continue")
-        run_dir = self.run_dir(output_dir, spec.task_id, seed)
-        if resume:
-            init_policy = (read_run_config(run_dir).get("init_policy") or {}).get("policy")
-        selection = selection_for(spec, objective, select_every_steps, select_episodes, until_deployable, seed,
-                                  WALKER_CADENCE, WALKER_SELECT_BATCH)
-        config, curve = train_walker(spec, objective, packs, run_dir, num_envs=num_envs, max_steps=max_steps,
-                                     seed=seed, init_policy=init_policy, hyperparameters=hyperparameters,
-                                     selection=selection, resume=resume, max_wall_s=max_wall_s, progress=progress,
-                                     described={"datapacks": [p.to_dict() for p in packs]})
-        evaluation = self.evaluate_after_training(run_dir, spec.task_id, objective, eval_episodes, seed,
-                                                  datapack_configs=packs, progress=progress)
-        artifacts = {"policy": str(run_dir), "onnx": str(run_dir / ONNX_FILE), "run_config": str(run_dir /
-                                                                                              RUN_CONFIG_FILE),
-                     "curve": str(run_dir / CURVE_FILE), "checkpoint": str(run_dir / "checkpoints" / "latest.pt")}
-        return self.training_result(run_dir, spec.task_id, evaluation, curve, config, artifacts)
+        return (folder / run_kind(read_run_config(folder)).final_policy_file).is_file()
 
     # --- extras ------------------------------------------------------------------------------
     def record_clip(self, policy_id: str, path: str | Path, num_steps: int = 500, seed: int = 0) -> Path:
@@ -363,14 +282,14 @@ class MujocoBackend(MotorBackendBase):
             env.close()
 
     @staticmethod
-    def _eval_recipe(recipe: EnvRecipe) -> EnvRecipe:
+    def eval_recipe(recipe: EnvRecipe) -> EnvRecipe:
         """Evaluation uses the datapacks at full difficulty and the env's default initial state."""
         from dataclasses import replace
 
         return replace(recipe, difficulty=recipe.curriculum.max_difficulty, reference_init=False)
 
     @staticmethod
-    def _onnx_metadata(config: dict[str, Any]) -> dict[str, Any]:
+    def onnx_metadata(config: dict[str, Any]) -> dict[str, Any]:
         if "task_id" not in config:
             raise BackendError("run config has no task_id; cannot describe the ONNX policy")
         keys = ("task_id", "overlay", "overlay_references", "objective", "datapack_ids", "economics",

@@ -27,20 +27,25 @@ from typing import Any
 
 import numpy as np
 
-from econmotor.config.datapacks import DatapackProvider
+from econmotor.config.datapacks import DatapackConfig, DatapackProvider
 from econmotor.config.loading import as_float
 from econmotor.couriers.onnx_actor import policy_file, read_actor
 from econmotor.couriers.walker_setup import walker_setup
 from econmotor.couriers.walker_task import task_settings
 from econmotor.couriers.walker_train import BASE_TERMS
 from econmotor.errors import ConfigError
+from econmotor.motor_backend.base import ProgressFn, StopFn
 from econmotor.motor_backend.capabilities import HeldOutCadence
 from econmotor.motor_backend.mujoco.walker_ppo import WalkerPPOConfig
 from econmotor.motor_backend.mujoco.walker_training import ONNX_FILE, TRAIN_SEED_BASE, WalkerTrainingRun
-from econmotor.motor_backend.run_dir import read_run_config
-from econmotor.motor_backend.selection import SELECTION_SEED_OFFSET, Selection
+from econmotor.motor_backend.results import MotorEvalResult, MotorTrainingResult
+from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, read_run_config
+from econmotor.motor_backend.selection import SELECTION_SEED_OFFSET, Selection, selection_for
+from econmotor.motor_backend.training_loop import CURVE_FILE
+from econmotor.motor_backend.walker_pricing import WalkerPricing, price_walker
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.objectives.loader import objective_weights_vector
+from econmotor.tasks.catalog import TaskSpec
 
 WALKER_KEYS = ("econ_gain", "rewards", "ppo", "checkpoint_every_s")
 
@@ -54,11 +59,6 @@ class WalkerTrainSettings:
     params: dict[str, dict[str, Any]]
     ppo: dict[str, Any]
     checkpoint_every_s: float = 300.0
-
-
-def is_walker_task(spec: Any) -> bool:
-    """The task's mujoco entry trains a card robot on the walker env."""
-    return isinstance(spec.backends.get("mujoco"), Mapping) and "walker" in spec.backends["mujoco"]
 
 
 def walker_train_settings(spec: Any) -> WalkerTrainSettings:
@@ -109,8 +109,10 @@ def train_walker(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[An
     ppo = {**trainer.ppo, **dict(hyperparameters or {})}
     if num_envs > 0:
         ppo["num_envs"] = num_envs
-    if resume:  # a resumed run keeps its recorded recipe (the loop refuses a request for another)
-        ppo = dict(read_run_config(run_dir, "mujoco")["hyperparameters"])
+    workers = None  # one collecting process per usable core (walker_training.WalkerTrainingRun)
+    if resume:  # a resumed run keeps its recorded recipe (the loop refuses a request for another) and workers
+        recorded = read_run_config(run_dir, "mujoco")
+        ppo, workers = dict(recorded["hyperparameters"]), recorded.get("collect_workers")
     cfg = WalkerPPOConfig.from_mapping(ppo, "--hyperparameters")
     c = setup.contract
     config = {
@@ -135,7 +137,8 @@ def train_walker(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[An
         max_wall_s=float(max_wall_s) if max_wall_s else math.inf, checkpoint_every_s=trainer.checkpoint_every_s,
         selection=selection, metadata=_onnx_metadata(config),
         kp=np.asarray(c.kp) if c else None, kd=np.asarray(c.kd) if c else None,
-        command_ranges=c.command_ranges if c else None, select_stress=nominal.stress)
+        command_ranges=c.command_ranges if c else None, select_stress=nominal.stress, collect_workers=workers)
+    config["collect_workers"] = run.collect_workers  # a seed's rollouts depend on how the robots are split
     outcome = run.train(resume=resume, progress=progress, config=config, requested_hyperparameters=hyperparameters)
     return outcome.config, outcome.curve
 
@@ -153,3 +156,41 @@ def _onnx_metadata(config: Mapping[str, Any]) -> dict[str, Any]:
 WALKER_CADENCE = HeldOutCadence(every_steps=500_000, max_share=0.10)
 #: a held-out evaluation's first look (robots stepped together in the trainer's process)
 WALKER_SELECT_BATCH = 16
+
+
+def train_walker_task(backend: Any, spec: TaskSpec, *, objective: EconomicObjectiveSpec,
+                      datapack_configs: list[DatapackConfig], num_envs: int, max_steps: int, seed: int,
+                      output_dir: str | Path | None, eval_episodes: int, progress: ProgressFn, resume: bool,
+                      hyperparameters: dict[str, Any] | None, select_every_steps: int | None,
+                      select_episodes: int | None, until_deployable: bool, init_policy: str | None,
+                      max_wall_s: float | None, **_: Any) -> MotorTrainingResult:
+    """A walker task's run (``mujoco/walker_backend.py``), its post-training evaluation and result."""
+    packs = datapack_configs
+    if output_dir is None and resume:
+        raise ConfigError("<train>", "output_dir", "resume needs the run directory to continue")
+    run_dir = backend.run_dir(output_dir, spec.task_id, seed)
+    if resume:
+        init_policy = (read_run_config(run_dir).get("init_policy") or {}).get("policy")
+    selection = selection_for(spec, objective, select_every_steps, select_episodes, until_deployable, seed,
+                              WALKER_CADENCE, WALKER_SELECT_BATCH)
+    config, curve = train_walker(spec, objective, packs, run_dir, num_envs=num_envs, max_steps=max_steps,
+                                 seed=seed, init_policy=init_policy, hyperparameters=hyperparameters,
+                                 selection=selection, resume=resume, max_wall_s=max_wall_s, progress=progress,
+                                 described={"datapacks": [p.to_dict() for p in packs]})
+    evaluation = backend.evaluate_after_training(run_dir, spec.task_id, objective, eval_episodes, seed,
+                                                 datapack_configs=packs, progress=progress)
+    artifacts = {"policy": str(run_dir), "onnx": str(run_dir / ONNX_FILE), "run_config": str(run_dir /
+                                                                                          RUN_CONFIG_FILE),
+                 "curve": str(run_dir / CURVE_FILE), "checkpoint": str(run_dir / "checkpoints" / "latest.pt")}
+    return backend.training_result(run_dir, spec.task_id, evaluation, curve, config, artifacts)
+
+
+def evaluate_walker_task(backend: Any, policy_id: str, spec: TaskSpec, *, num_episodes: int, seed: int,
+                         datapack_configs: list[DatapackConfig], output_dir: str | Path | None,
+                         progress: ProgressFn, stop: StopFn | None, **_: Any) -> MotorEvalResult:
+    """A walker run's ``policy.onnx`` priced sim-to-sim on the env it learned on (the one pricer)."""
+    return price_walker(WalkerPricing(
+        backend=backend.name, spec=spec, settings=holosoma_settings(spec), packs=datapack_configs,
+        policy=str(Path(policy_id).resolve() / ONNX_FILE), policy_id=str(policy_id), imported=False,
+        workers=backend.eval_workers, batch=backend.evaluation_batch(spec.task_id), label="mujoco"),
+        num_episodes, seed, backend.run_dir(output_dir, spec.task_id, seed).resolve(), progress, stop)

@@ -1,0 +1,51 @@
+"""The mujoco backend's two kinds of task are declared in one place (``mujoco/task_kinds.py``).
+
+The backend asks a task's (or a run's) kind and never tests which it is: no module of ``motor_backend``
+but the declaring one compares against the walker kind's name or calls a predicate of it.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import econmotor.motor_backend as motor_backend
+from econmotor.motor_backend.mujoco.task_kinds import COURIER, WALKER, run_kind, task_kind
+from econmotor.tasks import get_task
+
+DECLARING = Path(motor_backend.__file__).parent / "mujoco" / "task_kinds.py"
+
+
+def test_each_task_and_run_has_its_declared_kind():
+    assert task_kind(get_task("humanoid_locomotion_g1")) is WALKER
+    assert task_kind(get_task("humanoid_locomotion_t1")) is WALKER
+    assert task_kind(get_task("hopper_courier")) is COURIER
+    assert run_kind({"trainer": "walker"}) is WALKER and run_kind({"algorithm": "ppo"}) is COURIER
+    assert WALKER.starts_from_policies and not COURIER.starts_from_policies
+    assert (WALKER.final_policy_file, COURIER.final_policy_file) == ("policy.onnx", "policy.zip")
+
+
+def kind_tests(source: str) -> list[str]:
+    """Comparisons against the literal ``"walker"`` and calls of an ``is_walker_*`` predicate in ``source``."""
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Compare):
+            parts = [node.left, *node.comparators]
+            if any(isinstance(p, ast.Constant) and p.value == "walker" for p in parts):
+                found.append(f"line {node.lineno}: compares with 'walker'")
+        if isinstance(node, ast.Call):
+            name = getattr(node.func, "id", None) or getattr(node.func, "attr", "")
+            if name.startswith("is_walker"):
+                found.append(f"line {node.lineno}: calls {name}")
+    return found
+
+
+def test_the_finder_sees_a_kind_test():
+    assert len(kind_tests('if is_walker_task(spec):\n    pass\nx = config.get("trainer") == "walker"\n')) == 2
+
+
+def test_no_backend_module_tests_the_task_kind_outside_its_declaration():
+    root = Path(motor_backend.__file__).parent
+    offenders = {str(p.relative_to(root)): found for p in sorted(root.rglob("*.py"))
+                 if p != DECLARING and (found := kind_tests(p.read_text()))}
+    assert offenders == {}
