@@ -14,7 +14,8 @@ per charge. It also prints each robot's standing draw (the course's dwell) and w
 card's current constant, so a card's figure can be checked against it.
 
     .venv/bin/python benchmarks/motor_heat_calibration.py --episodes 16
-    .venv/bin/python benchmarks/motor_heat_calibration.py --task-id humanoid_locomotion_t1 --policy holosoma:t1_29dof/ppo
+    .venv/bin/python benchmarks/motor_heat_calibration.py --task-id humanoid_locomotion_t1 \
+        --policy holosoma:t1_29dof/ppo
 """
 
 from __future__ import annotations
@@ -25,10 +26,10 @@ import json
 
 import numpy as np
 
+from econmotor.config.datapacks import DatapackProvider
 from econmotor.couriers.walker_eval import WalkerEvaluation, _run
 from econmotor.couriers.walker_setup import walker_setup
 from econmotor.couriers.walker_task import task_settings
-from econmotor.config.datapacks import DatapackProvider
 from econmotor.robots.card import scaled_heat_model
 from econmotor.tasks import get_task
 
@@ -74,7 +75,8 @@ def standing(task_id: str, policy: str, heat_at_limit: float | None, seconds: fl
     setup = walker_setup(spec, settings, DatapackProvider().resolve(task_id, [], []), [], policy)
     card = setup.contract.card
     if heat_at_limit is not None:
-        card = dataclasses.replace(card, motor_model=scaled_heat_model(card.effort_limits, heat_at_limit, "calibration"))
+        model = scaled_heat_model(card.effort_limits, heat_at_limit, "calibration")
+        card = dataclasses.replace(card, motor_model=model)
     walker = WalkerModel.build(card, np.asarray(setup.contract.kp), np.asarray(setup.contract.kd))
     course = dataclasses.replace(setup.course, speed_m_per_s=0.0)
     batch = WalkerBatch(walker, course, setup.meter, setup.stress, seconds, 2, setup.contract.command_ranges)

@@ -178,7 +178,7 @@ def train_rate(ev, workers: int, num_envs: int, steps: int, iterations: int) -> 
     from econmotor.couriers.policy_import import resolve_contract
     from econmotor.couriers.walker_setup import WalkerSetup
     from econmotor.motor_backend.mujoco.walker_backend import walker_train_settings
-    from econmotor.motor_backend.mujoco.walker_ppo import WalkerPPOConfig
+    from econmotor.motor_backend.mujoco.walker_recipe import WalkerPPOConfig
     from econmotor.motor_backend.mujoco.walker_training import WalkerLearner, WalkerTrainingRun
     from econmotor.objectives.loader import objective_from_vector
     from econmotor.tasks import get_task

@@ -90,7 +90,8 @@ def test_the_cpu_trainers_export_loads_and_acts_in_holosoma_inference(tmp_path: 
     file in holosoma_inference's loader; the fine-tuned G1 walkers committed under benchmarks/results load there
     and act as onnxruntime runs them here."""
     from econmotor.couriers.policy_import import batched_onnx_policy, resolve_contract
-    from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, WalkerPPOConfig
+    from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic
+    from econmotor.motor_backend.mujoco.walker_recipe import WalkerPPOConfig
     from econmotor.motor_backend.mujoco.walker_training import export_walker
 
     shipped = shipped_policy_path("holosoma:g1_29dof/ppo", find_holosoma_python(REPO / ".venv-holosoma"))

@@ -32,7 +32,7 @@ from econmotor.couriers.stress import Stress
 from econmotor.couriers.walker_setup import WalkerSetup
 from econmotor.couriers.walker_task import MeterSettings
 from econmotor.motor_backend.mujoco import walker_collect as wc
-from econmotor.motor_backend.mujoco.walker_ppo import WalkerPPOConfig
+from econmotor.motor_backend.mujoco.walker_recipe import WalkerPPOConfig
 from econmotor.motor_backend.mujoco.walker_training import (
     CHECKPOINT_FILE,
     TRAIN_SEED_BASE,

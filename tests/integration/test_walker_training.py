@@ -28,7 +28,8 @@ from econmotor.couriers.walker_env import WalkerBatch
 from econmotor.couriers.walker_model import WalkerModel
 from econmotor.couriers.walker_task import MeterSettings
 from econmotor.couriers.walker_train import PRIVILEGED_DIM, WalkerLearningEnv, start_point
-from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, Rollout, WalkerPPO, WalkerPPOConfig
+from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, Rollout, WalkerPPO
+from econmotor.motor_backend.mujoco.walker_recipe import WalkerPPOConfig
 from econmotor.motor_backend.results import summarize_episodes
 from econmotor.objectives.loader import objective_from_vector, objective_j
 from econmotor.tasks import get_task

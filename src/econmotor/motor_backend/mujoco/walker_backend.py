@@ -36,7 +36,7 @@ from econmotor.couriers.walker_train import BASE_TERMS
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.base import ProgressFn, StopFn
 from econmotor.motor_backend.capabilities import HeldOutCadence
-from econmotor.motor_backend.mujoco.walker_ppo import WalkerPPOConfig
+from econmotor.motor_backend.mujoco.walker_recipe import WalkerPPOConfig
 from econmotor.motor_backend.mujoco.walker_training import ONNX_FILE, TRAIN_SEED_BASE, WalkerTrainingRun
 from econmotor.motor_backend.results import MotorEvalResult, MotorTrainingResult
 from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, read_run_config

@@ -53,7 +53,8 @@ from econmotor.couriers.walker_train import PRIVILEGED_DIM
 from econmotor.economics import courier_formulas as cf
 from econmotor.motor_backend.base import ProgressFn, no_progress
 from econmotor.motor_backend.mujoco import walker_collect as wc
-from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, WalkerPPO, WalkerPPOConfig
+from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, WalkerPPO
+from econmotor.motor_backend.mujoco.walker_recipe import WalkerPPOConfig
 from econmotor.motor_backend.selection import Selection
 from econmotor.motor_backend.training_loop import Learner as LoopLearner
 from econmotor.motor_backend.training_loop import StopFn, TrainingLoop, TrainingOutcome

@@ -23,7 +23,8 @@ import pytest
 import torch
 
 from econmotor.errors import ConfigError
-from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, Rollout, WalkerPPO, WalkerPPOConfig
+from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, Rollout, WalkerPPO
+from econmotor.motor_backend.mujoco.walker_recipe import WalkerPPOConfig
 
 OBS, PRIV, ACT = 6, 4, 3
 #: a fall's reward on the G1 (issue 54: about -2,333 against steps of order 1)
