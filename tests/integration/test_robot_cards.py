@@ -1,6 +1,6 @@
 """The robot cards (econmotor/robots) held to Holosoma's own presets, in .venv-holosoma.
 
-As tests/unit/motor_backend/couriers/test_courier_robots.py holds the Gymnasium records to
+As tests/unit/couriers/test_courier_robots.py holds the Gymnasium records to
 Gymnasium, a script run in .venv-holosoma reads every fact a card copies from the installed
 holosoma (experiment preset: robot, simulator, randomization, rewards), holosoma_inference
 (inference preset: observation, task, robot) and the shipped ONNX walkers' metadata; each must

@@ -11,7 +11,7 @@ Every formula takes ``xp``, the namespace its arguments live in, and runs the sa
 (``maximum``, ``where``, ``clip``, ...) bound to the builtins and :mod:`math`, which are what a
 few scalars per step call for. No robot knowledge lives here: what a step reads from a robot's
 physics (its root x, tilt, actuator forces, fall rule) is worked out by the caller
-(``motor_backend/couriers/``) and handed over as a :class:`StepReading`.
+(``couriers/``) and handed over as a :class:`StepReading`.
 
 Per control step of ``dt_s`` seconds:
 

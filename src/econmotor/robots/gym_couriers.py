@@ -5,7 +5,7 @@ A :class:`CourierRobot` holds what the ``mjx`` backend rebuilds of a Gymnasium e
 the healthy (fall) rule, the observation's parts, how the task reward reads forward motion and
 contact forces, and the reset noise. Code reads these fields; it never branches on a robot's
 name. The defaults are Gymnasium 1.x's, copied here so that this package imports no
-gymnasium; ``tests/unit/motor_backend/couriers/test_robots.py`` holds them to the installed
+gymnasium; ``tests/unit/couriers/test_courier_robots.py`` holds them to the installed
 env classes and :func:`is_healthy` to the envs' own ``is_healthy``.
 """
 

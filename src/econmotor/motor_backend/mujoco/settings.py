@@ -1,7 +1,7 @@
 """MujocoTaskSettings: a task catalog entry's ``backends.mujoco`` block, validated.
 
 The metering keys (env_id ... novelty_bin, overlay_normalization, env_kwargs) are the couriers'
-(``motor_backend/couriers/settings.py``); the others are this backend's.
+(``couriers/settings.py``); the others are this backend's.
 
 Catalog schema (``src/econmotor/tasks/mujoco.yaml``)::
 

@@ -29,7 +29,7 @@ preset per algorithm (``humanoid_locomotion_g1`` -> ``g1_29dof`` / ``g1_29dof_fa
 ``output_dir`` is the run directory (default: a new one under ``runs_dir``); a trained run holds
 ``run_config.json`` and ``policy.onnx`` (:mod:`.holosoma.host.run_record`). ``policy_id`` names that
 directory, or an imported policy: an ONNX file in Holosoma's export format or a shipped one,
-``holosoma:<robot>/<algo>`` (:mod:`.holosoma.policy_import`).
+``holosoma:<robot>/<algo>`` (:mod:`econmotor.couriers.policy_import`).
 """
 
 from __future__ import annotations
