@@ -59,11 +59,13 @@ class HeldOutCadence:
     Attributes:
         every_steps: env steps between held-out evaluations, at least (1: after any training iteration).
         max_share: and only once the training since the last one took at least ``(1 - max_share) /
-            max_share`` times its cost (so by default they cost at most ~10% of a run, whatever the device).
+            max_share`` times its cost (so by default they cost at most ~10% of a run, whatever the device);
+            None: at every ``every_steps`` env steps alone, so two runs of one seed look at the same steps
+            and keep the same checkpoint whatever the machine's speed.
     """
 
     every_steps: int = 25_000
-    max_share: float = 0.10
+    max_share: float | None = 0.10
 
 
 @dataclass(frozen=True)

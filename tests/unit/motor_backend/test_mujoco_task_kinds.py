@@ -49,3 +49,20 @@ def test_no_backend_module_tests_the_task_kind_outside_its_declaration():
     offenders = {str(p.relative_to(root)): found for p in sorted(root.rglob("*.py"))
                  if p != DECLARING and (found := kind_tests(p.read_text()))}
     assert offenders == {}
+
+
+def test_a_walker_runs_held_out_looks_follow_env_steps_not_wall_time():
+    """Two runs of one seed look at the same env steps (and so keep the same checkpoint), however fast
+    the machine: the walker's default cadence has no wall-time share."""
+    from econmotor.motor_backend.mujoco.walker_backend import WALKER_CADENCE, WALKER_SELECT_BATCH
+    from econmotor.motor_backend.selection import HeldOutResult, selection_for
+    from econmotor.objectives import EconomicObjectiveSpec
+
+    selection = selection_for(get_task("humanoid_locomotion_g1"), EconomicObjectiveSpec(), None, None, False, 0,
+                              WALKER_CADENCE, WALKER_SELECT_BATCH)
+    assert selection is not None and selection.config.every_steps == 500_000
+    assert selection.config.max_share is None
+    selection.history.append(HeldOutResult.__new__(HeldOutResult))  # a look has run (its cost is not read)
+    for now in (0.0, 1e-3, 1e6):  # right after an expensive look, or long after: the steps alone decide
+        assert selection.due(1_000_000, 500_000, now=now)
+        assert not selection.due(999_999, 500_000, now=now)

@@ -152,8 +152,9 @@ def _onnx_metadata(config: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
-#: held-out selection of a walker run: every 500k env steps at most, and at most 10% of the wall time
-WALKER_CADENCE = HeldOutCadence(every_steps=500_000, max_share=0.10)
+#: held-out selection of a walker run: every 500k env steps, whatever the wall time (a run's looks, and so the
+#: checkpoint it keeps, depend on its seed only)
+WALKER_CADENCE = HeldOutCadence(every_steps=500_000, max_share=None)
 #: a held-out evaluation's first look (robots stepped together in the trainer's process)
 WALKER_SELECT_BATCH = 16
 
