@@ -208,7 +208,8 @@ def test_observation_equals_holosoma_inferences_own(recorded: dict[str, dict], c
 
 def replay(rollouts: list[tuple[np.ndarray, np.ndarray]], batch: WalkerBatch) -> dict[str, float]:
     """An episode's figures from its recorded physics steps by the shared formulas (numpy), up to its first
-    fall (the card's rule): units from the start's x, energy summed, risk averaged over the steps."""
+    fall (the card's rule): units from the start's x, energy summed (the card's winding heat included), risk
+    averaged over the steps."""
     w, c = batch.walker, batch.card
     states = np.concatenate([s for s, _ in rollouts])
     frc = np.concatenate([f for _, f in rollouts])
@@ -217,7 +218,8 @@ def replay(rollouts: list[tuple[np.ndarray, np.ndarray]], batch: WalkerBatch) ->
     fell = (tilt > c.fall_tilt_rad) | (qpos[:, 2] < c.min_base_z_m)
     n = int(np.argmax(fell)) + 1 if fell.any() else len(states)
     mech = cf.mechanical_power_w(frc[:n], qvel[:n, w.dof_adr], np)
-    energy = cf.electrical_energy_wh(mech, METER.drivetrain_efficiency, METER.idle_power_w, c.physics_dt_s)
+    heat = cf.winding_heat_w(frc[:n], c.heat_coeff(), np)
+    energy = cf.electrical_energy_wh(mech, METER.drivetrain_efficiency, METER.idle_power_w, c.physics_dt_s, heat)
     risk = cf.tilt_risk(tilt[:n], METER.tilt_margin_rad, METER.fall_tilt_rad, np)
     units = (np.max(qpos[:n, 0]) - c.init_pos[0]) / METER.leg_distance_m
     return {"units_completed": float(max(units, 0.0)), "energy_wh": float(np.sum(energy)),
