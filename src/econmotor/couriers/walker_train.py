@@ -36,7 +36,7 @@ from econmotor.couriers import locomotion_rewards as lr
 from econmotor.couriers.walker_env import WalkerBatch
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.objectives.loader import running_objective_j
-from econmotor.robots.observation import projected_gravity
+from econmotor.robots.observation import projected_gravity, rotate_inverse
 
 #: Holosoma's locomotion terms computed from the base's state and the actions (no feet or pose terms)
 BASE_TERMS = ("tracking_lin_vel", "tracking_ang_vel", "penalty_ang_vel_xy", "penalty_orientation",
@@ -145,7 +145,7 @@ class WalkerLearningEnv:
         b = self.batch
         state = b.state[slots]
         qpos, qvel = b._qpos(state), b._qvel(state)
-        lin = _rotate_inverse(qpos[:, 3:7], qvel[:, 0:3])
+        lin = rotate_inverse(qpos[:, 3:7], qvel[:, 0:3], np)
         friction = np.array([b.models[s].geom_friction[b.walker.floor, 0] for s in slots])
         payload = np.array([b.episodes[s].draws.get("payload_kg", 0.0) if b.episodes[s] else 0.0 for s in slots])
         dwell = b.course_state.dwell_left_s[slots] / max(b.course.dwell_s, 1e-6)
@@ -160,7 +160,7 @@ class WalkerLearningEnv:
         quat = qpos[:, 3:7]
         command = np.column_stack([b.command[slots, 0], np.zeros(len(slots)), b.command[slots, 1]])
         reading = lr.LocomotionReading(
-            command=command, lin_vel_body=_rotate_inverse(quat, qvel[:, 0:3]), ang_vel_body=qvel[:, 3:6],
+            command=command, lin_vel_body=rotate_inverse(quat, qvel[:, 0:3], np), ang_vel_body=qvel[:, 3:6],
             gravity_body=projected_gravity(quat, np), action=action, last_action=last_action, q=None,
             default_q=None, phase=None, foot_z=None, feet_xy=None, feet_gravity_xy=None, base_yaw=None)
         raw = {k: np.broadcast_to(lr.TERMS[k](reading, np, **self.params.get(k, {})), (len(slots),))
@@ -207,13 +207,3 @@ class WalkerLearningEnv:
 
     def close(self) -> None:
         self.batch.close()
-
-
-def _rotate_inverse(quat_wxyz: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """World vectors ``v`` [N, 3] in the frames of the bases ``quat_wxyz`` [N, 4]: ``R(q)^T v``."""
-    w, x, y, z = (quat_wxyz[:, i] for i in range(4))
-    rot = np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=-1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=-1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1)], axis=-2)
-    return np.einsum("nji,nj->ni", rot, v)

@@ -30,6 +30,13 @@ def projected_gravity(quat_wxyz: Any, xp: Any) -> Any:
     return -xp.stack([2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)], axis=-1)
 
 
+def rotate_inverse(quat_wxyz: Any, v: Any, xp: Any) -> Any:
+    """World vectors ``v`` [..., 3] in the body frames ``quat_wxyz`` [..., 4]: ``R(q)^T v``, written
+    ``v (2 w^2 - 1) - 2 w (u x v) + 2 u (u . v)`` with ``u = (x, y, z)`` (one robot or a batch; NumPy or JAX)."""
+    w, u = quat_wxyz[..., :1], quat_wxyz[..., 1:4]
+    return v * (2.0 * w * w - 1.0) - 2.0 * w * xp.cross(u, v) + 2.0 * u * xp.sum(u * v, axis=-1, keepdims=True)
+
+
 def initial_phase(xp: Any) -> Any:
     """The gait clock at an episode's start: (0, pi) for the left and right foot."""
     return xp.asarray([0.0, math.pi])

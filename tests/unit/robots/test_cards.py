@@ -201,3 +201,20 @@ def test_a_card_without_a_motor_model_meters_no_heat_and_a_wrong_length_is_refus
         dataclasses.replace(g1, motor_model=MotorModel((0.1, 0.1), "calibrated", "x"))
     with pytest.raises(ValueError, match="basis"):
         MotorModel((0.1,), "guessed", "x")
+
+
+def test_rotate_inverse_is_the_transposed_rotation_in_numpy_and_jax() -> None:
+    from econmotor.robots.observation import rotate_inverse
+
+    rng = np.random.default_rng(3)
+    quat = rng.normal(size=(8, 4))
+    quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+    v = rng.normal(size=(8, 3))
+    expected = []
+    for q, x in zip(quat, v, strict=True):
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, q)
+        expected.append(rot.reshape(3, 3).T @ x)
+    np.testing.assert_allclose(rotate_inverse(quat, v, np), expected, atol=1e-12)
+    one = rotate_inverse(jnp.asarray(quat[0], jnp.float32), jnp.asarray(v[0], jnp.float32), jnp)
+    np.testing.assert_allclose(np.asarray(one), expected[0], atol=1e-5)

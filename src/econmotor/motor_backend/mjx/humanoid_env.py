@@ -62,7 +62,13 @@ from econmotor.motor_backend.mjx.base_env import Env, State, like, reading
 from econmotor.motor_backend.mjx.settings import MjxTaskSettings
 from econmotor.robots import card as robot_card
 from econmotor.robots.model import joint_indices, load_model
-from econmotor.robots.observation import advance_phase, build_observation, initial_phase, projected_gravity
+from econmotor.robots.observation import (
+    advance_phase,
+    build_observation,
+    initial_phase,
+    projected_gravity,
+    rotate_inverse,
+)
 
 #: overlay keys a walker can weight (no novelty table, no pose tracking)
 HUMANOID_TERMS = ("mpl_per_hour", "error_rate", "energy_kwh", "risk_score")
@@ -121,12 +127,6 @@ def parse_locomotion(settings: MjxTaskSettings) -> tuple[float, dict[str, float]
         weights[name] = as_float(entry.pop("weight"), src, f"{prefix}.rewards.{name}.weight", allow_negative=True)
         params[name] = entry
     return episode_s, weights, params
-
-
-def _rotate_inverse(quat_wxyz: jax.Array, v: jax.Array) -> jax.Array:
-    """``R(q)^T v``: a world vector in the body frame."""
-    w, u = quat_wxyz[0], quat_wxyz[1:]
-    return v * (2.0 * w * w - 1.0) - 2.0 * w * jnp.cross(u, v) + 2.0 * u * jnp.dot(u, v)
 
 
 class HumanoidWalkerEnv(Env):
@@ -303,7 +303,7 @@ class HumanoidWalkerEnv(Env):
         qpos, qvel = data.qpos, data.qvel
         quat = qpos[3:7]
         loco = LocomotionReading(
-            command=robot["command"], lin_vel_body=_rotate_inverse(quat, qvel[0:3]), ang_vel_body=qvel[3:6],
+            command=robot["command"], lin_vel_body=rotate_inverse(quat, qvel[0:3], jnp), ang_vel_body=qvel[3:6],
             gravity_body=projected_gravity(quat, jnp), action=action, last_action=robot["last_action"],
             q=qpos[self._qadr], default_q=self._default, phase=robot["phase"],
             foot_z=data.xpos[self._contact_points, 2], feet_xy=data.xpos[self._feet, 0:2],
