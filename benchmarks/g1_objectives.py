@@ -3,7 +3,8 @@
 Same start, different economics: the mujoco backend's CPU trainer fine-tunes Holosoma's shipped G1 PPO
 walker (``--init-policy holosoma:g1_29dof/ppo``) under ``energy_saver`` and under ``throughput``, on the
 batched MuJoCo walker env that prices it, under ``configs/datapacks/humanoid_stress.yaml``, for at most
-``--minutes`` of wall time each (the two runs side by side, one core each; held-out selection included)::
+``--minutes`` of wall time each (one run after the other, each stepping its robots on every core; held-out
+selection included)::
 
     econmotor train --motor-backend mujoco --task-id humanoid_locomotion_g1 \\
         --init-policy holosoma:g1_29dof/ppo --objective-config configs/objectives/<preset>.yaml \\
@@ -64,15 +65,14 @@ def train_command(preset: str, out: Path, minutes: float, max_steps: int, num_en
 
 
 def train(args: argparse.Namespace, results: Path, work: Path) -> None:
-    """Both fine-tunes side by side (one process each); their exports, configs and curves to ``results``."""
-    procs = {}
-    for preset in PRESETS:
-        out = work / f"g1_ft_{preset}"
-        log = (work / f"{preset}.log").open("w")
-        procs[preset] = (subprocess.Popen(train_command(preset, out, args.minutes, args.max_steps, args.num_envs),
-                                          stdout=log, stderr=subprocess.STDOUT, cwd=REPO), out, time.perf_counter())
+    """The fine-tunes one after the other (a run collects on every core); their exports, configs and curves to
+    ``results``."""
     results.mkdir(parents=True, exist_ok=True)
-    for preset, (proc, out, started) in procs.items():
+    for preset in PRESETS:
+        out, started = work / f"g1_ft_{preset}", time.perf_counter()
+        with (work / f"{preset}.log").open("w") as log:
+            proc = subprocess.Popen(train_command(preset, out, args.minutes, args.max_steps, args.num_envs),
+                                    stdout=log, stderr=subprocess.STDOUT, cwd=REPO)
         if proc.wait() != 0:
             raise SystemExit(f"training {preset} failed: see {work / f'{preset}.log'}")
         for name, target in (("policy.onnx", f"{preset}.onnx"), ("run_config.json", f"{preset}.run_config.json"),
