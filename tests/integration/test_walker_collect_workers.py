@@ -218,3 +218,25 @@ def test_a_failing_worker_is_a_backend_error_naming_its_cause(tmp_path: Path) ->
     finally:
         learner.close()
     assert learner.collection is None
+
+
+def test_held_out_looks_alternate_nominal_and_the_training_stress(tmp_path: Path) -> None:
+    """A run under a datapack is selected on both conditions: held-out episode ``i`` runs under
+    ``select_stresses[i % 2]`` (nominal, then the training's stress), each on its own seed, in order; a look's
+    verdict then sees the falls the stress causes."""
+    import dataclasses
+
+    run = _run(tmp_path / "run", workers=1)
+    nominal = Stress()
+    run = dataclasses.replace(run, select_stresses=(nominal, run.setup.stress))
+    looks: list[int] = []
+    rows = run.evaluate(run.learner(), 4, 50_000, lambda rows: looks.append(len(rows)) or False)
+    assert len(rows) == 4 and looks == [len(rows)]  # one look of the whole batch (no selection: the batch)
+    stressed = ["stress_friction" in r for r in rows]  # a friction drawn: the stress's episodes
+    assert stressed == [False, True, False, True]
+    assert rows[0]["stress_payload_kg"] == 0.0 and rows[1]["stress_payload_kg"] > 0.0
+    # the same episodes alone under each condition: the seeds are the look's (50,000 + i)
+    alone = dataclasses.replace(run, select_stresses=(run.setup.stress,))
+    again = alone.evaluate(alone.learner(), 4, 50_000, lambda rows: False)
+    assert again[1]["energy_wh"] == pytest.approx(rows[1]["energy_wh"], rel=1e-6)  # torch rounds by batch
+    assert again[3]["energy_wh"] == pytest.approx(rows[3]["energy_wh"], rel=1e-6)

@@ -122,7 +122,8 @@ def train_walker(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[An
         "objective_weights": objective_weights_vector(objective), "econ_gain": trainer.econ_gain,
         "locomotion_rewards": {k: {"weight": w, **trainer.params.get(k, {})} for k, w in trainer.weights.items()},
         "course": asdict(setup.course), "meter": asdict(setup.meter), "episode_s": setup.episode_s,
-        "stress": asdict(setup.stress), "selection_stress": asdict(nominal.stress),
+        "stress": asdict(setup.stress),
+        "selection_conditions": ["nominal", *setup.datapack_ids] if packs else ["nominal"],
         "datapack_ids": list(setup.datapack_ids), "notes": list(setup.notes),
         "init_policy": {**init.describe(), "critic_warmup_iterations": cfg.critic_warmup_iterations}
         if init else None,
@@ -137,7 +138,8 @@ def train_walker(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[An
         max_wall_s=float(max_wall_s) if max_wall_s else math.inf, checkpoint_every_s=trainer.checkpoint_every_s,
         selection=selection, metadata=_onnx_metadata(config),
         kp=np.asarray(c.kp) if c else None, kd=np.asarray(c.kd) if c else None,
-        command_ranges=c.command_ranges if c else None, select_stress=nominal.stress, collect_workers=workers)
+        command_ranges=c.command_ranges if c else None,
+        select_stresses=(nominal.stress, setup.stress) if packs else (nominal.stress,), collect_workers=workers)
     config["collect_workers"] = run.collect_workers  # a seed's rollouts depend on how the robots are split
     outcome = run.train(resume=resume, progress=progress, config=config, requested_hyperparameters=hyperparameters)
     return outcome.config, outcome.curve

@@ -19,9 +19,11 @@ What a run does (:class:`WalkerTrainingRun`):
 4. checkpoints (``checkpoints/latest.pt``: learner, iteration, env steps, each worker's next seed) every
    ``checkpoint_every_s`` of wall time, at the end and when interrupted: ``--resume`` continues from it;
 5. held-out selection (:mod:`econmotor.motor_backend.selection`): at its cadence, the deterministic
-   actor walks held-out seeds of the priced course in this process under ``select_stress`` (the mujoco
-   backend passes the nominal conditions a report prices by default); the best by the buyer's verdict
-   and J is kept (``best/policy.onnx``);
+   actor walks held-out seeds of the priced course in this process, episode ``i`` under
+   ``select_stresses[i % len(select_stresses)]`` (the mujoco backend passes the nominal conditions a
+   report prices by default and, for a run under a datapack, the training's stress: a look's verdict
+   then sees the falls the stress causes); the best by the buyer's verdict, then J, is kept
+   (``best/policy.onnx``);
 6. stops at ``max_steps`` env steps or ``max_wall_s``; the kept actor is the run's ``policy.onnx``, in
    Holosoma's ONNX format (holosoma_inference's loader and the sim-to-sim evaluator read it).
 
@@ -91,8 +93,8 @@ class WalkerTrainingRun:
     kp: np.ndarray | None = None
     kd: np.ndarray | None = None
     command_ranges: Mapping[str, Any] | None = None
-    #: the conditions held-out selection prices under (None: the training's stress)
-    select_stress: Stress | None = None
+    #: the conditions held-out selection's episodes alternate between (empty: the training's stress)
+    select_stresses: tuple[Stress, ...] = ()
     #: worker processes that step the robots (1: in this process; None: :func:`.walker_collect.default_workers`)
     collect_workers: int | None = None
 
@@ -175,27 +177,26 @@ class WalkerTrainingRun:
     def evaluate(self, learner: WalkerPPO, num_episodes: int, first_seed: int,
                  stop: Callable[[list[dict[str, Any]]], bool]) -> list[dict[str, Any]]:
         """``num_episodes`` deterministic episodes of the priced course from the start (episode ``i`` seeded
-        ``first_seed + i``, as the evaluator seeds them), asking ``stop`` after every ``batch`` in order."""
-        batch = self.batch(min(SELECT_SLOTS, num_episodes), self.select_stress)
-        rows: dict[int, dict[str, Any]] = {}
-        ordered: list[dict[str, Any]] = []
-        decided: list[int] = []
+        ``first_seed + i``, as the evaluator seeds them, under ``select_stresses[i % len]``), asking ``stop``
+        after every look of ``selection.config.batch`` episodes, in order."""
+        stresses = self.select_stresses or (self.setup.stress,)
         look = self.selection.config.batch if self.selection is not None else num_episodes
-
-        def on_episode(index: int, metrics: dict[str, Any]) -> bool:
-            rows[index] = metrics
-            while not decided and len(ordered) in rows:
-                ordered.append(rows[len(ordered)])
-                if len(ordered) % look == 0 and stop(list(ordered)):
-                    decided.append(len(ordered))
-            return bool(decided)
-
+        batches = [self.batch(min(SELECT_SLOTS, num_episodes), stress) for stress in stresses]
+        policy, ordered = self.deterministic_policy(learner), []
         try:
-            run_episodes(batch, self.deterministic_policy(learner),
-                         [(i, first_seed + i) for i in range(num_episodes)], on_episode)
+            for start in range(0, num_episodes, look):
+                rows: dict[int, dict[str, Any]] = {}
+                for k, batch in enumerate(batches):
+                    chunk = [(i, first_seed + i) for i in range(start, min(start + look, num_episodes))
+                             if i % len(batches) == k]
+                    run_episodes(batch, policy, chunk, rows.__setitem__)
+                ordered += [rows[i] for i in sorted(rows)]
+                if len(ordered) % look == 0 and stop(list(ordered)):
+                    break
         finally:
-            batch.close()
-        return ordered[:decided[0]] if decided else ordered
+            for batch in batches:
+                batch.close()
+        return ordered
 
     def export(self, layers: list[dict[str, np.ndarray]], path: Path) -> Path:
         """``path`` (a ``policy.onnx``) of ``layers`` (:func:`export_walker`) with this run's gains and command
