@@ -62,7 +62,11 @@ def test_a_walker_runs_held_out_looks_follow_env_steps_not_wall_time():
                               WALKER_CADENCE, WALKER_SELECT_BATCH)
     assert selection is not None and selection.config.every_steps == 500_000
     assert selection.config.max_share is None
-    selection.history.append(HeldOutResult.__new__(HeldOutResult))  # a look has run (its cost is not read)
-    for now in (0.0, 1e-3, 1e6):  # right after an expensive look, or long after: the steps alone decide
+    # a look that cost 100 s ended at 200 s: a wall-time share would hold the next one back for 900 s
+    selection.history.append(HeldOutResult(env_steps=500_000, wall_s=200.0, eval_s=100.0, episodes=16,
+                                           episodes_planned=32, cut_short=True, deployable=False, j_mean=0.0,
+                                           fall_rate_upper=1.0, units_per_hour=0.0, units_per_hour_low=0.0,
+                                           errors=0.0))
+    for now in (selection.started + 200.0, selection.started + 201.0, selection.started + 1e6):
         assert selection.due(1_000_000, 500_000, now=now)
         assert not selection.due(999_999, 500_000, now=now)

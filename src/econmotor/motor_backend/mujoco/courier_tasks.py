@@ -55,7 +55,7 @@ def train_courier(backend: Any, spec: TaskSpec, *, objective: EconomicObjectiveS
         num_envs=num_envs if num_envs > 0 else settings.num_envs, max_steps=int(max_steps), seed=int(seed),
         vec_env=backend.vec_env, checkpoint_every_steps=checkpoint_every_steps or settings.checkpoint_every_steps,
         requested_algorithm=algorithm, eval_recipe=backend.eval_recipe(recipe), onnx_metadata=backend.onnx_metadata,
-        selection=selection_for(backend.catalog.get(task_id), objective, select_every_steps, select_episodes,
+        selection=selection_for(spec, objective, select_every_steps, select_episodes,
                                 until_deployable, seed, backend.held_out_cadence, backend.evaluation_batch(task_id)),
     )
     curve = run.train(resume=resume, progress=progress)
@@ -87,5 +87,5 @@ def evaluate_courier(backend: Any, policy_id: str, spec: TaskSpec, *, objective:
         evaluator="mujoco", figures_from=f"Gymnasium MuJoCo {recipe.settings.env_id} (the run's "
         f"{config['algorithm']} policy, deterministic, metered as in training)",
         mean_power_w=mean_power_w(aggregate_raw(raw_eps)))
-    return evaluation_result(backend.name, policy_id, task_id, raw_eps, backend.catalog.get(task_id).economics,
+    return evaluation_result(backend.name, policy_id, task_id, raw_eps, spec.economics,
                              eval_config, output_dir, provenance)

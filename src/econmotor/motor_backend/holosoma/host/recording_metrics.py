@@ -52,8 +52,7 @@ def step_series(data: Any, settings: Mapping[str, Any], meter: Mapping[str, floa
         progress = commanded_progress_m_per_s(data["base_lin_vel"][:, :2], command[:, :2]) / c.leg_distance_m
     tau = data["torques_substep"]  # [steps, sub-steps, joints]
     mechanical = cf.mechanical_power_w(tau, data["dof_vel_substep"], np).mean(-1)
-    heat = cf.winding_heat_w(tau, robot_card(str(settings["robot"]), "<recording>").heat_coeff(), np).mean(-1) \
-        if "robot" in settings else 0.0
+    heat = cf.winding_heat_w(tau, robot_card(str(settings["robot"]), "<recording>").heat_coeff(), np).mean(-1)
     power = cf.electrical_power_w(mechanical, c.drivetrain_efficiency, c.idle_power_w, heat)
     risk = cf.tilt_risk(base_tilt_rad(data["root_quat_xyzw"], np), c.tilt_margin_rad, c.fall_tilt_rad, np)
     q = data["dof_pos"].astype(np.float64)
