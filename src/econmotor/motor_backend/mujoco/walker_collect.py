@@ -51,7 +51,7 @@ from econmotor.couriers.walker_eval import exit_with_parent
 from econmotor.couriers.walker_model import WalkerModel
 from econmotor.couriers.walker_train import WalkerLearningEnv
 from econmotor.errors import BackendError
-from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, Rollout, mlp
+from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, Rollout, load_layers, mlp
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 
 #: robots a worker steps at least by default: below that the control step's Python is no longer amortised
@@ -272,7 +272,7 @@ def _worker(conn: Any, spec: EnvSpec, slots: int, seed: int, stride: int, rng_se
             if actor is None:
                 sizes = [layers[0]["w"].shape[0], *(layer["w"].shape[1] for layer in layers)]
                 actor = mlp(sizes, weights["activation"]).requires_grad_(False)
-            _load(actor, layers)
+            load_layers(actor, layers)
             sample = Sampler(actor, torch.from_numpy(weights["log_std"]), generator)
             chunk = collect(env, sample, steps, *obs)
             obs = (chunk.last_obs, chunk.last_privileged)
@@ -287,14 +287,6 @@ def _worker(conn: Any, spec: EnvSpec, slots: int, seed: int, stride: int, rng_se
     finally:
         if env is not None:
             env.close()
-
-
-def _load(actor: torch.nn.Module, layers: Sequence[Mapping[str, np.ndarray]]) -> None:
-    linears = [m for m in actor if isinstance(m, torch.nn.Linear)]
-    with torch.no_grad():
-        for lin, layer in zip(linears, layers, strict=True):
-            lin.weight.copy_(torch.from_numpy(np.asarray(layer["w"], np.float32).T))
-            lin.bias.copy_(torch.from_numpy(np.asarray(layer["b"], np.float32)))
 
 
 def worker_rng_seed(run_seed: int, worker: int, workers: int, iteration: int) -> int:

@@ -60,6 +60,16 @@ from econmotor.motor_backend.mujoco.walker_recipe import ACTIVATIONS, WalkerPPOC
 _ACTIVATIONS = dict(zip(ACTIVATIONS, (nn.ELU, nn.Tanh, nn.ReLU, nn.SiLU), strict=True))
 
 
+def load_layers(net: nn.Sequential, layers: Sequence[Mapping[str, np.ndarray]]) -> None:
+    """Set the linear layers of ``net`` (an :func:`mlp`), in order, to ``layers``
+    (``[{"w": [in, out], "b": [out]}]``)."""
+    linears = [m for m in net if isinstance(m, nn.Linear)]
+    with torch.no_grad():
+        for lin, layer in zip(linears, layers, strict=True):
+            lin.weight.copy_(torch.from_numpy(np.asarray(layer["w"], np.float32).T))
+            lin.bias.copy_(torch.from_numpy(np.asarray(layer["b"], np.float32)))
+
+
 def mlp(sizes: Sequence[int], activation: str) -> nn.Sequential:
     """Linear layers of ``sizes`` with ``activation`` between them (none after the last)."""
     layers: list[nn.Module] = []
@@ -122,11 +132,7 @@ class ActorCritic(nn.Module):
 
     def load_actor(self, layers: Sequence[Mapping[str, np.ndarray]]) -> None:
         """Set the actor's layers to ``layers`` (``[{"w": [in, out], "b": [out]}]``, :meth:`layers`'s form)."""
-        linears = [m for m in self.actor if isinstance(m, nn.Linear)]
-        with torch.no_grad():
-            for lin, layer in zip(linears, layers, strict=True):
-                lin.weight.copy_(torch.from_numpy(np.asarray(layer["w"], np.float32).T))
-                lin.bias.copy_(torch.from_numpy(np.asarray(layer["b"], np.float32)))
+        load_layers(self.actor, layers)
 
     def layers(self) -> list[dict[str, np.ndarray]]:
         """The actor's layers as ``[{"w": [in, out], "b": [out]}]`` (what the ONNX export writes)."""
