@@ -27,7 +27,7 @@ from econmotor.couriers.stress import Stress
 from econmotor.couriers.walker_env import WalkerBatch
 from econmotor.couriers.walker_model import WalkerModel
 from econmotor.couriers.walker_task import MeterSettings
-from econmotor.couriers.walker_train import PRIVILEGED_DIM, WalkerLearningEnv, start_point
+from econmotor.couriers.walker_train import PRIVILEGED_DIM, WalkerLearningEnv, nominal_length_s, start_point
 from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, Rollout, WalkerPPO
 from econmotor.motor_backend.mujoco.walker_recipe import WalkerPPOConfig
 from econmotor.motor_backend.results import summarize_episodes
@@ -166,6 +166,32 @@ def test_one_j_an_episodes_economic_rewards_sum_to_its_reported_j(g1_ppo, random
     for summed, reported, episode in ended:
         assert episode["energy_wh"] > 0  # ... and drew power
         assert summed == pytest.approx(reported, rel=1e-9, abs=1e-9)
+    env.close()
+
+
+def test_one_j_pays_each_leg_when_it_is_walked(g1_ppo) -> None:
+    """Before its last step an episode is paid its J's terms as they accrue, rates over its nominal length
+    (the course left at the course's speed): a leg walked at any time earns the same, and the first steps of
+    an episode no more than their legs and Wh (the running rate's increments pay them its whole J at once)."""
+    env = _env(g1_ppo, 2, random_start=False)
+    env.weights = {}
+    obs, _ = env.reset()
+    nominal = SHORT.legs * (SHORT.leg_m / SHORT.speed_m_per_s + SHORT.dwell_s)
+    assert nominal_length_s(SHORT, 0.0, 30.0) == pytest.approx(nominal)
+    assert nominal_length_s(SHORT, 2.0, 30.0) == pytest.approx(nominal - 2.0)
+    assert nominal_length_s(SHORT, 0.0, 4.0) == pytest.approx(4.0)  # within the time limit
+    policy, sums = batched_onnx_policy(g1_ppo), env.batch.sums
+    walked = 0.0
+    for _ in range(100):
+        units, wh = sums.units[:2].copy(), sums.energy_wh[:2].copy()
+        out = env.step(policy(obs))
+        obs = out.obs
+        assert not (out.terminated | out.truncated).any()
+        expected = OBJECTIVE.mpl_weight * 3600.0 * (sums.units[:2] - units) / nominal \
+            - OBJECTIVE.energy_weight * (sums.energy_wh[:2] - wh)
+        np.testing.assert_allclose(out.reward / env.gain, expected, rtol=1e-9, atol=1e-12)
+        walked += float((sums.units[:2] - units).sum())
+    assert walked > 0.05
     env.close()
 
 

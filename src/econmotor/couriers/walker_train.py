@@ -8,12 +8,19 @@ prices the G1 and T1: the same model, course, stress, meter and fall rule) for a
   there and the time the course would have taken so far counted against the episode's limit
   (:func:`start_point`); an episode then runs to the course's end, a fall or the time limit, so
   the learner practises standing starts, dwells and every leg the priced course has;
-- **the step reward** ``r = sum_k w_k term_k dt + gain * (J(t) - J(t - 1))``: Holosoma's locomotion
+- **the step reward** ``r = sum_k w_k term_k dt + gain * (J_T(t) - J_T(t - 1))``: Holosoma's locomotion
   terms that a base-state reading supports (:data:`BASE_TERMS`, :mod:`econmotor.couriers.locomotion_rewards`)
   plus ``gain`` times the increment of the objective's J, the very J selection and the report score an
   episode by (:func:`econmotor.objectives.loader.running_objective_j` on the meter's running sums, from
-  ``J = 0`` at the episode's start): an episode's economic rewards sum to ``gain * J`` of that episode,
-  with its own length and legs;
+  ``J = 0`` at the episode's start). While the episode runs its rates are taken over ``T``, the episode's
+  nominal length (:func:`nominal_length_s`: the course left from the start point at the course's speed,
+  dwells included, within the time limit), so each leg walked is paid ``3600 w_mpl / T`` when it is
+  walked and each Wh when it is drawn; the step that ends the episode adds the difference between its J
+  over its own length and over ``T``. An episode's economic rewards sum to ``gain * J`` of that episode,
+  with its own length and legs. (Paying the increments of the running rate ``3600 legs / t`` instead
+  credits a leg walked at ``t`` with about ``3600 H / t^2`` within the discount's horizon ``H``: far too much
+  in an episode's first seconds and almost nothing later, and a fall, which keeps the rate, would cost
+  next to nothing);
 - **terminated** only by a fall (the card's rule, the runaway rule included); the course's end and the
   time limit **truncate** (the trainer bootstraps them with the critic);
 - **a privileged view** for the critic (:meth:`WalkerLearningEnv.privileged`): the base's velocity
@@ -69,6 +76,15 @@ def course_point(course: crs.CourseSettings, u: Any, control_dt_s: float, limit_
     return x, state, steps
 
 
+def nominal_length_s(course: crs.CourseSettings, elapsed_s: float, limit_s: float) -> float:
+    """The seconds an episode started ``elapsed_s`` into the course would last walking at the course's speed
+    with every dwell stood (the course's nominal time left; an endless course's: the time limit left),
+    within the time limit; at least a millisecond."""
+    walk_s = course.leg_m / max(course.speed_m_per_s, 1e-6)
+    whole_s = course.legs * (walk_s + course.dwell_s) if course.legs > 0 else limit_s
+    return max(min(whole_s, limit_s) - elapsed_s, 1e-3)
+
+
 def start_point(course: crs.CourseSettings, rng: np.random.Generator, control_dt_s: float,
                 limit_steps: int) -> tuple[float, crs.CourseState, int]:
     """A random point of the course (:func:`course_point` of three uniforms drawn from ``rng``)."""
@@ -113,7 +129,9 @@ class WalkerLearningEnv:
             raise ValueError(f"locomotion terms {unknown} need feet or pose readings; the walker trainer has "
                              f"{list(BASE_TERMS)}")
         self.batch, self.objective, self.economics, self.gain = batch, objective, economics, float(gain)
-        self._j = np.zeros(batch.n)  # each slot's episode J so far
+        self._j = np.zeros(batch.n)  # each slot's episode J so far, over its nominal length
+        self._limit_s = batch.control_steps * batch.card.control_dt_s
+        self._length_s = np.full(batch.n, nominal_length_s(batch.course, 0.0, self._limit_s))
         self.weights, self.params = dict(weights), {k: dict(v) for k, v in (params or {}).items()}
         self.next_seed, self.random_start, self.seed_stride = int(seed), bool(random_start), int(seed_stride)
         self.slots = np.arange(batch.n)
@@ -126,11 +144,12 @@ class WalkerLearningEnv:
     def _start(self, slot: int) -> None:
         b = self.batch
         b.start(slot, self.next_seed, self.next_seed)
-        self._j[slot] = 0.0
+        self._j[slot], elapsed = 0.0, 0
         if self.random_start:
             rng = np.random.default_rng([self.next_seed, 1])  # the episode's own draws stay the evaluator's
             x, state, elapsed = start_point(b.course, rng, b.card.control_dt_s, b.control_steps)
             b.place(slot, x, state, elapsed)
+        self._length_s[slot] = nominal_length_s(b.course, elapsed * b.card.control_dt_s, self._limit_s)
         self.next_seed += self.seed_stride
 
     def reset(self) -> tuple[np.ndarray, np.ndarray]:
@@ -169,12 +188,13 @@ class WalkerLearningEnv:
         total = sum(float(self.weights[k]) * raw[k] for k in self.weights) * dt
         return np.asarray(total, dtype=np.float64), {k: float(np.mean(v)) for k, v in raw.items()}
 
-    def episode_j(self, slots: np.ndarray) -> np.ndarray:
-        """The J each slot's episode would report if it ended now (:func:`running_objective_j`)."""
+    def episode_j(self, slots: np.ndarray, nominal: bool = False) -> np.ndarray:
+        """The J each slot's episode would report if it ended now (:func:`running_objective_j`); ``nominal``:
+        its rates over the episode's nominal length instead of the time it has run (module docstring)."""
         s = self.batch.sums
+        length_s = self._length_s[slots] if nominal else s.steps[slots] * self.batch.card.physics_dt_s
         return running_objective_j(self.objective, self.economics, units=s.units[slots], errors=s.errors[slots],
-                                   energy_wh=s.energy_wh[slots],
-                                   length_s=s.steps[slots] * self.batch.card.physics_dt_s, fell=s.errors[slots] > 0)
+                                   energy_wh=s.energy_wh[slots], length_s=length_s, fell=s.errors[slots] > 0)
 
     def step(self, actions: np.ndarray) -> StepOut:
         """One control step of every robot with ``actions`` ``[N, num_dofs]``; ended episodes restart."""
@@ -182,8 +202,10 @@ class WalkerLearningEnv:
         errors_before = b.sums.errors[slots].copy()
         last_action = b.last_action[slots].copy()
         done = b.act(slots, actions)
-        j = self.episode_j(slots)
-        econ = self.gain * (j - self._j[slots])
+        j = self.episode_j(slots, nominal=True)
+        # the step that ends an episode settles it: J over the episode's own length, not the nominal one
+        j_end = np.where(done, self.episode_j(slots), j)
+        econ = self.gain * (j_end - self._j[slots])
         self._j[slots] = j
         loco, terms = self._locomotion(slots, b.last_action[slots], last_action)
         n, dim = b.n, b.card.obs_dim
