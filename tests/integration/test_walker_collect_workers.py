@@ -238,5 +238,5 @@ def test_held_out_looks_alternate_nominal_and_the_training_stress(tmp_path: Path
     # the same episodes alone under each condition: the seeds are the look's (50,000 + i)
     alone = dataclasses.replace(run, select_stresses=(run.setup.stress,))
     again = alone.evaluate(alone.learner(), 4, 50_000, lambda rows: False)
-    assert again[1]["energy_wh"] == pytest.approx(rows[1]["energy_wh"], rel=1e-6)  # torch rounds by batch
-    assert again[3]["energy_wh"] == pytest.approx(rows[3]["energy_wh"], rel=1e-6)
+    # the look prices the run's ONNX export (walker_eval.evaluate): an episode depends on its seed only
+    assert again[1] == rows[1] and again[3] == rows[3]

@@ -1,14 +1,20 @@
 """Pricing a walker on every core: seeded episodes of the batched MuJoCo env in worker processes.
 
 :func:`evaluate` runs ``num_episodes`` episodes (episode ``i`` seeded ``seed + i``) of an ONNX walker
-(a Holosoma-format file or a shipped ``holosoma:<robot>/<algo>``) on the course, under the stress,
-through :class:`~econmotor.couriers.walker_env.WalkerBatch`:
+(a Holosoma-format file or a shipped ``holosoma:<robot>/<algo>``) on the course, episode ``i`` under
+``conditions[i % len(conditions)]`` (:attr:`WalkerEvaluation.conditions`: the stress alone, or the stress
+and the ones it alternates with), through :class:`~econmotor.couriers.walker_env.WalkerBatch`. It is the
+one walker evaluator: a report's and the evaluation after training's (``motor_backend/walker_pricing.py``)
+and the mujoco trainer's held-out looks (its actor exported to ONNX first) call it:
 
 - ``workers`` processes (started with ``spawn``: no fork of a process whose threads run), worker ``w``
   running episodes ``w, w + W, ...`` on ``slots`` robots stepped together; one worker runs in this
   process. Why processes and not the rollout's C threads: the control step's Python (course,
   observation, policy, meter) runs beside the physics on each core, instead of one core's Python
   holding both threads back (``benchmarks/walker_throughput.py`` measures both; docs/architecture.md).
+- a worker whose episodes fall under several conditions steps one batch of robots per condition, a control
+  step of each in turn (:func:`_run_together`), so every condition's robots stay busy and its episodes end
+  in about their index order.
 - every ``batch`` episodes finished in order, ``stop(episodes)`` may end the evaluation (a sequential
   verdict); the workers are then stopped. An episode's figures depend on its seed only.
 - a worker ends when its parent process does (:func:`exit_with_parent`, which the walker trainer's collect
@@ -51,7 +57,10 @@ StopFn = Callable[[list[dict[str, Any]]], bool]
 
 @dataclass(frozen=True)
 class WalkerEvaluation:
-    """One evaluation's settings (what a worker process receives)."""
+    """One evaluation's settings (what a worker process receives).
+
+    ``stress``: the conditions of episode 0; ``alternate``: the conditions it alternates with, so episode ``i``
+    runs under ``conditions[i % len(conditions)]`` (:attr:`conditions`; none: every episode under ``stress``)."""
 
     policy: str
     course: CourseSettings
@@ -60,6 +69,12 @@ class WalkerEvaluation:
     episode_s: float
     seed: int
     slots: int = DEFAULT_SLOTS
+    alternate: tuple[Stress, ...] = ()
+
+    @property
+    def conditions(self) -> tuple[Stress, ...]:
+        """The conditions episodes cycle through: episode ``i`` under ``conditions[i % len(conditions)]``."""
+        return (self.stress, *self.alternate)
 
 
 def build_batch(ev: WalkerEvaluation, contract: PolicyContract | None = None,
@@ -72,13 +87,60 @@ def build_batch(ev: WalkerEvaluation, contract: PolicyContract | None = None,
     return batch, batched_onnx_policy(contract)
 
 
-def _run(ev: WalkerEvaluation, indices: list[int], emit: Callable[[int, dict[str, Any]], bool | None],
-         contract: PolicyContract | None = None) -> None:
-    batch, policy = build_batch(ev, contract, min(ev.slots, max(1, len(indices))))
+EmitFn = Callable[[int, dict[str, Any]], bool | None]
+
+
+def _run(ev: WalkerEvaluation, indices: list[int], emit: EmitFn, contract: PolicyContract | None = None) -> None:
+    """Episodes ``indices`` of ``ev`` in this process, each under its condition, to ``emit`` as they end."""
+    contract = contract or resolve_contract(ev.policy)
+    conditions = ev.conditions
+    groups = [(c, [i for i in indices if i % len(conditions) == k]) for k, c in enumerate(conditions)]
+    groups = [(c, group) for c, group in groups if group]
+    if not groups:
+        return
+    walker = WalkerModel.build(contract.card, np.asarray(contract.kp), np.asarray(contract.kd))
+    batches = [WalkerBatch(walker, ev.course, ev.meter, c, ev.episode_s, min(ev.slots, len(group)),
+                           contract.command_ranges) for c, group in groups]
+    policy = batched_onnx_policy(contract)
     try:
-        run_episodes(batch, policy, [(i, ev.seed + i) for i in indices], emit)
+        if len(batches) == 1:
+            run_episodes(batches[0], policy, [(i, ev.seed + i) for i in groups[0][1]], emit)
+        else:
+            _run_together([(b, [(i, ev.seed + i) for i in group]) for b, (_, group) in zip(batches, groups,
+                                                                                       strict=True)], policy, emit)
     finally:
-        batch.close()
+        for batch in batches:
+            batch.close()
+
+
+def _run_together(runs: list[tuple[WalkerBatch, list[tuple[int, int]]]], policy: Callable[[np.ndarray], np.ndarray],
+                  emit: EmitFn) -> None:
+    """Each batch's ``(index, seed)`` episodes, a control step of every batch in turn: what
+    :func:`~econmotor.couriers.walker_env.run_episodes` does for one batch (slots refilled in order as episodes
+    end, the policy on at least two rows, a True ``emit`` stops starting episodes), for batches under different
+    conditions, so none waits on another's last episodes. An episode depends on its seed only, so it is the
+    episode ``run_episodes`` gives."""
+    queues = [list(episodes) for _, episodes in runs]
+    for (batch, _), queue in zip(runs, queues, strict=True):
+        for slot in range(min(batch.n, len(queue))):
+            batch.start(slot, *queue.pop(0))
+    stop = False
+    while True:
+        stepped = False
+        for (batch, _), queue in zip(runs, queues, strict=True):
+            slots = np.flatnonzero(batch.active())
+            if len(slots) == 0:
+                continue
+            stepped = True
+            obs = batch.observe(slots)
+            rows = obs if len(slots) > 1 else np.concatenate([obs, obs])
+            done = batch.act(slots, np.asarray(policy(rows))[:len(slots)])
+            for s in slots[done]:
+                stop = bool(emit(batch.episodes[s].index, batch.finish(int(s)))) or stop
+                if queue and not stop:
+                    batch.start(int(s), *queue.pop(0))
+        if not stepped:
+            return
 
 
 #: a worker's exit status when its parent died under it (its episodes went nowhere)
@@ -129,8 +191,10 @@ def evaluate(ev: WalkerEvaluation, num_episodes: int, workers: int = 1, *, progr
     """``num_episodes`` seeded episodes on ``workers`` processes: (the episodes finished in order, wall s).
 
     ``stop(episodes)`` is asked at every ``batch`` boundary of the episodes finished in order, one boundary
-    after another; once it says stop, the evaluation returns the episodes it was asked about then (the
-    ones still in flight are dropped, however many there were), else every episode.
+    after another, the last one included when ``num_episodes`` is a multiple of ``batch`` (the held-out looks
+    of ``motor_backend/selection.py`` are judged there); once it says stop, the evaluation returns the
+    episodes it was asked about then (the ones still in flight are dropped, however many there were), else
+    every episode. Episode ``i`` runs under ``ev.conditions[i % len(ev.conditions)]``.
     """
     contract = resolve_contract(ev.policy)  # a bad policy is a ConfigError here, before any worker starts
     gathered, asked, stopped_at, start = _Prefix(), 0, None, time.monotonic()
@@ -144,7 +208,7 @@ def evaluate(ev: WalkerEvaluation, num_episodes: int, workers: int = 1, *, progr
         if stop is None or stopped_at is not None:
             return stopped_at is not None
         done = gathered.prefix()
-        while asked + batch <= len(done) and asked + batch < num_episodes:
+        while asked + batch <= min(len(done), num_episodes):
             asked += batch
             if stop(done[:asked]):
                 stopped_at = asked

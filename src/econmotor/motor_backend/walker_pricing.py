@@ -5,7 +5,9 @@ the policy's contract, the course, the meter, the datapacks' stress), runs the b
 on worker processes (:func:`econmotor.couriers.walker_eval.evaluate`) and returns the evaluation with its
 provenance (the evaluator, MuJoCo's version, the commanded and achieved speed, the power drawn). The
 holosoma backend prices imported walkers and its own runs with it; the mujoco backend prices the walkers
-its CPU trainer exports with it: a policy trained on this env is priced on this env.
+its CPU trainer exports with it: a policy trained on this env is priced on this env. That trainer's held-out
+looks price its exported actor with the same evaluator (``mujoco/walker_training.py``), so selection, the
+evaluation after training and a report walk the same episodes for the same ONNX, seeds and conditions.
 """
 
 from __future__ import annotations

@@ -23,8 +23,10 @@ Schema ``econmotor.task_pricing_report`` version :data:`REPORT_SCHEMA_VERSION`::
     selection:   null, or the training run's evaluation-driven selection (motor_backend/selection.py):
                  {why, kept_env_steps, kept_acceptable, became_deployable {env_steps, wall_s} | null,
                   evaluation_cost {count, episodes, env_steps, wall_s}, held_out_seeds [first, end),
-                  priced_seeds [first, end) | null, fresh_seeds}: which checkpoint was kept and why, and
-                 whether the priced episodes are apart from the held-out ones the checkpoint was chosen on
+                  priced_seeds [first, end) | null, fresh_seeds, look_episodes,
+                  conditions [names] | null}: which checkpoint was kept and why, whether the priced episodes
+                 are apart from the held-out ones the checkpoint was chosen on, and under which conditions
+                 the held-out episodes ran (the run record's ``selection_conditions``: episode i under [i % len])
     started_from: null, or what the training run's actor started from (``--init-policy``, the mjx
                  backend's ``init_policy`` record): {policy, sha256, hidden_sizes, activation,
                  critic_warmup_iterations}
@@ -152,7 +154,9 @@ def selection_facts(train_run: Any, priced: Any, num_episodes: int) -> dict[str,
             "kept_acceptable": selection.get("kept_acceptable"),
             "became_deployable": selection.get("became_deployable"),
             "evaluation_cost": selection.get("evaluation_cost"), "held_out_seeds": held_out,
-            "priced_seeds": priced_seeds, "fresh_seeds": fresh}
+            "priced_seeds": priced_seeds, "fresh_seeds": fresh,
+            "look_episodes": (selection.get("sequential") or {}).get("batch"),
+            "conditions": config.get("selection_conditions")}
 
 
 def started_from(train_run: Any) -> dict[str, Any] | None:

@@ -216,7 +216,24 @@ def selection_text(selection: Mapping[str, Any] | None) -> str | None:
                  f"are apart from the held-out ones it was chosen on ({seeds[0]}-{seeds[1] - 1})")
     elif selection.get("fresh_seeds") is False:
         text += ". WARNING: the priced episodes share seeds with the held-out ones the checkpoint was chosen on"
-    return text
+    chosen = chosen_by_text(selection)
+    return f"{text}. {chosen}" if chosen else text
+
+
+def chosen_by_text(selection: Mapping[str, Any]) -> str | None:
+    """Under which conditions the held-out episodes the checkpoint was chosen on ran, in one sentence (None
+    where the run did not record them, or kept its last weights unjudged): episode i under
+    ``conditions[i % len]``, seeded ``first + i``."""
+    conditions, seeds = selection.get("conditions"), selection["held_out_seeds"]  # [first, first + cap)
+    if not conditions or selection.get("kept_env_steps") is None:
+        return None
+    names = [str(c) for c in conditions]
+    under = (f"under {names[0]} conditions" if len(names) == 1 else
+             f"alternating {', '.join(names[:-1])} and {names[-1]} conditions episode by episode")
+    look = selection.get("look_episodes")
+    judged = f", judged every {look}," if look else ""
+    return (f"Chosen by held-out evaluations of at most {seeds[1] - seeds[0]} episodes{judged} {under} "
+            f"(seeds {seeds[0]}-{seeds[1] - 1})")
 
 
 def started_from_text(start: Mapping[str, Any] | None) -> str | None:

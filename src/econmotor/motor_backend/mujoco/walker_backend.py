@@ -40,7 +40,12 @@ from econmotor.motor_backend.mujoco.walker_recipe import WalkerPPOConfig
 from econmotor.motor_backend.mujoco.walker_training import ONNX_FILE, TRAIN_SEED_BASE, WalkerTrainingRun
 from econmotor.motor_backend.results import MotorEvalResult, MotorTrainingResult
 from econmotor.motor_backend.run_dir import RUN_CONFIG_FILE, read_run_config
-from econmotor.motor_backend.selection import SELECTION_SEED_OFFSET, Selection, selection_for
+from econmotor.motor_backend.selection import (
+    DEFAULT_SELECT_EPISODES,
+    SELECTION_SEED_OFFSET,
+    Selection,
+    selection_for,
+)
 from econmotor.motor_backend.training_loop import CURVE_FILE
 from econmotor.motor_backend.walker_pricing import WalkerPricing, price_walker
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
@@ -98,6 +103,20 @@ def train_walker(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[An
                  ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     """Train a walker (module docstring) into ``run_dir``; the run's config (``run_config.json``'s content)
     and its training curve."""
+    run, config = walker_run(spec, objective, packs, run_dir, num_envs=num_envs, max_steps=max_steps, seed=seed,
+                             init_policy=init_policy, hyperparameters=hyperparameters, selection=selection,
+                             resume=resume, max_wall_s=max_wall_s, described=described)
+    outcome = run.train(resume=resume, progress=progress, config=config, requested_hyperparameters=hyperparameters)
+    return outcome.config, outcome.curve
+
+
+def walker_run(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[Any], run_dir: Path, *,
+               num_envs: int, max_steps: int, seed: int, init_policy: str | None,
+               hyperparameters: Mapping[str, Any] | None, selection: Selection | None, resume: bool,
+               max_wall_s: float | None, described: Mapping[str, Any]) -> tuple[WalkerTrainingRun, dict[str, Any]]:
+    """The training run :func:`train_walker` runs, and its description for ``run_config.json``: held-out
+    episodes alternate the nominal conditions a report prices by default and, under datapacks, the training's
+    stress (``select_stresses``, recorded as ``selection_conditions``)."""
     trainer = walker_train_settings(spec)
     settings = holosoma_settings(spec)
     bundle = DatapackProvider().resolve(spec.task_id, [p.id for p in packs], list(packs))
@@ -123,7 +142,8 @@ def train_walker(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[An
         "locomotion_rewards": {k: {"weight": w, **trainer.params.get(k, {})} for k, w in trainer.weights.items()},
         "course": asdict(setup.course), "meter": asdict(setup.meter), "episode_s": setup.episode_s,
         "stress": asdict(setup.stress),
-        "selection_conditions": ["nominal", *setup.datapack_ids] if packs else ["nominal"],
+        # the conditions held-out episode i runs under, [i % len] (select_stresses below): the datapacks act as one
+        "selection_conditions": ["nominal", "+".join(setup.datapack_ids)] if packs else ["nominal"],
         "datapack_ids": list(setup.datapack_ids), "notes": list(setup.notes),
         "init_policy": {**init.describe(), "critic_warmup_iterations": cfg.critic_warmup_iterations}
         if init else None,
@@ -141,8 +161,7 @@ def train_walker(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[An
         command_ranges=c.command_ranges if c else None,
         select_stresses=(nominal.stress, setup.stress) if packs else (nominal.stress,), collect_workers=workers)
     config["collect_workers"] = run.collect_workers  # a seed's rollouts depend on how the robots are split
-    outcome = run.train(resume=resume, progress=progress, config=config, requested_hyperparameters=hyperparameters)
-    return outcome.config, outcome.curve
+    return run, config
 
 
 def _onnx_metadata(config: Mapping[str, Any]) -> dict[str, Any]:
@@ -157,8 +176,16 @@ def _onnx_metadata(config: Mapping[str, Any]) -> dict[str, Any]:
 #: held-out selection of a walker run: every 500k env steps, whatever the wall time (a run's looks, and so the
 #: checkpoint it keeps, depend on its seed only)
 WALKER_CADENCE = HeldOutCadence(every_steps=500_000, max_share=None)
-#: a held-out evaluation's first look (robots stepped together in the trainer's process)
+#: a held-out evaluation's first look (and the episodes between looks)
 WALKER_SELECT_BATCH = 16
+#: a held-out evaluation must be able to see falls, which the acceptance rule judges per leg (falls / (legs +
+#: falls)): by default it may run to at least this many legs, unless the sequential plan decides at an earlier look
+MIN_SELECT_LEGS = 100
+#: a walker's held-out evaluation, at most this many episodes by default (``--select-episodes`` overrides): at
+#: least ceil(MIN_SELECT_LEGS / 3) = ceil(100 / 3) = 34 episodes of the G1's and T1's nominal 3-leg course
+#: (tasks/holosoma.yaml: sim2sim_legs; 34 x 3 = 102 legs); it is the shared cap, 160 episodes (480 legs), judged
+#: every 16 (the looks); tests/integration/test_walker_one_pricer.py holds it to every walker task's course
+WALKER_SELECT_EPISODES = DEFAULT_SELECT_EPISODES
 
 
 def train_walker_task(backend: Any, spec: TaskSpec, *, objective: EconomicObjectiveSpec,
@@ -174,8 +201,8 @@ def train_walker_task(backend: Any, spec: TaskSpec, *, objective: EconomicObject
     run_dir = backend.run_dir(output_dir, spec.task_id, seed)
     if resume:
         init_policy = (read_run_config(run_dir).get("init_policy") or {}).get("policy")
-    selection = selection_for(spec, objective, select_every_steps, select_episodes, until_deployable, seed,
-                              WALKER_CADENCE, WALKER_SELECT_BATCH)
+    selection = selection_for(spec, objective, select_every_steps, select_episodes or WALKER_SELECT_EPISODES,
+                              until_deployable, seed, WALKER_CADENCE, WALKER_SELECT_BATCH)
     config, curve = train_walker(spec, objective, packs, run_dir, num_envs=num_envs, max_steps=max_steps,
                                  seed=seed, init_policy=init_policy, hyperparameters=hyperparameters,
                                  selection=selection, resume=resume, max_wall_s=max_wall_s, progress=progress,

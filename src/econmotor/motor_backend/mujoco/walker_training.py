@@ -18,8 +18,9 @@ What a run does (:class:`WalkerTrainingRun`):
    robots each (:func:`~.walker_collect.default_workers`);
 4. checkpoints (``checkpoints/latest.pt``: learner, iteration, env steps, each worker's next seed) every
    ``checkpoint_every_s`` of wall time, at the end and when interrupted: ``--resume`` continues from it;
-5. held-out selection (:mod:`econmotor.motor_backend.selection`): at its cadence, the deterministic
-   actor walks held-out seeds of the priced course in this process, episode ``i`` under
+5. held-out selection (:mod:`econmotor.motor_backend.selection`): at its cadence, the actor exported as
+   the run's ONNX (``selection/candidate.onnx``) walks held-out seeds of the priced course through the one
+   walker evaluator (:func:`econmotor.couriers.walker_eval.evaluate`, a report's), episode ``i`` under
    ``select_stresses[i % len(select_stresses)]`` (the mujoco backend passes the nominal conditions a
    report prices by default and, for a run under a datapack, the training's stress: a look's verdict
    then sees the falls the stress causes); the best by the buyer's verdict, then J, is kept
@@ -48,7 +49,8 @@ from econmotor.couriers.onnx_actor import ImportedActor, read_actor
 from econmotor.couriers.onnx_export import export_onnx
 from econmotor.couriers.policy_import import holosoma_export_metadata
 from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_env import WalkerBatch, run_episodes
+from econmotor.couriers.walker_eval import WalkerEvaluation
+from econmotor.couriers.walker_eval import evaluate as evaluate_walkers
 from econmotor.couriers.walker_model import WalkerModel
 from econmotor.couriers.walker_setup import WalkerSetup
 from econmotor.couriers.walker_train import PRIVILEGED_DIM
@@ -67,8 +69,10 @@ TRAIN_SEED_BASE = 10_000_000
 CHECKPOINT_FILE = "checkpoints/latest.pt"
 CURVE_FILE = "curve.jsonl"
 ONNX_FILE = "policy.onnx"
-#: held-out selection runs this many robots together in the trainer's process
+#: held-out selection steps this many robots together in each evaluator process
 SELECT_SLOTS = 16
+#: the actor a held-out look prices, exported into the run directory (overwritten at every look)
+SELECTION_CANDIDATE = "selection/candidate.onnx"
 
 
 @dataclass
@@ -97,6 +101,8 @@ class WalkerTrainingRun:
     select_stresses: tuple[Stress, ...] = ()
     #: worker processes that step the robots (1: in this process; None: :func:`.walker_collect.default_workers`)
     collect_workers: int | None = None
+    #: processes a held-out look's episodes run in (None: every usable CPU: the collection is idle meanwhile)
+    select_workers: int | None = None
 
     def __post_init__(self) -> None:
         card = self.setup.card
@@ -111,10 +117,6 @@ class WalkerTrainingRun:
         self.collect_workers = workers
 
     # ------------------------------------------------------------------ the pieces
-    def batch(self, slots: int, stress: Stress | None = None) -> WalkerBatch:
-        s = self.setup
-        return WalkerBatch(self.walker, s.course, s.meter, stress or s.stress, s.episode_s, slots, self.command_ranges)
-
     def env_spec(self) -> wc.EnvSpec:
         """What the learning envs (this process's or the workers') are built from."""
         s = self.setup
@@ -140,9 +142,6 @@ class WalkerTrainingRun:
         else:
             net = ActorCritic(card.obs_dim, PRIVILEGED_DIM, card.num_dofs, self.cfg)
         return WalkerPPO(net, self.cfg)
-
-    def deterministic_policy(self, learner: WalkerPPO) -> Callable[[np.ndarray], np.ndarray]:
-        return learner.mean_action
 
     # ------------------------------------------------------------------ the run
     def train(self, resume: bool = False, progress: ProgressFn = no_progress,
@@ -176,27 +175,27 @@ class WalkerTrainingRun:
     # ------------------------------------------------------------------ selection
     def evaluate(self, learner: WalkerPPO, num_episodes: int, first_seed: int,
                  stop: Callable[[list[dict[str, Any]]], bool]) -> list[dict[str, Any]]:
-        """``num_episodes`` deterministic episodes of the priced course from the start (episode ``i`` seeded
-        ``first_seed + i``, as the evaluator seeds them, under ``select_stresses[i % len]``), asking ``stop``
-        after every look of ``selection.config.batch`` episodes, in order."""
-        stresses = self.select_stresses or (self.setup.stress,)
+        """``num_episodes`` held-out episodes of the priced course from the start (episode ``i`` seeded
+        ``first_seed + i``, under ``select_stresses[i % len]``), asking ``stop`` after every look of
+        ``selection.config.batch`` episodes, with the rows in episode order.
+
+        The current actor is exported as the run exports its policy (:meth:`export`, into
+        :data:`SELECTION_CANDIDATE`, overwritten at every look) and that file is priced by the one walker
+        evaluator (:func:`econmotor.couriers.walker_eval.evaluate`, what a report and the evaluation after
+        training run), on ``select_workers`` processes: a look's episodes are the episodes a report of that
+        ONNX under the same seeds and conditions gives."""
+        s = self.setup
+        stresses = self.select_stresses or (s.stress,)
+        candidate = self.run_dir / SELECTION_CANDIDATE
+        candidate.parent.mkdir(parents=True, exist_ok=True)
+        self.export(learner.net.layers(), candidate)
+        ev = WalkerEvaluation(policy=str(candidate), course=s.course, meter=s.meter, stress=stresses[0],
+                              alternate=tuple(stresses[1:]), episode_s=s.episode_s, seed=int(first_seed),
+                              slots=SELECT_SLOTS)
         look = self.selection.config.batch if self.selection is not None else num_episodes
-        batches = [self.batch(min(SELECT_SLOTS, num_episodes), stress) for stress in stresses]
-        policy, ordered = self.deterministic_policy(learner), []
-        try:
-            for start in range(0, num_episodes, look):
-                rows: dict[int, dict[str, Any]] = {}
-                for k, batch in enumerate(batches):
-                    chunk = [(i, first_seed + i) for i in range(start, min(start + look, num_episodes))
-                             if i % len(batches) == k]
-                    run_episodes(batch, policy, chunk, rows.__setitem__)
-                ordered += [rows[i] for i in sorted(rows)]
-                if len(ordered) % look == 0 and stop(list(ordered)):
-                    break
-        finally:
-            for batch in batches:
-                batch.close()
-        return ordered
+        workers = wc.usable_cpus() if self.select_workers is None else int(self.select_workers)
+        rows, _ = evaluate_walkers(ev, int(num_episodes), workers, stop=stop, batch=look)
+        return rows
 
     def export(self, layers: list[dict[str, np.ndarray]], path: Path) -> Path:
         """``path`` (a ``policy.onnx``) of ``layers`` (:func:`export_walker`) with this run's gains and command
