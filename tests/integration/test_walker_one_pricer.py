@@ -98,12 +98,12 @@ class _Captured(Exception):
 
 def test_a_walker_held_out_evaluation_may_run_to_a_hundred_legs(tmp_path: Path,
                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
-    """By default a walker's held-out evaluation may run to 100 legs or more of its task's course (34 episodes of
-    the G1's 3 legs), so a look can see falls; the sequential plan may decide at an earlier look of 16."""
+    """A walker's held-out look runs 100 legs or more of its task's course (34 episodes of the G1's 3 legs) before
+    the sequential plan is asked, so every look can see falls."""
     for task in ("humanoid_locomotion_g1", "humanoid_locomotion_t1"):
         legs = int(wb.holosoma_settings(get_task(task))["sim2sim_legs"])
-        assert wb.WALKER_SELECT_EPISODES * legs >= wb.MIN_SELECT_LEGS, task
-    assert wb.WALKER_SELECT_EPISODES >= 34
+        assert wb.WALKER_SELECT_BATCH * legs >= wb.MIN_SELECT_LEGS, task
+    assert wb.WALKER_SELECT_EPISODES >= wb.WALKER_SELECT_BATCH
     seen: dict[str, Selection] = {}
 
     def capture(*_args, selection: Selection, **_kwargs):
@@ -117,4 +117,4 @@ def test_a_walker_held_out_evaluation_may_run_to_a_hundred_legs(tmp_path: Path,
                              progress=lambda *_: None, resume=False, hyperparameters=None, select_every_steps=None,
                              select_episodes=None, until_deployable=False, init_policy=None, max_wall_s=None)
     config = seen["selection"].config
-    assert config.episodes == wb.WALKER_SELECT_EPISODES and config.plan.looks[:2] == (16, 32)
+    assert config.episodes == wb.WALKER_SELECT_EPISODES and config.plan.looks[:2] == (34, 68)

@@ -176,15 +176,16 @@ def _onnx_metadata(config: Mapping[str, Any]) -> dict[str, Any]:
 #: held-out selection of a walker run: every 500k env steps, whatever the wall time (a run's looks, and so the
 #: checkpoint it keeps, depend on its seed only)
 WALKER_CADENCE = HeldOutCadence(every_steps=500_000, max_share=None)
-#: a held-out evaluation's first look (and the episodes between looks)
-WALKER_SELECT_BATCH = 16
 #: a held-out evaluation must be able to see falls, which the acceptance rule judges per leg (falls / (legs +
-#: falls)): by default it may run to at least this many legs, unless the sequential plan decides at an earlier look
+#: falls)): its first look (and each look after it) runs at least this many legs, before the sequential plan is asked
 MIN_SELECT_LEGS = 100
-#: a walker's held-out evaluation, at most this many episodes by default (``--select-episodes`` overrides): at
-#: least ceil(MIN_SELECT_LEGS / 3) = ceil(100 / 3) = 34 episodes of the G1's and T1's nominal 3-leg course
-#: (tasks/holosoma.yaml: sim2sim_legs; 34 x 3 = 102 legs); it is the shared cap, 160 episodes (480 legs), judged
-#: every 16 (the looks); tests/integration/test_walker_one_pricer.py holds it to every walker task's course
+#: a held-out evaluation's first look, and the episodes between looks: ceil(MIN_SELECT_LEGS / 3) = 34 episodes of
+#: the G1's and T1's nominal 3-leg course (tasks/holosoma.yaml: sim2sim_legs; 34 x 3 = 102 legs, about 200k env
+#: steps of the G1's course); tests/integration/test_walker_one_pricer.py holds it to every walker task's course
+WALKER_SELECT_BATCH = 34
+#: a walker's held-out evaluation, at most this many episodes by default (``--select-episodes`` overrides; at
+#: least one look): the shared cap, 160 episodes (480 legs: 0 falls in them pass the G1's 1% fall limit at the
+#: plan's look confidence)
 WALKER_SELECT_EPISODES = DEFAULT_SELECT_EPISODES
 
 
