@@ -9,7 +9,6 @@ as control steps per wall second (50 Hz policy steps; 4 physics steps each) and 
 - **one_robot**: the evaluator the env replaced: one robot per process, the PD law, the clip and the
   shared meter in Python at every physics step, the ONNX policy one row at a time (one core);
 - **env_1**: the batched env (:mod:`econmotor.couriers.walker_eval`) in this process, ``--slots`` robots;
-- **env_threads**: one process, ``2 x --slots`` robots, ``mujoco.rollout`` on two C threads;
 - **env_processes**: two worker processes of ``--slots`` robots each (the evaluator's default), with
   their start-up (spawn, imports, the model, the ONNX session) timed apart as ``startup_s``;
 - **train_1 / train_2**: the CPU trainer's PPO iterations (:mod:`econmotor.motor_backend.mujoco.walker_training`,
@@ -152,22 +151,6 @@ def one_robot(ev, episodes: int) -> float:
     return time.perf_counter() - t0
 
 
-def env_threads(ev, episodes: int) -> float:
-    from econmotor.couriers.policy_import import batched_onnx_policy, resolve_contract
-    from econmotor.couriers.walker_env import WalkerBatch, run_episodes
-    from econmotor.couriers.walker_model import WalkerModel
-
-    c = resolve_contract(ev.policy)
-    batch = WalkerBatch(WalkerModel.build(c.card, c.kp, c.kd), ev.course, ev.meter, ev.stress, ev.episode_s,
-                        2 * ev.slots, c.command_ranges, nthread=2)
-    policy = batched_onnx_policy(c)
-    t0 = time.perf_counter()
-    run_episodes(batch, policy, [(i, ev.seed + i) for i in range(episodes)])
-    wall = time.perf_counter() - t0
-    batch.close()
-    return wall
-
-
 def train_rate(ev, workers: int, num_envs: int, steps: int, iterations: int) -> tuple[float, float]:
     """(env steps per wall second, of collection alone) of the trainer's iterations with ``workers`` collect
     workers (after a first iteration, untimed: the workers' start-up)."""
@@ -245,7 +228,6 @@ def main() -> None:
         t0 = time.perf_counter()
         evaluate(ev, args.episodes, workers=1)
         rates["env_1"] = control_steps / (time.perf_counter() - t0)
-        rates["env_threads"] = control_steps / env_threads(ev, args.episodes)
         tiny = _evaluation(args.policy, 0.02, args.slots)
         t0 = time.perf_counter()
         evaluate(tiny, 2, workers=2)
@@ -270,8 +252,7 @@ def main() -> None:
     if not args.trainer_only:
         print(f"env_processes start-up: {startup_s:.2f} s (spawn, imports, model, ONNX session); "
               f"wall with it {wall:.2f} s")
-        print(f"env_1 / raw_1: {ratio['env_1']:.3f}; one_robot / raw_1: {ratio['one_robot']:.3f}; "
-              f"env_threads / raw_2: {ratio['env_threads']:.3f}")
+        print(f"env_1 / raw_1: {ratio['env_1']:.3f}; one_robot / raw_1: {ratio['one_robot']:.3f}")
         print(f"env_processes / raw_2: {ratio['env_processes']:.3f}")
 
 

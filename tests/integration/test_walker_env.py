@@ -9,8 +9,7 @@
   there: G1 0.5282 m/s, T1 0.5744 m/s) and at today's energy with the cards' motor models (G1 2.2706 Wh per
   leg, T1 2.5925; 0.9987 and 1.1811 on the meter without the windings' heat);
 - standing still under the dwell draws the windings' heat above the idle draw;
-- the runaway rule ends a blown-up episode as a fall; the SB3 ``VecEnv`` resets in the same step and
-  hands back the terminal observation, and SB3's PPO learns on it.
+- the runaway rule ends a blown-up episode as a fall.
 """
 
 from __future__ import annotations
@@ -142,40 +141,6 @@ def test_the_runaway_rule_ends_a_blown_up_episode_as_a_fall(g1_ppo):
     assert episode["termination_reason"] == "fall" and episode["errors"] == 1.0
     assert episode["episode_length_s"] < 5.0
     assert episode["risk_score"] < 0.05  # upright all the while: only the runaway rule could end it
-
-
-def test_the_vec_env_resets_in_the_same_step_and_sb3_learns_on_it(g1_ppo):
-    from stable_baselines3 import PPO
-
-    from econmotor.motor_backend.mujoco.walker_vec_env import WalkerVecEnv
-
-    ev = WalkerEvaluation(policy=g1_ppo.onnx_path, course=SHORT, meter=METER, stress=Stress(), episode_s=0.2, seed=0)
-    batch, _ = build_batch(ev, g1_ppo, slots=2)
-    factors = {"mpl_per_hour": 1.0, "energy_kwh": -1000.0}
-    env = WalkerVecEnv(batch, factors, seed=7)
-    obs = env.reset()
-    assert obs.shape == (2, g1_ppo.card.obs_dim)
-    returns = np.zeros(2)
-    for _ in range(9):
-        obs, rewards, dones, infos = env.step(np.zeros((2, g1_ppo.card.num_dofs), np.float32))
-        assert not dones.any()
-        returns += rewards
-    obs, rewards, dones, infos = env.step(np.zeros((2, g1_ppo.card.num_dofs), np.float32))
-    assert dones.all()  # 10 control steps of 20 ms: the time limit
-    assert infos[0]["TimeLimit.truncated"] and infos[0]["terminal_observation"].shape == obs[0].shape
-    assert not np.array_equal(infos[0]["terminal_observation"], obs[0])  # the new episode's first row
-    assert env.next_seed == 11  # seeds 7, 8, then 9 and 10 for the restarted slots
-    # the rewards sum to the episode's J, the objective's metrics of its raw figures
-    assert infos[0]["episode"]["r"] == pytest.approx(returns[0] + rewards[0], rel=1e-5)
-    metrics = infos[0]["episode_metrics"]
-    j = sum(f * cf.episode_metric(metrics, key) for key, f in factors.items())
-    assert metrics["units_completed"] > 0.0 and metrics["energy_wh"] > 0.0  # both terms count
-    assert infos[0]["episode"]["r"] == pytest.approx(j, rel=1e-4)
-    assert infos[0]["episode"]["l"] == 10
-    model = PPO("MlpPolicy", env, n_steps=16, batch_size=32, n_epochs=1, seed=0, device="cpu")
-    model.learn(total_timesteps=64)
-    assert model.num_timesteps >= 64
-    env.close()
 
 
 @pytest.mark.parametrize("workers", [1, 2])

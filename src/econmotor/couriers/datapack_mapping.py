@@ -20,10 +20,10 @@ datapack key               Holosoma parameter
                            angle plus a uniform draw in ``[-v, v]`` (not a training term)
 =========================  ==============================================================
 
-The walker env (:mod:`.walker_env`, :mod:`.stress`) applies ``friction_range`` (floor friction per
-episode), ``added_base_mass_kg`` (a payload on the torso), ``pushes`` / ``push_interval_s`` /
-``max_push_vel_m_per_s`` (base velocity kicks), ``kp_range`` / ``kd_range`` (PD gains),
-``ctrl_delay_steps`` and ``initial_joint_noise_rad``, and says which others it does not apply.
+This is the holosoma backend's reading (its training runs and its datapack check; the mujoco backend's
+datapack check calls it for the walker tasks' keys too). The walker envs that price and train the card
+robots read the same keys themselves, without Holosoma's terms
+(:meth:`econmotor.couriers.stress.Stress.from_datapacks`).
 
 ``curriculum`` keys map onto Holosoma's ``PenaltyCurriculum`` (which scales the
 penalty-tagged reward terms): ``initial_difficulty`` -> ``initial_scale``,

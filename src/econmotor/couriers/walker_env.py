@@ -13,19 +13,19 @@ the couriers' shared formulas (:func:`econmotor.economics.courier_formulas.meter
 - **a control step** (:meth:`WalkerBatch.observe`, then :meth:`WalkerBatch.act`): pushes due,
   the course's command from the pose, the gait clock and the observation (the card's convention,
   :mod:`econmotor.robots.observation`, over the whole batch at once); then the policy's actions
-  (clipped, delayed by the episode's control delay) become PD targets, and one
-  ``mujoco.rollout`` call steps every robot ``decimation`` physics steps (C threads, no GIL).
-- **metering** from what the rollout records at each physics step: the base pose (units on the
+  (clipped, delayed by the episode's control delay) become PD targets, and each robot's own
+  ``MjData`` is stepped ``decimation`` physics steps with ``mj_step`` (the solver's warm start
+  carried from step to step, as in a plain ``mj_step`` loop).
+- **metering** from what is recorded at each physics step: the base pose (units on the
   forward high-water mark, tilt risk, the fall rule) from the state, joint power from the
   actuator-force sensors (``actuatorfrc``, added to the model) times the joint velocities, and the
   windings' heat from those forces (the card's motor model): the same readings the meter takes
   from ``qfrc_actuator`` and ``qvel``. A fall ends the episode at
   its physics step; nothing after it is metered.
 - **seeds**: episode ``i`` draws everything from ``numpy.random.default_rng(seed_i)`` in a fixed
-  order and starts from a reset MjData of its slot (on C threads, every control step starts
-  from the recorded state with a zero solver warm start), and the policy runs on at least two
-  rows (onnxruntime's one-row kernel rounds differently): an episode's outcome depends on its
-  seed only, not on its slot, batch or process.
+  order and starts from a reset MjData of its slot, and the policy runs on at least two rows
+  (onnxruntime's one-row kernel rounds differently): an episode's outcome depends on its seed
+  only, not on its slot, batch or process.
 
 The fall rule: the card's (:func:`econmotor.couriers.physics.has_fallen`: tilt past ``fall_tilt_rad``,
 the base below ``min_base_z_m``, or the runaway rule: a non-finite state or the base faster than
@@ -45,7 +45,6 @@ from typing import Any
 
 import mujoco
 import numpy as np
-from mujoco import rollout
 
 from econmotor.couriers import course as crs
 from econmotor.couriers.physics import has_fallen, quat_tilt_rad
@@ -80,16 +79,16 @@ class WalkerBatch:
         walker: the compiled model (:meth:`WalkerModel.build`).
         course: the delivery course; ``command_ranges``: the policy's (caps the speed and yaw rate).
         meter: the meter's constants; ``stress``: the per-episode conditions.
-        episode_s: the time limit, s; ``num_slots``: robots stepped together; ``nthread``: the rollout's
-            C threads (1: this process's core only).
+        episode_s: the time limit, s; ``num_slots``: robots stepped together (one after another, in this
+            thread: one process per core runs more, :mod:`.walker_eval`).
     """
 
     def __init__(self, walker: WalkerModel, course: crs.CourseSettings, meter: MeterSettings, stress: Stress,
                  episode_s: float, num_slots: int, command_ranges: dict[str, Any] | None = None,
-                 nthread: int = 1, runaway_speed_m_per_s: float | None = None) -> None:
+                 runaway_speed_m_per_s: float | None = None) -> None:
         card = walker.card
         self.walker, self.card, self.course, self.meter, self.stress = walker, card, course, meter, stress
-        self.n, self.nthread = int(num_slots), int(nthread)
+        self.n = int(num_slots)
         self.runaway = float(runaway_speed_m_per_s or card.runaway_speed_m_per_s)
         self.control_steps = round(episode_s / card.control_dt_s)
         ranges = dict(command_ranges or card.command_ranges)
@@ -99,9 +98,7 @@ class WalkerBatch:
         self.constants = meter.constants(card.physics_dt_s)
         m = walker.model
         self.models = [copy.copy(m) for _ in range(self.n)]
-        # nthread 1: each slot steps its own MjData in this thread (the solver's warm start carries over, as
-        # in a plain mj_step loop); more: mujoco.rollout's C threads from the recorded state
-        self.datas = [mujoco.MjData(m) for _ in range(self.nthread if self.nthread > 1 else self.n)]
+        self.datas = [mujoco.MjData(m) for _ in range(self.n)]  # each slot steps its own
         decimation = card.decimation
         self._record = (np.zeros((self.n, decimation, walker.nstate)), np.zeros((self.n, decimation, m.nsensordata)))
         self.nq, self.nv = m.nq, m.nv
@@ -123,14 +120,13 @@ class WalkerBatch:
         self.heat_wh = np.zeros(self.n)  # the windings' share of energy_wh, per slot
         self._heat_coeff = card.heat_coeff()
         self.default = card.array("default_dof_angles")
-        self._pool = rollout.Rollout(nthread=self.nthread) if self.nthread > 1 else None
 
     # ------------------------------------------------------------------ episodes
     def start(self, slot: int, index: int, seed: int) -> None:
         """Start episode ``index`` (seeded ``seed``) in ``slot``: its draws, its model, its start state."""
         rng = np.random.default_rng(seed)
         card, st, w, m = self.card, self.stress, self.walker, self.models[slot]
-        d = self.datas[slot if self._pool is None else 0]  # the pool's datas are scratch between its calls
+        d = self.datas[slot]
         mujoco.mj_resetData(m, d)
         d.qpos[0:3], d.qpos[3:7] = card.init_pos, (1.0, 0.0, 0.0, 0.0)
         noise = st.initial_joint_noise_rad
@@ -185,9 +181,8 @@ class WalkerBatch:
 
     def load_state(self, slots: np.ndarray) -> None:
         """Make the ``state`` rows of ``slots`` (written by the caller) their robots' physics state."""
-        if self._pool is None:
-            for s in slots:
-                mujoco.mj_setState(self.models[s], self.datas[s], self.state[s], FULL_STATE)
+        for s in slots:
+            mujoco.mj_setState(self.models[s], self.datas[s], self.state[s], FULL_STATE)
 
     def active(self) -> np.ndarray:
         """The slots running an episode."""
@@ -234,8 +229,7 @@ class WalkerBatch:
         lo, hi = st.max_push_vel_m_per_s  # type: ignore[misc]
         qvel = self._qvel(self.state[slot])
         qvel[0:2] += ep.rng.uniform(-1.0, 1.0, 2) * np.array([lo, hi])
-        if self._pool is None:
-            self.datas[slot].qvel[0:2] = qvel[0:2]
+        self.datas[slot].qvel[0:2] = qvel[0:2]
         self.next_push_s[slot] = self.steps[slot] * self.card.control_dt_s + float(ep.rng.uniform(*st.push_interval_s))
         ep.pushes += 1
 
@@ -267,19 +261,8 @@ class WalkerBatch:
         return fell | finished | (self.steps[slots] >= self.control_steps)
 
     def _rollout(self, slots: np.ndarray, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``decimation`` physics steps of ``slots`` at PD ``targets``: states and sensordata per step."""
-        if self._pool is None:
-            return self._step_each(slots, targets)
-        w = self.walker
-        ctrl = np.zeros((len(slots), 1, w.model.nu))
-        ctrl[:, 0, w.actuators] = targets
-        models = [self.models[s] for s in slots]
-        kwargs = {"nstep": self.card.decimation, "initial_warmstart": np.zeros((len(slots), w.model.nv))}
-        return self._pool.rollout(models, self.datas, self.state[slots], ctrl, **kwargs)
-
-    def _step_each(self, slots: np.ndarray, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The rollout in this thread: each slot's MjData stepped ``decimation`` times, its qpos, qvel and
-        sensordata recorded after each step (the rollout's state layout: time, qpos, qvel, ...)."""
+        """``decimation`` physics steps of ``slots`` at PD ``targets``: each slot's MjData stepped in turn, its
+        qpos, qvel and sensordata recorded after each step (``FULL_STATE``'s layout: time, qpos, qvel, ...)."""
         states, sensors = self._record
         qpos_at, qvel_at, end = 1, 1 + self.nq, 1 + self.nq + self.nv
         step, act = mujoco.mj_step, self.walker.actuators
@@ -353,10 +336,7 @@ class WalkerBatch:
         }
 
     def close(self) -> None:
-        """Stop the rollout's thread pool."""
-        if self._pool is not None:
-            self._pool.close()
-            self._pool = None
+        """Nothing to release (the batch holds no threads or processes); kept so its callers close any env alike."""
 
 
 Policy = Callable[[np.ndarray], np.ndarray]

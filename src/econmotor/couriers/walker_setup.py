@@ -14,7 +14,6 @@ from pathlib import Path
 from typing import Any
 
 from econmotor.couriers.course import CourseSettings
-from econmotor.couriers.datapack_mapping import map_datapacks
 from econmotor.couriers.policy_import import PolicyContract, resolve_contract
 from econmotor.couriers.stress import Stress
 from econmotor.couriers.walker_task import SIM2SIM_KEYS, MeterSettings, course_settings, meter_settings
@@ -37,10 +36,10 @@ class WalkerSetup:
     datapack_ids: tuple[str, ...]
 
 
-def stress_notes(stress: Stress, nominal: bool) -> list[str]:
-    """What a sim-to-sim evaluation says of its conditions: terms it does not apply, or that it is nominal."""
+def stress_notes(stress: Stress) -> list[str]:
+    """What a sim-to-sim evaluation says of its conditions: datapack keys it does not apply, or that it is nominal."""
     notes = ["not applied in the sim-to-sim evaluation: " + "; ".join(stress.ignored)] if stress.ignored else []
-    if nominal:
+    if stress.nominal:
         notes.append("nominal conditions (no datapack randomization): episodes differ by seed only in their "
                      f"start pose (joints within +-{stress.initial_joint_noise_rad:g} rad of the default); a "
                      "datapack such as configs/datapacks/humanoid_stress.yaml adds stress")
@@ -58,7 +57,6 @@ def walker_setup(spec: Any, settings: Mapping[str, Any], bundle: Any, packs: Seq
     if missing:
         raise ConfigError(spec.source, f"tasks.{task_id}.backends.holosoma.{missing[0]}",
                           "the sim-to-sim evaluation needs it (with its unit and source)", SIM2SIM_KEYS)
-    overrides = map_datapacks(bundle, packs, uses_motion_clip=False)
     course = course_settings(settings, course_speed_m_per_s)
     meter = meter_settings(task_id, settings, spec.source)
     contract = resolve_contract(policy, fallback_python) if policy is not None else None
@@ -68,9 +66,11 @@ def walker_setup(spec: Any, settings: Mapping[str, Any], bundle: Any, packs: Seq
         raise ConfigError("--policy", policy_id or policy, f"drives Holosoma's '{contract.experiment}' robot but "
                           f"task '{task_id}' is priced for {experiments} (its catalog's experiments)")
     noise = float(settings["sim2sim_start_joint_noise_rad"])
-    stress = Stress.from_overrides(overrides.randomization, overrides.evaluation,
-                                   {"push_randomizer_state": dict(card.push_preset)}, noise)
-    notes = [*overrides.messages, *stress_notes(stress, not overrides.randomization and not overrides.evaluation)]
+    by_id = {p.id: p for p in packs}  # the bundle's packs, each naming its own file in an error or note
+    datapacks = [by_id[i] for i in bundle.datapack_ids] if set(bundle.datapack_ids) <= set(by_id) else [bundle]
+    # a policy is priced under what it was trained under elsewhere (Holosoma applies a curriculum, clips,
+    # rough terrain): what the walker env cannot apply is a note, not an error
+    stress = Stress.from_datapacks(datapacks, card.push_preset, noise, refuse_unapplied=False)
     return WalkerSetup(contract=contract, card=card, course=course, meter=MeterSettings(**meter), stress=stress,
-                       episode_s=float(episode_s or settings["sim2sim_episode_s"]), notes=tuple(notes),
+                       episode_s=float(episode_s or settings["sim2sim_episode_s"]), notes=tuple(stress_notes(stress)),
                        datapack_ids=tuple(bundle.datapack_ids))

@@ -158,7 +158,8 @@ class MjxBackend(MotorBackendBase):
     @classmethod
     def check_datapack(cls, pack: DatapackConfig, source: str) -> None:
         """The domain randomization the batched couriers honour (no curriculum): the Gymnasium
-        couriers' keys, or the humanoid couriers' Holosoma keys (``humanoid_stress.yaml``)."""
+        couriers' keys, or the humanoid couriers' walker stress keys (``humanoid_stress.yaml``,
+        :func:`~econmotor.motor_backend.mjx.humanoid_env.check_humanoid_datapack`)."""
         from econmotor.motor_backend.mjx.env import parse_mjx_randomization
         from econmotor.motor_backend.mjx.humanoid_env import check_humanoid_datapack
 

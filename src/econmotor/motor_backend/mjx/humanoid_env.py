@@ -25,15 +25,17 @@ robot-specific is read from the card (:mod:`econmotor.robots`), never from the r
   mean power, course done) come from :meth:`HumanoidWalkerEnv.extra_metrics`.
 - **reward**: the locomotion terms of :mod:`.locomotion_rewards` with the catalog's weights (the
   meter adds the economic overlay's ``J(t) - J(t-1)``).
-- **stress in the graph**, from the datapacks' Holosoma keys (``humanoid_stress.yaml``, read by
-  :func:`~econmotor.couriers.datapack_mapping.map_datapacks` as for the evaluator):
+- **stress in the graph**, from the datapacks (``humanoid_stress.yaml``, read by
+  :meth:`econmotor.couriers.stress.Stress.from_datapacks` as for the MuJoCo C walker env):
   floor friction and torso payload per episode, base-velocity pushes at random intervals, kp/kd
-  scale per joint (``kp_range`` / ``kd_range``), start-pose noise.
+  scale per joint (``kp_range`` / ``kd_range``), start-pose noise; no control delay
+  (:data:`HUMANOID_LACKS`), and what no walker env applies is a ConfigError naming the datapack and key.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from typing import Any
 
 import jax
@@ -49,7 +51,6 @@ from econmotor.couriers.course import (
     course_start,
     heading_yaw,
 )
-from econmotor.couriers.datapack_mapping import map_datapacks
 from econmotor.couriers.locomotion_rewards import TERMS, LocomotionReading, locomotion_reward
 from econmotor.couriers.physics import has_fallen, root_tilt_rad
 from econmotor.couriers.stress import Stress
@@ -79,37 +80,15 @@ WALKER_EPISODE_KEYS = ("walk_s", "walk_m", "max_lateral_m", "legs_done")
 #: the walker's own raw metrics of a finished episode
 WALKER_METRIC_KEYS = ("legs_reached", "achieved_speed_m_per_s", "walking_s", "max_lateral_m", "mean_power_w",
                       "course_done")
-
-
-def parse_humanoid_stress(datapacks: Sequence[Any], push_preset: Mapping[str, Any],
-                          start_joint_noise_rad: float) -> Stress:
-    """The datapacks' Holosoma keys (:mod:`econmotor.couriers.datapack_mapping`) as this env's stress
-    (:class:`econmotor.couriers.stress.Stress`); what it cannot apply (terrain other than flat, link
-    masses, control delay, a curriculum, motion clips) is a ConfigError naming the datapack and key."""
-    stress = Stress(initial_joint_noise_rad=start_joint_noise_rad)
-    for bundle in datapacks:
-        overrides = map_datapacks(bundle, uses_motion_clip=False)
-        source = ", ".join(getattr(bundle, "sources", {}).values()) or "<datapacks>"
-        if overrides.curriculum or bundle.motion_clips or overrides.terrain not in (None, "terrain_locomotion_plane"):
-            raise ConfigError(source, "curriculum / motion_clips / terrain",
-                              "the mjx humanoid couriers run on flat ground without a curriculum or clips")
-        stress = Stress.from_overrides(overrides.randomization, overrides.evaluation,
-                                       {"push_randomizer_state": push_preset}, start_joint_noise_rad)
-        unsupported = [*stress.ignored, *(["setup_action_delay_buffers (ctrl_delay_step_range)"]
-                                          if stress.ctrl_delay_steps else [])]
-        if unsupported:
-            raise ConfigError(source, "domain_randomization", f"the mjx humanoid couriers cannot apply {unsupported}")
-    return stress
+#: datapack stress keys this env cannot apply besides those no walker env applies (no action delay buffer)
+HUMANOID_LACKS = ("ctrl_delay_steps",)
 
 
 def check_humanoid_datapack(pack: Any, source: str) -> None:
-    """A datapack the humanoid couriers can apply (:func:`parse_humanoid_stress`), else its ConfigError."""
-    from econmotor.config.datapacks import DatapackBundle
-
-    bundle = DatapackBundle(task_id="<check>", datapack_ids=(pack.id,), motion_clips=tuple(pack.motion_clips or ()),
-                            domain_randomization=dict(pack.domain_randomization or {}),
-                            curriculum=dict(pack.curriculum or {}), sources={pack.id: source})
-    parse_humanoid_stress([bundle], {"push_interval_s": (1.0, 1.0), "max_push_vel": (0.0, 0.0)}, 0.0)
+    """A datapack the humanoid couriers can apply (:meth:`Stress.from_datapacks` with :data:`HUMANOID_LACKS`),
+    else its ConfigError naming ``source`` and the key."""
+    Stress.from_datapacks([replace(pack, source=source)], {"push_interval_s": (1.0, 1.0), "max_push_vel": (0.0, 0.0)},
+                          lacks=HUMANOID_LACKS)
 
 
 def parse_locomotion(settings: MjxTaskSettings) -> tuple[float, dict[str, float], dict[str, dict[str, Any]]]:
@@ -134,7 +113,8 @@ class HumanoidWalkerEnv(Env):
 
     Args:
         task_id: a catalog task whose mjx entry names a ``robot``.
-        datapacks: datapack bundles (their Holosoma keys: :func:`parse_humanoid_stress`).
+        datapacks: datapack configs or bundles (their stress: :meth:`Stress.from_datapacks`, which refuses
+            what this env cannot apply, and :data:`HUMANOID_LACKS`).
         seed, catalog, readings: as :class:`~econmotor.motor_backend.mjx.base_env.Env`.
         random_start: start every episode at a random point of the course (training;
             :func:`couriers.walker_train.course_point`).
@@ -152,7 +132,7 @@ class HumanoidWalkerEnv(Env):
         self.card = c = robot_card(s.robot, where)
         self.episode_s, self.weights, self.reward_params = parse_locomotion(s)
         self.course = CourseSettings(**{"leg_m": s.leg_distance_m, **s.course})
-        self.stress = parse_humanoid_stress(datapacks, c.push_preset, s.start_joint_noise_rad)
+        self.stress = Stress.from_datapacks(datapacks, c.push_preset, s.start_joint_noise_rad, lacks=HUMANOID_LACKS)
         m = load_model(c, contacts="feet")
         apply_model_options(m, s.model_options, where)
         self._use_model(m)
