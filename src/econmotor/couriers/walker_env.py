@@ -112,6 +112,7 @@ class WalkerBatch:
         self.command = np.zeros((self.n, 2))  # (vx, yaw rate) of the current control step
         # per slot: control steps done, the next push's time (s), walking time (s) and distance (m), |y| max
         self.steps = np.zeros(self.n, dtype=np.int64)
+        self.start_steps = np.zeros(self.n, dtype=np.int64)  # control steps of the limit used at the start
         self.next_push_s = np.full(self.n, math.inf)
         self.walk_s, self.walk_m, self.max_lateral_m = np.zeros(self.n), np.zeros(self.n), np.zeros(self.n)
         self.delayed = np.zeros(self.n, dtype=bool)
@@ -156,6 +157,7 @@ class WalkerBatch:
         self.episodes[slot] = Episode(index, seed, rng, draws, delay,
                                       history=[np.zeros(card.num_dofs, dtype=np.float32)] * delay)
         self.steps[slot], self.next_push_s[slot], self.delayed[slot] = 0, first_push, delay > 0
+        self.start_steps[slot] = 0
         self.walk_s[slot] = self.walk_m[slot] = self.max_lateral_m[slot] = 0.0
         self.last_action[slot] = 0.0
         self.phase[slot], self.standing[slot] = robot_obs.initial_phase(np), False
@@ -175,7 +177,7 @@ class WalkerBatch:
         self.load_state(np.array([slot]))
         for part, value in zip(self.course_state, course, strict=True):
             part[slot] = value
-        self.steps[slot] = int(elapsed_steps)
+        self.steps[slot] = self.start_steps[slot] = int(elapsed_steps)
         self.next_push_s[slot] += elapsed_steps * self.card.control_dt_s
         self.sums.best_x[slot] = x_m
 
@@ -309,6 +311,10 @@ class WalkerBatch:
         return fell
 
     # ------------------------------------------------------------------ an episode's figures
+    def limit_s(self, slots: Any) -> Any:
+        """The time limit of the episodes in ``slots`` from their starts, s (a random start point used some)."""
+        return (self.control_steps - self.start_steps[slots]) * self.card.control_dt_s
+
     def finish(self, slot: int) -> dict[str, Any]:
         """The ended episode of ``slot`` as raw metrics (the standard keys plus the course's); frees the slot."""
         ep, card, s = self.episodes[slot], self.card, self.sums
@@ -323,6 +329,7 @@ class WalkerBatch:
         return {
             "units_completed": units, "units_attempted": units + errors, "errors": errors,
             "episode_length_s": length_s, "length_steps": float(self.steps[slot]), "energy_wh": energy_wh,
+            "episode_limit_s": float(self.limit_s(slot)),
             "risk_score": risk_sum / n if n else 0.0, "novelty_score": 0.0,
             "termination_reason": TerminationReason.FALL if errors > 0 else TerminationReason.COURSE_DONE if finished
             else TerminationReason.MAX_STEPS,

@@ -41,6 +41,7 @@ import numpy as np
 from econmotor.couriers import course as crs
 from econmotor.couriers import locomotion_rewards as lr
 from econmotor.couriers.walker_env import WalkerBatch
+from econmotor.economics import courier_formulas as cf
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.objectives.loader import running_objective_j
 from econmotor.robots.observation import projected_gravity, rotate_inverse
@@ -191,10 +192,12 @@ class WalkerLearningEnv:
     def episode_j(self, slots: np.ndarray, nominal: bool = False) -> np.ndarray:
         """The J each slot's episode would report if it ended now (:func:`running_objective_j`); ``nominal``:
         its rates over the episode's nominal length instead of the time it has run (module docstring)."""
-        s = self.batch.sums
-        length_s = self._length_s[slots] if nominal else s.steps[slots] * self.batch.card.physics_dt_s
+        b, s = self.batch, self.batch.sums
+        fell = s.errors[slots] > 0
+        length_s = self._length_s[slots] if nominal else \
+            cf.rate_length_s(s.steps[slots] * b.card.physics_dt_s, b.limit_s(slots), fell, np)
         return running_objective_j(self.objective, self.economics, units=s.units[slots], errors=s.errors[slots],
-                                   energy_wh=s.energy_wh[slots], length_s=length_s, fell=s.errors[slots] > 0)
+                                   energy_wh=s.energy_wh[slots], length_s=length_s, fell=fell)
 
     def step(self, actions: np.ndarray) -> StepOut:
         """One control step of every robot with ``actions`` ``[N, num_dofs]``; ended episodes restart."""

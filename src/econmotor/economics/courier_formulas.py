@@ -77,6 +77,18 @@ def safe_div(num: Any, den: Any, xp: Any) -> Any:
     return num / xp.where(den > 0, den, math.inf)
 
 
+# ---------------------------------------------------------------- an episode's rate
+def rate_length_s(live_s: Any, limit_s: Any, fell: Any, xp: Any) -> Any:
+    """The seconds an episode's J takes its rates (legs per hour) over: the time it ran or, for an episode
+    that ended in a fall, its whole time limit (the robot on the floor delivers nothing more in it).
+
+    Without it a fall would end an episode's clock: a walker that walks one leg fast and falls before the
+    dwell scores more legs per hour than one that finishes the course (one 10 m leg in 17 s is 212 legs/h;
+    the G1's whole course, 3 legs in 116 s, 93), so J would pay for falling.
+    """
+    return xp.where(fell, xp.maximum(live_s, limit_s), live_s)
+
+
 # ---------------------------------------------------------------- the per-step formulas
 def forward_units(best_x: Any, x: Any, leg_distance_m: float, xp: Any) -> tuple[Any, Any]:
     """``(best_x', units gained)``: the forward high-water mark after reaching ``x`` (m), and the

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from econmotor.config.task_economics import TaskEconomics
+from econmotor.economics.courier_formulas import rate_length_s
 from econmotor.economics.meter import EconomicMeter
 from econmotor.economics.termination import TerminationReason
 from econmotor.motor_backend.run_dir import EVALUATION_FILE
@@ -170,8 +171,14 @@ def episode_summary(raw_episode: Mapping[str, Any], meter: EconomicMeter, index:
     """One episode's raw metrics plus its econ metrics and the RewardBuilder field names."""
     econ = meter.summarize(raw_episode, source=f"episode {index}")
     summary: dict[str, Any] = {"episode_index": index, **dict(raw_episode), **econ}
+    mpl = econ["mpl_units_per_hour"]
+    limit_s = raw_episode.get("episode_limit_s")
+    if limit_s is not None and float(raw_episode.get("errors") or 0.0) > 0:
+        # a fall: the episode's J rate is over its whole time limit (courier_formulas.rate_length_s)
+        seconds = float(rate_length_s(float(raw_episode["episode_length_s"]), float(limit_s), True, np))
+        mpl = float(raw_episode["units_completed"]) * 3600.0 / seconds if seconds > 0 else 0.0
     summary.update(
-        mpl_episode=econ["mpl_units_per_hour"],
+        mpl_episode=mpl,
         error_rate_episode=econ["error_rate"],
         energy_Wh=econ["energy_wh"],
         energy_Wh_per_unit=econ["energy_wh_per_unit"],

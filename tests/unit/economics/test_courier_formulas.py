@@ -167,3 +167,32 @@ def test_errors_accumulate_over_steps_and_small_denominators_still_divide():
         cf.meter_step(sums, step(0.0, 0.0, 0.0, fell=fell), CONSTANTS, cf.PY)
     assert sums.errors == 2.0
     assert cf.safe_div(3.0, 0.5, cf.PY) == 6.0
+
+
+def test_a_fall_takes_an_episodes_rate_over_its_whole_limit() -> None:
+    """J's legs per hour of an episode that fell are over its time limit: walking one leg fast and falling
+    before the dwell must not score more than finishing the course (it did while a fall ended the clock)."""
+    from econmotor.config.objective_profile import ObjectiveVector
+    from econmotor.motor_backend.results import summarize_episodes
+    from econmotor.objectives.loader import objective_from_vector, objective_j
+    from econmotor.tasks import get_task
+
+    assert cf.rate_length_s(17.0, 240.0, True, np) == 240.0
+    assert cf.rate_length_s(17.0, 240.0, False, np) == 17.0
+    np.testing.assert_array_equal(cf.rate_length_s(np.array([17.0, 300.0]), 240.0, np.array([True, True]), np),
+                                  [240.0, 300.0])
+    economics = get_task("humanoid_locomotion_g1").economics
+    objective = objective_from_vector(ObjectiveVector.from_preset("energy_saver"), "energy_saver")
+    base = {"units_completed": 1.0, "units_attempted": 2.0, "errors": 1.0, "episode_length_s": 17.0,
+            "energy_wh": 1.0, "risk_score": 0.0, "novelty_score": 0.0, "termination_reason": "fall"}
+    finished = {**base, "units_completed": 3.0, "units_attempted": 3.0, "errors": 0.0, "episode_length_s": 116.0,
+                "energy_wh": 6.8, "termination_reason": "course_done", "episode_limit_s": 240.0}
+    js = {}
+    for name, raw in (("fell, limit recorded", {**base, "episode_limit_s": 240.0}), ("fell, no limit", base),
+                      ("finished", finished)):
+        [summary] = summarize_episodes([raw], economics)[2]
+        js[name] = objective_j(objective, summary, economics)
+    assert js["fell, limit recorded"] < js["finished"] < js["fell, no limit"]
+    [summary] = summarize_episodes([{**base, "episode_limit_s": 240.0}], economics)[2]
+    assert summary["mpl_episode"] == pytest.approx(3600.0 / 240.0)
+    assert summary["mpl_units_per_hour"] == pytest.approx(3600.0 / 17.0)  # the legs/h of the time it ran stay
