@@ -242,8 +242,10 @@ def report(tag: str, cmp: dict, names: dict[str, str], starts: dict[str, str]) -
     if cheapest is not None:
         beats = all(out["policies"][cheapest]["price_usd_per_leg"] < out["policies"][s]["price_usd_per_leg"]
                     for s in SHIPPED)
+        deployable = any(p["deployable"] for p in out["policies"].values())
         print(f"cheapest fine-tune {cheapest}: {out['policies'][cheapest]['price_usd_per_leg']:.4f} USD/leg, "
-              f"{'cheaper' if beats else 'not cheaper'} than every shipped walker; compare's winner: {winner}")
+              f"{'cheaper' if beats else 'not cheaper'} than every shipped walker; ranked first by compare: {winner}"
+              + ("" if deployable else " (no policy deployable on these episodes: no winner)"))
     print(cmp["summary"])
     return out
 

@@ -19,7 +19,7 @@ as control steps per wall second (50 Hz policy steps; 4 physics steps each) and 
   start-up) untimed, the update included (``collect_1`` / ``collect_2``: collection alone).
 
 Printed last: the trainer's ``train_2 / raw_2`` (the share of the machine's MuJoCo speed a training run
-gets on both cores; issue 54 asks for 0.5), then ``env_processes / raw_2``, the share a price gets.
+gets on both cores; the goal is at least 0.5), then ``env_processes / raw_2``, the share a price gets.
 ``--trainer-only`` measures the raw floors and the trainer's arms alone. On idle cores:
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/walker_throughput.py

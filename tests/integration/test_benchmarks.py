@@ -42,7 +42,7 @@ FIGURES = {
     "demo_reliability.py": '"fall_rate_upper95":',
     "economic_layers_cost.py": "layers in situ",
     "holosoma_overlay_overhead.py": "in-run ratio",
-    "g1_objectives.py": "compare's winner:",
+    "g1_objectives.py": "ranked first by compare:",
     "hypervolume.py": "ratio HSO/grid",
     "mjx_compile.py": "ratio flags / default, compile_iteration_s:",
     "motor_heat_calibration.py": "runtime per charge: without heat",
