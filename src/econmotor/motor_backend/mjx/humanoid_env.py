@@ -76,10 +76,10 @@ HUMANOID_TERMS = ("mpl_per_hour", "error_rate", "energy_kwh", "risk_score")
 #: ``locomotion`` keys of the mjx entry
 LOCOMOTION_KEYS = ("episode_s", "rewards")
 #: the walker's own running sums (besides the episode's and the meter's)
-WALKER_EPISODE_KEYS = ("walk_s", "walk_m", "max_lateral_m", "legs_done")
+WALKER_EPISODE_KEYS = ("walk_s", "walk_m", "max_lateral_m", "legs_done", "start_steps")
 #: the walker's own raw metrics of a finished episode
 WALKER_METRIC_KEYS = ("legs_reached", "achieved_speed_m_per_s", "walking_s", "max_lateral_m", "mean_power_w",
-                      "course_done")
+                      "course_done", "episode_limit_s")
 #: datapack stress keys this env cannot apply besides those no walker env applies (no action delay buffer)
 HUMANOID_LACKS = ("ctrl_delay_steps",)
 
@@ -237,7 +237,7 @@ class HumanoidWalkerEnv(Env):
             data = data.replace(qpos=data.qpos.at[0].set(x))
             robot = {**robot, **{k: zero + v for k, v in point._asdict().items()}, "time_s": steps * self.control_dt_s,
                      "next_push_s": robot["next_push_s"] + steps * self.control_dt_s}
-            episode["control_steps"] = zero + steps
+            episode["control_steps"] = episode["start_steps"] = zero + steps
         obs, observed = self._observe(data, robot)
         return self.first_state(data, obs, key, episode=episode, info=like(observed, robot), randomization=dr)
 
@@ -304,10 +304,12 @@ class HumanoidWalkerEnv(Env):
                               episode=like(new, ep), info=like(robot, state.info), readings=readings)
 
     def extra_metrics(self, state: State) -> dict[str, jax.Array]:
-        """Legs reached, speed while walking, walking time, lateral drift, mean power, course done."""
+        """Legs reached, speed while walking, walking time, lateral drift, mean power, course done, time limit."""
         ep = state.episode
         length_s = ep["steps"] * self.physics_dt_s
         return {"legs_reached": ep["legs_done"], "achieved_speed_m_per_s": cf.safe_div(ep["walk_m"], ep["walk_s"], jnp),
                 "walking_s": ep["walk_s"], "max_lateral_m": ep["max_lateral_m"],
                 "mean_power_w": cf.safe_div(ep["energy_wh"] * cf.SECONDS_PER_HOUR, length_s, jnp),
-                "course_done": state.info["course_done"].astype(jnp.float32)}
+                "course_done": state.info["course_done"].astype(jnp.float32),
+                # the time limit from the episode's start (a fall's J rate is over it: courier_formulas.rate_length_s)
+                "episode_limit_s": (self.max_episode_steps - ep["start_steps"]) * self.control_dt_s}

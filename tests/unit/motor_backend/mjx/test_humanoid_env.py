@@ -232,6 +232,9 @@ def test_holosomas_shipped_g1_walker_walks_in_the_mjx_env() -> None:
     row = env.finished_to_dicts(jax.device_get(state.finished))[0]
     assert row["termination_reason"] == TerminationReason.MAX_STEPS and row["errors"] == 0.0
     assert row["episode_length_s"] == pytest.approx(EPISODE_S, rel=1e-6)
+    # both engines record the episode's time limit (a fall's J rate is over it)
+    assert row["episode_limit_s"] == pytest.approx(reference["episode_limit_s"], rel=1e-6)
+    assert reference["episode_limit_s"] == pytest.approx(EPISODE_S, rel=1e-6)
     speed, expected = row["achieved_speed_m_per_s"], reference["achieved_speed_m_per_s"]
     print(f"G1 PPO walker: MJX {speed:.3f} m/s, sim-to-sim {expected:.3f} m/s")
     assert expected > 0.3  # the walker walks in the evaluator ...
@@ -258,6 +261,8 @@ def test_training_episodes_start_at_random_points_of_the_course() -> None:
     np.testing.assert_array_equal(done, np.where(dwell > 0, leg + 1, leg))
     np.testing.assert_allclose(np.asarray(state.episode["best_x"]), x)  # the meter counts from where it stands
     assert (steps > 0).mean() > 0.9 and steps.max() < env.max_episode_steps
+    limit = np.asarray(env.extra_metrics(state)["episode_limit_s"])  # the time limit from each start point
+    np.testing.assert_allclose(limit, (env.max_episode_steps - steps) * env.control_dt_s, rtol=1e-6)
     fixed = jax.jit(make_env(HumanoidWalkerEnv, "humanoid_locomotion_g1").reset, static_argnums=1)(
         jax.random.PRNGKey(3), 4)
     assert np.all(np.asarray(fixed.episode["control_steps"]) == 0)  # evaluation starts at the course's start
