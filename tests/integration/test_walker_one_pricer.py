@@ -61,7 +61,7 @@ def test_selection_the_evaluation_after_training_and_a_report_price_the_same_epi
     assert len(held_out) == EPISODES
     assert looks == [held_out[:LOOK], held_out]  # stop asked after each look, the rows in episode order
     assert ["stress_friction" in r for r in held_out] == [False, True, False, True]  # nominal, stress, ...
-    # one process steps both conditions' robots together (walker_eval._run_together): the same episodes
+    # one process steps both conditions' robots together (walker_env.run_batches): the same episodes
     run.select_workers = 1
     assert run.evaluate(learner, EPISODES, first, lambda rows: False) == held_out
 

@@ -357,21 +357,32 @@ def run_episodes(batch: WalkerBatch, policy: Policy, episodes: list[tuple[int, i
     (at least two rows: a lone slot's row is padded); ``on_episode(index, metrics)`` as each ends (a
     True return stops starting new episodes).
     """
-    queue = list(episodes)
-    stop = False
-    for slot in range(batch.n):
-        if queue:
+    run_batches([(batch, episodes)], policy, on_episode)
+
+
+def run_batches(runs: list[tuple[WalkerBatch, list[tuple[int, int]]]], policy: Policy,
+                on_episode: Callable[[int, dict[str, Any]], bool | None] = lambda i, ep: None) -> None:
+    """:func:`run_episodes` of several batches (each its own conditions, say) together: a control step of
+    every batch in turn, so none waits on another's last episodes; a True ``on_episode`` stops starting
+    episodes in all of them. An episode depends on its seed only, so each is the one ``run_episodes`` gives."""
+    queues = [list(episodes) for _, episodes in runs]
+    for (batch, _), queue in zip(runs, queues, strict=True):
+        for slot in range(min(batch.n, len(queue))):
             batch.start(slot, *queue.pop(0))
+    stop = False
     while True:
-        slots = np.flatnonzero(batch.active())
-        if len(slots) == 0:
+        stepped = False
+        for (batch, _), queue in zip(runs, queues, strict=True):
+            slots = np.flatnonzero(batch.active())
+            if len(slots) == 0:
+                continue
+            stepped = True
+            obs = batch.observe(slots)
+            rows = obs if len(slots) > 1 else np.concatenate([obs, obs])
+            done = batch.act(slots, np.asarray(policy(rows))[:len(slots)])
+            for s in slots[done]:
+                stop = bool(on_episode(batch.episodes[s].index, batch.finish(int(s)))) or stop
+                if queue and not stop:
+                    batch.start(int(s), *queue.pop(0))
+        if not stepped:
             return
-        obs = batch.observe(slots)
-        rows = obs if len(slots) > 1 else np.concatenate([obs, obs])
-        actions = np.asarray(policy(rows))[:len(slots)]
-        done = batch.act(slots, actions)
-        for s in slots[done]:
-            index = batch.episodes[s].index
-            stop = bool(on_episode(index, batch.finish(int(s)))) or stop
-            if queue and not stop:
-                batch.start(int(s), *queue.pop(0))

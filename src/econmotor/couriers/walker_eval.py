@@ -13,8 +13,8 @@ and the mujoco trainer's held-out looks (its actor exported to ONNX first) call 
   observation, policy, meter) runs beside the physics on each core, instead of one core's Python
   holding both threads back (``benchmarks/walker_throughput.py`` measures both; docs/architecture.md).
 - a worker whose episodes fall under several conditions steps one batch of robots per condition, a control
-  step of each in turn (:func:`_run_together`), so every condition's robots stay busy and its episodes end
-  in about their index order.
+  step of each in turn (:func:`~econmotor.couriers.walker_env.run_batches`), so every condition's robots stay
+  busy and its episodes end in about their index order.
 - every ``batch`` episodes finished in order, ``stop(episodes)`` may end the evaluation (a sequential
   verdict); the workers are then stopped. An episode's figures depend on its seed only.
 - a worker ends when its parent process does (:func:`exit_with_parent`, which the walker trainer's collect
@@ -40,7 +40,7 @@ import numpy as np
 from econmotor.couriers.course import CourseSettings
 from econmotor.couriers.policy_import import PolicyContract, batched_onnx_policy, resolve_contract
 from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_env import WalkerBatch, run_episodes
+from econmotor.couriers.walker_env import WalkerBatch, run_batches
 from econmotor.couriers.walker_model import WalkerModel
 from econmotor.couriers.walker_task import MeterSettings
 from econmotor.errors import BackendError
@@ -103,44 +103,11 @@ def _run(ev: WalkerEvaluation, indices: list[int], emit: EmitFn, contract: Polic
                            contract.command_ranges) for c, group in groups]
     policy = batched_onnx_policy(contract)
     try:
-        if len(batches) == 1:
-            run_episodes(batches[0], policy, [(i, ev.seed + i) for i in groups[0][1]], emit)
-        else:
-            _run_together([(b, [(i, ev.seed + i) for i in group]) for b, (_, group) in zip(batches, groups,
-                                                                                       strict=True)], policy, emit)
+        run_batches([(b, [(i, ev.seed + i) for i in group]) for b, (_, group) in zip(batches, groups, strict=True)],
+                    policy, emit)
     finally:
         for batch in batches:
             batch.close()
-
-
-def _run_together(runs: list[tuple[WalkerBatch, list[tuple[int, int]]]], policy: Callable[[np.ndarray], np.ndarray],
-                  emit: EmitFn) -> None:
-    """Each batch's ``(index, seed)`` episodes, a control step of every batch in turn: what
-    :func:`~econmotor.couriers.walker_env.run_episodes` does for one batch (slots refilled in order as episodes
-    end, the policy on at least two rows, a True ``emit`` stops starting episodes), for batches under different
-    conditions, so none waits on another's last episodes. An episode depends on its seed only, so it is the
-    episode ``run_episodes`` gives."""
-    queues = [list(episodes) for _, episodes in runs]
-    for (batch, _), queue in zip(runs, queues, strict=True):
-        for slot in range(min(batch.n, len(queue))):
-            batch.start(slot, *queue.pop(0))
-    stop = False
-    while True:
-        stepped = False
-        for (batch, _), queue in zip(runs, queues, strict=True):
-            slots = np.flatnonzero(batch.active())
-            if len(slots) == 0:
-                continue
-            stepped = True
-            obs = batch.observe(slots)
-            rows = obs if len(slots) > 1 else np.concatenate([obs, obs])
-            done = batch.act(slots, np.asarray(policy(rows))[:len(slots)])
-            for s in slots[done]:
-                stop = bool(emit(batch.episodes[s].index, batch.finish(int(s)))) or stop
-                if queue and not stop:
-                    batch.start(int(s), *queue.pop(0))
-        if not stepped:
-            return
 
 
 #: a worker's exit status when its parent died under it (its episodes went nowhere)

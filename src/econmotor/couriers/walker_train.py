@@ -206,10 +206,11 @@ class WalkerLearningEnv:
         last_action = b.last_action[slots].copy()
         done = b.act(slots, actions)
         j = self.episode_j(slots, nominal=True)
-        # the step that ends an episode settles it: J over the episode's own length, not the nominal one
-        j_end = np.where(done, self.episode_j(slots), j)
-        econ = self.gain * (j_end - self._j[slots])
+        econ = self.gain * (j - self._j[slots])
         self._j[slots] = j
+        ended = np.flatnonzero(done)
+        # the step that ends an episode settles it: J over the episode's own length, not the nominal one
+        econ[ended] += self.gain * (self.episode_j(slots[ended]) - j[ended])
         loco, terms = self._locomotion(slots, b.last_action[slots], last_action)
         n, dim = b.n, b.card.obs_dim
         out = StepOut(obs=self._obs, privileged=np.zeros((n, PRIVILEGED_DIM), np.float32),
@@ -217,7 +218,6 @@ class WalkerLearningEnv:
                       terminal_obs=np.zeros((n, dim), np.float32),
                       terminal_privileged=np.zeros((n, PRIVILEGED_DIM), np.float32),
                       terms={**terms, "locomotion": float(loco.mean()), "economic": float(econ.mean())})
-        ended = np.flatnonzero(done)
         if len(ended):
             out.terminal_obs[ended] = b.observation(ended)
             out.terminal_privileged[ended] = self.privileged(ended)

@@ -176,7 +176,8 @@ def episode_summary(raw_episode: Mapping[str, Any], meter: EconomicMeter, index:
     if limit_s is not None and float(raw_episode.get("errors") or 0.0) > 0:
         # a fall: the episode's J rate is over its whole time limit (courier_formulas.rate_length_s)
         seconds = float(rate_length_s(float(raw_episode["episode_length_s"]), float(limit_s), True, np))
-        mpl = float(raw_episode["units_completed"]) * 3600.0 / seconds if seconds > 0 else 0.0
+        mpl = meter.summarize({**raw_episode, "episode_length_s": seconds},
+                              source=f"episode {index}")["mpl_units_per_hour"]
     summary.update(
         mpl_episode=mpl,
         error_rate_episode=econ["error_rate"],
