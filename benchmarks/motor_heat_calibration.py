@@ -27,9 +27,9 @@ import json
 import numpy as np
 
 from econmotor.config.datapacks import DatapackProvider
-from econmotor.couriers.walker_eval import WalkerEvaluation, _run
-from econmotor.couriers.walker_setup import walker_setup
-from econmotor.couriers.walker_task import task_settings
+from econmotor.locomotion.conditions import walker_setup
+from econmotor.locomotion.evaluation import WalkerEvaluation, _run
+from econmotor.locomotion.task import task_settings
 from econmotor.robots.card import scaled_heat_model
 from econmotor.tasks import get_task
 
@@ -66,9 +66,9 @@ def draw(task_id: str, policy: str, episodes: int, seed: int, heat_at_limit: flo
 def standing(task_id: str, policy: str, heat_at_limit: float | None, seconds: float = 20.0) -> dict[str, float]:
     """Mean electrical and heat power (W) of the robot standing still under its walker (a command of 0 m/s,
     as in the course's dwells), ``seconds`` long, nominal conditions: what the meter charges for standing."""
-    from econmotor.couriers.walker_env import WalkerBatch, run_episodes
-    from econmotor.couriers.walker_eval import batched_onnx_policy
-    from econmotor.couriers.walker_model import WalkerModel
+    from econmotor.locomotion.env import WalkerBatch, run_episodes
+    from econmotor.locomotion.evaluation import batched_onnx_policy
+    from econmotor.locomotion.model import WalkerModel
 
     spec = get_task(task_id)
     settings = task_settings(task_id, spec.backend_entry("holosoma"), spec.source)

@@ -8,7 +8,7 @@ as control steps per wall second (50 Hz policy steps; 4 physics steps each) and 
   targets the env's episodes applied (recorded once, untimed), PD in the actuators: the floor;
 - **one_robot**: the evaluator the env replaced: one robot per process, the PD law, the clip and the
   shared meter in Python at every physics step, the ONNX policy one row at a time (one core);
-- **env_1**: the batched env (:mod:`econmotor.couriers.walker_eval`) in this process, ``--slots`` robots;
+- **env_1**: the batched env (:mod:`econmotor.locomotion.evaluation`) in this process, ``--slots`` robots;
 - **env_processes**: two worker processes of ``--slots`` robots each (the evaluator's default), with
   their start-up (spawn, imports, the model, the ONNX session) timed apart as ``startup_s``;
 - **train_1 / train_2**: the CPU trainer's PPO iterations (:mod:`econmotor.motor_backend.mujoco.walker_training`,
@@ -42,10 +42,10 @@ SMOKE_ARGS: list[str] = ["--episode-s", "0.4", "--episodes", "4", "--slots", "2"
 
 
 def _evaluation(policy: str, episode_s: float, slots: int):
-    from econmotor.couriers.course import CourseSettings
-    from econmotor.couriers.stress import Stress
-    from econmotor.couriers.walker_eval import WalkerEvaluation
-    from econmotor.couriers.walker_task import MeterSettings
+    from econmotor.locomotion.course import CourseSettings
+    from econmotor.locomotion.evaluation import WalkerEvaluation
+    from econmotor.locomotion.stress import Stress
+    from econmotor.locomotion.task import MeterSettings
 
     return WalkerEvaluation(policy=policy, course=CourseSettings(leg_m=10.0, dwell_s=20.0, speed_m_per_s=1.0, legs=0),
                             meter=MeterSettings(10.0, 0.8, 50.0, 0.2, 0.8),
@@ -56,8 +56,8 @@ def record_targets(ev, episodes: int):
     """The PD targets each episode applied, per control step (untimed), and the start states."""
     import numpy as np
 
-    from econmotor.couriers.walker_env import run_episodes
-    from econmotor.couriers.walker_eval import build_batch
+    from econmotor.locomotion.env import run_episodes
+    from econmotor.locomotion.evaluation import build_batch
 
     batch, policy = build_batch(ev, slots=1)
     targets, starts = [], []
@@ -82,7 +82,7 @@ def replay(ev, starts, targets) -> float:
     import mujoco
 
     from econmotor.couriers.policy_import import resolve_contract
-    from econmotor.couriers.walker_model import WalkerModel
+    from econmotor.locomotion.model import WalkerModel
 
     contract = resolve_contract(ev.policy)
     walker = WalkerModel.build(contract.card, contract.kp, contract.kd)
@@ -105,10 +105,10 @@ def one_robot(ev, episodes: int) -> float:
     import mujoco
     import numpy as np
 
-    from econmotor.couriers import course as crs
     from econmotor.couriers.physics import root_tilt_rad
     from econmotor.couriers.policy_import import batched_onnx_policy, resolve_contract
     from econmotor.economics import courier_formulas as cf
+    from econmotor.locomotion import course as crs
     from econmotor.robots import observation as obs
     from econmotor.robots.model import joint_indices, model_spec
 
@@ -159,7 +159,7 @@ def train_rate(ev, workers: int, num_envs: int, steps: int, iterations: int) -> 
     from econmotor.config.objective_profile import ObjectiveVector
     from econmotor.couriers.onnx_actor import policy_file, read_actor
     from econmotor.couriers.policy_import import resolve_contract
-    from econmotor.couriers.walker_setup import WalkerSetup
+    from econmotor.locomotion.conditions import WalkerSetup
     from econmotor.motor_backend.mujoco.walker_backend import walker_train_settings
     from econmotor.motor_backend.mujoco.walker_recipe import WalkerPPOConfig
     from econmotor.motor_backend.mujoco.walker_training import WalkerLearner, WalkerTrainingRun
@@ -208,7 +208,7 @@ def main() -> None:
                         help="the raw floors and the trainer's arms only (no evaluator arms)")
     args = parser.parse_args()
 
-    from econmotor.couriers.walker_eval import evaluate
+    from econmotor.locomotion.evaluation import evaluate
 
     ev = _evaluation(args.policy, args.episode_s, args.slots)
     starts, targets = record_targets(ev, args.episodes)

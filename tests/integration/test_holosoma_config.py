@@ -21,9 +21,9 @@ from econmotor.config.datapacks import (
 )
 from econmotor.couriers import policy_import
 from econmotor.couriers.datapack_mapping import map_datapacks, validate_motion_npz
-from econmotor.couriers.walker_task import meter_constants, meter_settings
 from econmotor.economics import courier_formulas as cf
 from econmotor.errors import BackendError, ConfigError
+from econmotor.locomotion.task import meter_constants, meter_settings
 from econmotor.motor_backend.holosoma.econ_formulas import (
     base_tilt_rad,
     commanded_progress_m_per_s,

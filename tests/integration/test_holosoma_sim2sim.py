@@ -1,4 +1,4 @@
-"""Sim-to-sim evaluation of imported locomotion policies (couriers/walker_env.py, walker_eval.py).
+"""Sim-to-sim evaluation of imported locomotion policies (locomotion/env.py, evaluation.py).
 
 The four policies holosoma_inference ships walk their course through the backend's evaluation
 (the batched MuJoCo walker env in the main interpreter); the observation econmotor's evaluator
@@ -20,7 +20,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from econmotor.couriers.course import CourseSettings
 from econmotor.couriers.physics import root_tilt_rad
 from econmotor.couriers.policy_import import (
     PolicyContract,
@@ -30,13 +29,14 @@ from econmotor.couriers.policy_import import (
     resolve_contract,
     robot_card_for,
 )
-from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_env import WalkerBatch, run_episodes
-from econmotor.couriers.walker_model import WalkerModel
-from econmotor.couriers.walker_task import MeterSettings
 from econmotor.economics import courier_formulas as cf
 from econmotor.economics.termination import TerminationReason
 from econmotor.errors import ConfigError
+from econmotor.locomotion.course import CourseSettings
+from econmotor.locomotion.env import WalkerBatch, run_episodes
+from econmotor.locomotion.model import WalkerModel
+from econmotor.locomotion.stress import Stress
+from econmotor.locomotion.task import MeterSettings
 from econmotor.motor_backend.holosoma.host.backend import HolosomaBackend
 from econmotor.motor_backend.holosoma.host.jobs import job_environment
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec

@@ -25,12 +25,12 @@ import pytest
 import torch
 
 from econmotor.config.objective_profile import ObjectiveVector
-from econmotor.couriers import course as crs
 from econmotor.couriers.onnx_actor import policy_file, read_actor
 from econmotor.couriers.policy_import import resolve_contract
-from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_setup import WalkerSetup
-from econmotor.couriers.walker_task import MeterSettings
+from econmotor.locomotion import course as crs
+from econmotor.locomotion.conditions import WalkerSetup
+from econmotor.locomotion.stress import Stress
+from econmotor.locomotion.task import MeterSettings
 from econmotor.motor_backend.mujoco import walker_collect as wc
 from econmotor.motor_backend.mujoco.walker_recipe import WalkerPPOConfig
 from econmotor.motor_backend.mujoco.walker_training import (
@@ -238,5 +238,5 @@ def test_held_out_looks_alternate_nominal_and_the_training_stress(tmp_path: Path
     # the same episodes alone under each condition: the seeds are the look's (50,000 + i)
     alone = dataclasses.replace(run, select_stresses=(run.setup.stress,))
     again = alone.evaluate(alone.learner(), 4, 50_000, lambda rows: False)
-    # the look prices the run's ONNX export (walker_eval.evaluate): an episode depends on its seed only
+    # the look prices the run's ONNX export (locomotion.evaluation.evaluate): an episode depends on its seed only
     assert again[1] == rows[1] and again[3] == rows[3]

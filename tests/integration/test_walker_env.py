@@ -1,4 +1,4 @@
-"""The batched MuJoCo walker env (couriers/walker_env.py) on the real G1 and T1, in the main interpreter.
+"""The batched MuJoCo walker env (locomotion/env.py) on the real G1 and T1, in the main interpreter.
 
 - PD by MuJoCo's actuators equals the PD law computed in Python before each physics step (the one-robot
   evaluator's inner loop), over a fixed action sequence: joint positions, and the electrical energy the
@@ -17,14 +17,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from econmotor.couriers.course import CourseSettings
 from econmotor.couriers.policy_import import resolve_contract
-from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_env import WalkerBatch, run_episodes
-from econmotor.couriers.walker_eval import WalkerEvaluation, build_batch, evaluate
-from econmotor.couriers.walker_model import WalkerModel
-from econmotor.couriers.walker_task import MeterSettings, course_settings, meter_settings, task_settings
 from econmotor.economics import courier_formulas as cf
+from econmotor.locomotion.course import CourseSettings
+from econmotor.locomotion.env import WalkerBatch, run_episodes
+from econmotor.locomotion.evaluation import WalkerEvaluation, build_batch, evaluate
+from econmotor.locomotion.model import WalkerModel
+from econmotor.locomotion.stress import Stress
+from econmotor.locomotion.task import MeterSettings, course_settings, meter_settings, task_settings
 from econmotor.robots.model import joint_indices, model_spec
 from econmotor.tasks.catalog import load_catalog
 
@@ -166,7 +166,7 @@ def test_standing_under_the_dwell_draws_the_windings_heat_above_the_idle_draw(g1
     the card's motor model the same stand costs little more than idle)."""
     import dataclasses
 
-    from econmotor.couriers.walker_eval import batched_onnx_policy
+    from econmotor.locomotion.evaluation import batched_onnx_policy
 
     spec = load_catalog().get("humanoid_locomotion_g1")
     settings = task_settings(spec.task_id, spec.backend_entry("holosoma"), spec.source)

@@ -21,10 +21,10 @@ import pytest
 pytestmark = [pytest.mark.holosoma]  # the shipped G1 walker
 
 PARENT = r"""
-from econmotor.couriers.course import CourseSettings
-from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_eval import WalkerEvaluation, evaluate
-from econmotor.couriers.walker_task import MeterSettings
+from econmotor.locomotion.course import CourseSettings
+from econmotor.locomotion.stress import Stress
+from econmotor.locomotion.evaluation import WalkerEvaluation, evaluate
+from econmotor.locomotion.task import MeterSettings
 
 meter = MeterSettings(leg_distance_m=2.0, drivetrain_efficiency=0.8, idle_power_w=50.0, tilt_margin_rad=0.2,
                       fall_tilt_rad=0.8)

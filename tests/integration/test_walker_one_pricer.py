@@ -1,5 +1,5 @@
 """One pricer for the card-robot walker: held-out selection, the evaluation after training and a report walk the
-same episodes (couriers/walker_eval.py: ``evaluate``; motor_backend/walker_pricing.py; mujoco/walker_training.py).
+same episodes (locomotion/evaluation.py: ``evaluate``; motor_backend/walker_pricing.py; mujoco/walker_training.py).
 
 The shipped G1 PPO walker starts a mujoco-backend run under ``humanoid_stress`` (the run the backend builds:
 ``walker_backend.walker_run``). One held-out evaluation of its actor (four episodes, looks of two) alternates
@@ -61,7 +61,7 @@ def test_selection_the_evaluation_after_training_and_a_report_price_the_same_epi
     assert len(held_out) == EPISODES
     assert looks == [held_out[:LOOK], held_out]  # stop asked after each look, the rows in episode order
     assert ["stress_friction" in r for r in held_out] == [False, True, False, True]  # nominal, stress, ...
-    # one process steps both conditions' robots together (walker_env.run_batches): the same episodes
+    # one process steps both conditions' robots together (locomotion.env.run_batches): the same episodes
     run.select_workers = 1
     assert run.evaluate(learner, EPISODES, first, lambda rows: False) == held_out
 

@@ -1,4 +1,4 @@
-"""The mujoco backend's CPU trainer of the card robots (mujoco/walker_*.py, couriers/walker_train.py).
+"""The mujoco backend's CPU trainer of the card robots (mujoco/walker_*.py, locomotion/learning.py).
 
 - the actor started from an ONNX walker acts exactly as the ONNX before any update;
 - episodes start at random points of the course (legs, dwells, elapsed time) and, from the start,
@@ -20,14 +20,14 @@ import pytest
 import torch
 
 from econmotor.config.objective_profile import ObjectiveVector
-from econmotor.couriers import course as crs
 from econmotor.couriers.onnx_actor import policy_file, read_actor
 from econmotor.couriers.policy_import import batched_onnx_policy, resolve_contract
-from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_env import WalkerBatch
-from econmotor.couriers.walker_model import WalkerModel
-from econmotor.couriers.walker_task import MeterSettings
-from econmotor.couriers.walker_train import PRIVILEGED_DIM, WalkerLearningEnv, nominal_length_s, start_point
+from econmotor.locomotion import course as crs
+from econmotor.locomotion.env import WalkerBatch
+from econmotor.locomotion.learning import PRIVILEGED_DIM, WalkerLearningEnv, nominal_length_s, start_point
+from econmotor.locomotion.model import WalkerModel
+from econmotor.locomotion.stress import Stress
+from econmotor.locomotion.task import MeterSettings
 from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, Rollout, WalkerPPO
 from econmotor.motor_backend.mujoco.walker_recipe import WalkerPPOConfig
 from econmotor.motor_backend.results import summarize_episodes

@@ -102,8 +102,8 @@ def test_every_module_imports():
 BACKENDS = ("dishwashing", "mujoco", "mjx", "holosoma")
 #: what the backends share and build on: these import no backend, nor anything of ``motor_backend`` (the
 #: backend contract is above them)
-SHARED = ("econmotor.couriers", "econmotor.robots", "econmotor.economics", "econmotor.objectives",
-          "econmotor.valuation", "econmotor.config", "econmotor.tasks")
+SHARED = ("econmotor.couriers", "econmotor.locomotion", "econmotor.robots", "econmotor.economics",
+          "econmotor.objectives", "econmotor.valuation", "econmotor.config", "econmotor.tasks")
 
 
 def backend_of(module: str) -> str | None:
@@ -132,7 +132,7 @@ def layer_violations(graph: dict[str, set[str]]) -> list[str]:
 
 def test_the_layer_rule_sees_a_crossing():
     graph = {"econmotor.motor_backend.mjx.backend": {"econmotor.motor_backend.holosoma.host.plan"},
-             "econmotor.couriers.course": {"econmotor.motor_backend.mjx.env"},
+             "econmotor.locomotion.course": {"econmotor.motor_backend.mjx.env"},
              "econmotor.motor_backend.holosoma.host.backend": {"econmotor.motor_backend.holosoma.venv.runner"},
              "econmotor.motor_backend.holosoma.venv.runner": {"econmotor.motor_backend.holosoma.job_specs"},
              "econmotor.couriers.datapack_mapping": {"econmotor.motor_backend.datapacks"}}

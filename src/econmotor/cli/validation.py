@@ -113,7 +113,7 @@ def check_flags(**values: Any) -> None:
 def check_command_speeds(speeds: Iterable[float | None], policies: Iterable[str] = ()) -> None:
     """Each ``--command-speed`` (m/s; None: the catalog's) against its rule (finite, 0.05-10 m/s) and against
     the fastest forward command each of ``policies`` was trained for (``lin_vel_x``'s top in its ONNX metadata):
-    the walker clips its command to that top (``couriers/course.py``), so a faster speed would price the policy
+    the walker clips its command to that top (``locomotion/course.py``), so a faster speed would price the policy
     at a speed other than the one asked for."""
     from econmotor.couriers.onnx_actor import policy_command_ranges
 

@@ -1,18 +1,17 @@
 """What every backend's couriers share, owned by none of them; imports no gymnasium, torch or jax.
 
-The walkers (the card robots, :mod:`econmotor.robots`):
+The walkers (the card robots, :mod:`econmotor.robots`; their walking itself, course, stress, env and
+pricer, is :mod:`econmotor.locomotion`):
 
-- ``course.py``: the delivery course, one implementation for NumPy and JAX callers,
-- ``stress.py``: a datapack's per-episode conditions; ``datapack_mapping.py``: datapacks in
-  Holosoma's randomization terms,
-- ``walker_task.py``: a walker task's settings, meter and course from the task catalog,
+- ``datapack_mapping.py``: datapacks in Holosoma's randomization terms,
 - ``policy_import.py``: a Holosoma-format ONNX walker's contract with its robot card,
-- ``walker_env.py``: N robots per process stepped by MuJoCo C, metered; ``walker_eval.py``: seeded
-  episodes of it on worker processes (the sim-to-sim evaluator).
+- ``onnx_file.py``, ``onnx_metadata.py``, ``onnx_actor.py``, ``onnx_export.py``: an ONNX file opened,
+  econmotor's ONNX metadata, an ONNX actor read into arrays and written in either ONNX format.
 
 The Gymnasium couriers (their robot facts: :mod:`econmotor.robots.gym_couriers`):
 
-- ``physics.py``: what metering reads from any MuJoCo model (actuated dofs, root tilt),
+- ``physics.py``: what metering reads from any MuJoCo model (actuated dofs, root tilt; the card robots'
+  fall rule too),
 - ``settings.py``: the metering settings of a catalog entry, validated once,
 - ``overlay.py``: the overlay's terms, checks and human-baseline references,
 - ``randomization.py``: the datapack domain-randomization and curriculum keys.

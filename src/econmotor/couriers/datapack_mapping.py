@@ -23,7 +23,7 @@ datapack key               Holosoma parameter
 This is the holosoma backend's reading (its training runs and its datapack check; the mujoco backend's
 datapack check calls it for the walker tasks' keys too). The walker envs that price and train the card
 robots read the same keys themselves, without Holosoma's terms
-(:meth:`econmotor.couriers.stress.Stress.from_datapacks`).
+(:meth:`econmotor.locomotion.stress.Stress.from_datapacks`).
 
 ``curriculum`` keys map onto Holosoma's ``PenaltyCurriculum`` (which scales the
 penalty-tagged reward terms): ``initial_difficulty`` -> ``initial_scale``,

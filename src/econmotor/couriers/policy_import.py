@@ -259,7 +259,7 @@ def batched_onnx_policy(contract: PolicyContract) -> Any:
     Holosoma's exporter fixes the batch at 1; the graph is a plain MLP, so the loaded copy's input and
     output take a symbolic batch (the file is not changed). onnxruntime's one-row kernel rounds
     differently from its many-row one: callers that want a row's action not to depend on the batch
-    pass at least two rows (:func:`econmotor.couriers.walker_env.run_episodes` does).
+    pass at least two rows (:func:`econmotor.locomotion.env.run_episodes` does).
     """
     import onnxruntime as ort
 

@@ -1,8 +1,8 @@
 """Pricing a card robot's walker (G1, T1) sim-to-sim: one evaluation for every backend that runs them.
 
-:func:`price_walker` reads the task's walker conditions (:func:`econmotor.couriers.walker_setup.walker_setup`:
+:func:`price_walker` reads the task's walker conditions (:func:`econmotor.locomotion.conditions.walker_setup`:
 the policy's contract, the course, the meter, the datapacks' stress), runs the batched MuJoCo walker env
-on worker processes (:func:`econmotor.couriers.walker_eval.evaluate`) and returns the evaluation with its
+on worker processes (:func:`econmotor.locomotion.evaluation.evaluate`) and returns the evaluation with its
 provenance (the evaluator, MuJoCo's version, the commanded and achieved speed, the power drawn). The
 holosoma backend prices imported walkers and its own runs with it; the mujoco backend prices the walkers
 its CPU trainer exports with it: a policy trained on this env is priced on this env. That trainer's held-out
@@ -20,10 +20,10 @@ from typing import Any
 
 from econmotor.config.datapacks import DatapackProvider
 from econmotor.couriers.policy_import import model_text
-from econmotor.couriers.walker_eval import WalkerEvaluation
-from econmotor.couriers.walker_eval import evaluate as evaluate_walkers
-from econmotor.couriers.walker_setup import walker_setup
 from econmotor.economics.courier_formulas import mechanical_from_electrical_w
+from econmotor.locomotion.conditions import walker_setup
+from econmotor.locomotion.evaluation import WalkerEvaluation
+from econmotor.locomotion.evaluation import evaluate as evaluate_walkers
 from econmotor.motor_backend.base import ProgressFn, StopFn
 from econmotor.motor_backend.results import (
     EvalProvenance,

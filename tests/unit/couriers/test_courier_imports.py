@@ -1,4 +1,5 @@
-"""The JAX backend imports no torch or gymnasium; the couriers' package no jax either; no generated code in src/."""
+"""The JAX backend imports no torch or gymnasium; the couriers' and locomotion packages no jax either; no generated
+code in src/."""
 
 from __future__ import annotations
 
@@ -28,8 +29,9 @@ def test_the_jax_backend_imports_no_torch_or_gymnasium(module):
     assert not loaded & {"torch", "gymnasium", "stable_baselines3"}
 
 
-def test_the_couriers_package_imports_no_gymnasium_torch_or_jax():
-    modules = [f"econmotor.couriers.{p.stem}" for p in (SRC / "couriers").glob("*.py") if p.stem != "__init__"]
+@pytest.mark.parametrize("package", ["couriers", "locomotion"])
+def test_the_couriers_and_locomotion_packages_import_no_gymnasium_torch_or_jax(package):
+    modules = [f"econmotor.{package}.{p.stem}" for p in (SRC / package).glob("*.py") if p.stem != "__init__"]
     loaded = modules_after_import(", ".join(modules))
     assert not loaded & {"torch", "gymnasium", "stable_baselines3", "jax"}
 

@@ -1,9 +1,9 @@
 """Per-step economic quantities of a legged robot in Holosoma: the couriers' meter, read from Holosoma's tensors.
 
 One meter per robot: a G1 trained here (Holosoma's reward terms, torch) and a G1 priced here (the
-sim-to-sim evaluator, :mod:`econmotor.couriers.walker_env`) are metered by the same formulas,
+sim-to-sim evaluator, :mod:`econmotor.locomotion.env`) are metered by the same formulas,
 :mod:`econmotor.economics.courier_formulas`, with the same constants (the task catalog's
-``backends.holosoma`` entry, ``walker_task.meter_settings``):
+``backends.holosoma`` entry, ``locomotion.task.meter_settings``):
 
 - electrical power ``P_el = sum_i |tau_i qd_i| / eta + sum_i k_i tau_i^2 + idle_power_w`` (W;
   ``cf.mechanical_power_w``, ``cf.winding_heat_w`` with the robot card's motor model, ``cf.electrical_power_w``;
@@ -89,7 +89,7 @@ def overlay_term_rates(
 ) -> dict[str, Any]:
     """Raw per-step rates of the overlay keys, normalised so sum_t rate_t * dt = episode metric.
 
-    ``constants``: the courier meter's (:func:`econmotor.couriers.walker_task.meter_constants`, ``dt_s``
+    ``constants``: the courier meter's (:func:`econmotor.locomotion.task.meter_constants`, ``dt_s``
     the control step); ``heat_w``: the windings' heat (``cf.winding_heat_w``, 0 without a motor model).
     Holosoma's reward manager adds ``raw * weight * dt`` each step, so over an episode of the
     nominal length ``T = episode_s``:

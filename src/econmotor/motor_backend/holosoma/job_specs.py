@@ -1,7 +1,7 @@
 """The jobs the main interpreter hands to .venv-holosoma's runner: typed, serialised once, parsed once.
 
 The backend builds one of :class:`ProbeJob`, :class:`TrainJob` or :class:`EvaluateJob`;
-:func:`.jobs.run_job` writes it as JSON (:meth:`HolosomaJob.to_json`:
+:func:`.host.jobs.run_job` writes it as JSON (:meth:`HolosomaJob.to_json`:
 ``{"action": ..., <its fields>}``) and the runner reads it back with :func:`parse_job`. A file that is
 not a job of a known action, lacks a field, has one it does not know, or holds a value of the wrong
 type is a ConfigError naming the file and the field. It imports in both interpreters (the main one and
@@ -57,7 +57,7 @@ class TrainJob(HolosomaJob):
 
     Attributes:
         run_dir / run_name: where Holosoma writes (``<run_dir>/holosoma``) and its experiment's name.
-        plan: the request adapted to the machine (:class:`.plan.RunPlan`: preset, algorithm, simulator,
+        plan: the request adapted to the machine (:class:`.host.plan.RunPlan`: preset, algorithm, simulator,
             device, envs, iterations, CPU sizing); seed: Holosoma's seed.
         motion_task: the task tracks a motion clip (whole-body tracking).
         overlay: :class:`Overlay`; overrides: ``HolosomaOverrides.to_dict()`` (randomization, curriculum,

@@ -1,4 +1,4 @@
-"""The line protocol between :mod:`.runner` (in .venv-holosoma) and :mod:`.jobs` (main venv).
+"""The line protocol between :mod:`.venv.runner` (in .venv-holosoma) and :mod:`.host.jobs` (main venv).
 
 The runner prints one JSON object per line after :data:`PREFIX` on stdout; every other
 line is Holosoma's own log. Events: ``progress`` (label, done, total), ``message``

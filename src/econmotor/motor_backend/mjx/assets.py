@@ -1,7 +1,7 @@
 """The robots of the mjx couriers: Gymnasium's own MJCF files, loaded for MJX.
 
 The robot records (model file, Gymnasium v5 parameters, healthy rule, observation, reward and
-reset facts) are the couriers' (``couriers/robots.py``: :func:`robot_spec` applies a catalog
+reset facts) are the couriers' (``robots/gym_couriers.py``: :func:`robot_spec` applies a catalog
 entry's ``env_kwargs``), so the mjx env's observation, action, reward and fall definitions are
 the ones the ``mujoco`` backend gets from ``gymnasium.make(env_id)``, without importing
 gymnasium here.

@@ -6,7 +6,7 @@ economically metered env the mjx backend trains on (``wrappers.py``: the meter, 
 raw episode metrics). Physics is MuJoCo's JAX port (``mujoco.mjx``) on Gymnasium's own MJCF files; the
 observation, action bounds, task reward, frame skip, reset noise and fall (unhealthy termination) are
 those of the Gymnasium v5 env the ``mujoco`` backend trains on, read from the robot's record
-(``couriers/robots.py``: the env reads its fields and never branches on a robot's name), so a policy's
+(``robots/gym_couriers.py``: the env reads its fields and never branches on a robot's name), so a policy's
 obs/action layout carries over.
 
 What the meter reads (``State.readings``, one row per control step, with the physics readouts of

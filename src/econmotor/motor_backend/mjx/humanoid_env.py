@@ -16,17 +16,17 @@ robot-specific is read from the card (:mod:`econmotor.robots`), never from the r
 - **observation**: holosoma_inference's ``actor_obs`` (:func:`econmotor.robots.observation.build_observation`),
   the command being the course's (below); so a policy trained here runs in the sim-to-sim
   evaluator and in holosoma_inference, and theirs here.
-- **the course** (:mod:`econmotor.couriers.course`): the sim-to-sim evaluator's,
+- **the course** (:mod:`econmotor.locomotion.course`): the sim-to-sim evaluator's,
   legs of ``leg_m`` at the course speed with a dwell at each end; the episode ends at its time
   limit (``locomotion.episode_s``), when the course is done, or at a fall.
 - **metering**: every physics step is a reading (``State.readings``: x, ``sum |qfrc_actuator qvel|``,
   tilt, the card's fall rule), metered by ``wrappers.EconomicMeter`` as the evaluator meters it
   (frozen after a fall); the walker's own raw metrics (legs, speed, walking time, lateral drift,
   mean power, course done) come from :meth:`HumanoidWalkerEnv.extra_metrics`.
-- **reward**: the locomotion terms of :mod:`.locomotion_rewards` with the catalog's weights (the
+- **reward**: the locomotion terms of :mod:`econmotor.locomotion.rewards` with the catalog's weights (the
   meter adds the economic overlay's ``J(t) - J(t-1)``).
 - **stress in the graph**, from the datapacks (``humanoid_stress.yaml``, read by
-  :meth:`econmotor.couriers.stress.Stress.from_datapacks` as for the MuJoCo C walker env):
+  :meth:`econmotor.locomotion.stress.Stress.from_datapacks` as for the MuJoCo C walker env):
   floor friction and torso payload per episode, base-velocity pushes at random intervals, kp/kd
   scale per joint (``kp_range`` / ``kd_range``), start-pose noise; no control delay
   (:data:`HUMANOID_LACKS`), and what no walker env applies is a ConfigError naming the datapack and key.
@@ -43,7 +43,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from econmotor.config.loading import as_float, check_keys, require_mapping
-from econmotor.couriers.course import (
+from econmotor.couriers.physics import has_fallen, root_tilt_rad
+from econmotor.economics import courier_formulas as cf
+from econmotor.errors import ConfigError
+from econmotor.locomotion.course import (
     CourseSettings,
     CourseState,
     course_command,
@@ -51,12 +54,9 @@ from econmotor.couriers.course import (
     course_start,
     heading_yaw,
 )
-from econmotor.couriers.locomotion_rewards import TERMS, LocomotionReading, locomotion_reward
-from econmotor.couriers.physics import has_fallen, root_tilt_rad
-from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_train import course_point
-from econmotor.economics import courier_formulas as cf
-from econmotor.errors import ConfigError
+from econmotor.locomotion.learning import course_point
+from econmotor.locomotion.rewards import TERMS, LocomotionReading, locomotion_reward
+from econmotor.locomotion.stress import Stress
 from econmotor.motor_backend.mjx._mjx import mjx
 from econmotor.motor_backend.mjx.assets import apply_model_options
 from econmotor.motor_backend.mjx.base_env import Env, State, like, reading
@@ -117,7 +117,7 @@ class HumanoidWalkerEnv(Env):
             what this env cannot apply, and :data:`HUMANOID_LACKS`).
         seed, catalog, readings: as :class:`~econmotor.motor_backend.mjx.base_env.Env`.
         random_start: start every episode at a random point of the course (training;
-            :func:`couriers.walker_train.course_point`).
+            :func:`locomotion.learning.course_point`).
     """
 
     obs_layout_note = "holosoma_inference actor_obs of the robot card (econmotor/robots)"

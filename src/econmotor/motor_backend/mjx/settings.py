@@ -26,7 +26,7 @@ A real robot's courier (``mjx/humanoid_env.py``) names its robot card instead of
 The metering keys (:data:`INHERITED_KEYS`) are the couriers' (``couriers/settings.py``): with
 ``inherit: mujoco`` they are read from the task's ``backends.mujoco`` entry, so the two backends
 cannot drift; with ``inherit: holosoma`` from its ``backends.holosoma`` entry
-(:func:`~econmotor.couriers.walker_task.meter_settings`: the constants Holosoma's training terms
+(:func:`~econmotor.locomotion.task.meter_settings`: the constants Holosoma's training terms
 and the sim-to-sim evaluator read, one meter per robot; and the course:
 :data:`HOLOSOMA_COURSE`); without it they may be written here with the same meaning. Both go through
 :func:`~econmotor.couriers.settings.parse_metering_settings`.
@@ -39,8 +39,8 @@ from typing import Any
 
 from econmotor.config.loading import as_int, as_str, check_keys, require_mapping
 from econmotor.couriers.settings import METERING_KEYS, MeteringSettings, parse_metering_settings
-from econmotor.couriers.walker_task import meter_settings, task_settings
 from econmotor.errors import ConfigError
+from econmotor.locomotion.task import meter_settings, task_settings
 from econmotor.tasks.catalog import TaskSpec
 
 #: keys shared with the mujoco backend's entry (the economics of the physics).
@@ -48,7 +48,7 @@ INHERITED_KEYS = METERING_KEYS
 OWN_KEYS = ("inherit", "num_envs", "cpu_num_envs_cap", "cpu_physics", "normalize_obs", "checkpoint_every_steps", "ppo",
             "novelty_table_size", "model_options", "robot", "locomotion")
 INHERITS = ("mujoco", "holosoma")
-#: the holosoma entry's course keys -> the course's (``couriers/course.py``)
+#: the holosoma entry's course keys -> the course's (``locomotion/course.py``)
 HOLOSOMA_COURSE = {"unit_length_m": "leg_m", "dwell_s": "dwell_s", "course_speed_m_per_s": "speed_m_per_s",
                    "sim2sim_legs": "legs"}
 #: ``model_options`` keys; values are validated by :func:`parse_model_options`.
@@ -74,7 +74,7 @@ class MjxTaskSettings:
     model_options: dict[str, Any] = field(default_factory=dict)
     robot: str | None = None  # a robot card (econmotor.robots): the task runs mjx/humanoid_env.py
     locomotion: dict[str, Any] = field(default_factory=dict)
-    course: dict[str, Any] = field(default_factory=dict)  # couriers/course.py CourseSettings keys
+    course: dict[str, Any] = field(default_factory=dict)  # locomotion/course.py CourseSettings keys
     start_joint_noise_rad: float = 0.0  # each joint's start drawn within +- this of the default pose, rad
     source: str = "<catalog>"
 

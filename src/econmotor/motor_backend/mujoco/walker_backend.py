@@ -2,13 +2,13 @@
 
 A task whose ``backends.mujoco`` entry holds ``walker:`` (``tasks/holosoma.yaml``) is a walker task:
 its robot, course, meter and sim-to-sim settings are the task's walker entry (``backends.holosoma``,
-:func:`econmotor.couriers.walker_task.task_settings`), and its ``walker:`` mapping holds the trainer's:
+:func:`econmotor.locomotion.task.task_settings`), and its ``walker:`` mapping holds the trainer's:
 
 - ``econ_gain``: the objective's J against the locomotion terms (reward units per unit of J: the learner
   is paid ``econ_gain`` times each step's increment of the J selection and the report score,
   :func:`econmotor.objectives.loader.running_objective_j`);
 - ``rewards``: Holosoma's locomotion terms the trainer keeps (``{name: {weight, ...params}}``, names in
-  :data:`econmotor.couriers.walker_train.BASE_TERMS`);
+  :data:`econmotor.locomotion.learning.BASE_TERMS`);
 - ``ppo``: the recipe (:class:`~econmotor.motor_backend.mujoco.walker_ppo.WalkerPPOConfig`), under the
   run's ``--hyperparameters``;
 - ``checkpoint_every_s``: wall seconds between checkpoints.
@@ -30,10 +30,10 @@ import numpy as np
 from econmotor.config.datapacks import DatapackConfig, DatapackProvider
 from econmotor.config.loading import as_float
 from econmotor.couriers.onnx_actor import policy_file, read_actor
-from econmotor.couriers.walker_setup import walker_setup
-from econmotor.couriers.walker_task import task_settings
-from econmotor.couriers.walker_train import BASE_TERMS
 from econmotor.errors import ConfigError
+from econmotor.locomotion.conditions import walker_setup
+from econmotor.locomotion.learning import BASE_TERMS
+from econmotor.locomotion.task import task_settings
 from econmotor.motor_backend.base import ProgressFn, StopFn
 from econmotor.motor_backend.capabilities import HeldOutCadence
 from econmotor.motor_backend.mujoco.walker_recipe import WalkerPPOConfig

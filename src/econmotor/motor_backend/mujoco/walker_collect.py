@@ -3,7 +3,7 @@
 Each PPO iteration of :class:`~econmotor.motor_backend.mujoco.walker_training.WalkerTrainingRun` collects
 ``steps_per_iteration`` control steps of every robot, then updates in the trainer's process. Collection is a
 :class:`LocalCollector` (``collect_workers: 1``: the run's one
-:class:`~econmotor.couriers.walker_train.WalkerLearningEnv` in this process, sampling with torch's global
+:class:`~econmotor.locomotion.learning.WalkerLearningEnv` in this process, sampling with torch's global
 generator, as the trainer always did) or a :class:`CollectPool` (``collect_workers: W > 1``), Sample Factory's
 split of the work:
 
@@ -26,7 +26,7 @@ a generator seeded by ``(run seed, w, W, the iteration the workers started at)``
 is what a checkpoint keeps (:meth:`CollectPool.next_seeds`); a run resumed with another worker count starts
 its workers after the highest of them (:func:`resumed_seeds`).
 
-A worker ends when the trainer's process does (:func:`econmotor.couriers.walker_eval.exit_with_parent`, the
+A worker ends when the trainer's process does (:func:`econmotor.locomotion.evaluation.exit_with_parent`, the
 pricing workers' watchdog); it ignores SIGINT (the trainer's Ctrl-C writes a checkpoint and then closes the
 workers itself). A worker that fails or dies is a BackendError in the trainer.
 """
@@ -45,12 +45,12 @@ from typing import Any
 import numpy as np
 import torch
 
-from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_env import WalkerBatch
-from econmotor.couriers.walker_eval import exit_with_parent
-from econmotor.couriers.walker_model import WalkerModel
-from econmotor.couriers.walker_train import WalkerLearningEnv
 from econmotor.errors import BackendError
+from econmotor.locomotion.env import WalkerBatch
+from econmotor.locomotion.evaluation import exit_with_parent
+from econmotor.locomotion.learning import WalkerLearningEnv
+from econmotor.locomotion.model import WalkerModel
+from econmotor.locomotion.stress import Stress
 from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, Rollout, load_layers, mlp
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 

@@ -9,7 +9,7 @@ fall (a reward thousands of times a step's) and to a warm start:
   optimiser moves with the actor's layers (the entropy bonus ``entropy_coef`` optional), clamped after
   every step to at least ``min_std`` so that exploration cannot collapse;
 - **the critic** sees the observation and the env's privileged view
-  (:class:`econmotor.couriers.walker_train.WalkerLearningEnv.privileged`), normalised by running statistics;
+  (:class:`econmotor.locomotion.learning.WalkerLearningEnv.privileged`), normalised by running statistics;
   with ``value_norm`` it predicts returns standardised by their running mean and std (PopArt: when the
   statistics move, its last layer is rescaled so that its values in reward units stay put; the value loss
   is taken in the standardised units, so a fall's return is a few std, not thousands squared);

@@ -2,9 +2,9 @@
 
 What a run does (:class:`WalkerTrainingRun`):
 
-1. builds the env that prices the robot (:class:`~econmotor.couriers.walker_env.WalkerBatch`: the same
+1. builds the env that prices the robot (:class:`~econmotor.locomotion.env.WalkerBatch`: the same
    model, course, stress, meter and fall rule) as a learner's env
-   (:class:`~econmotor.couriers.walker_train.WalkerLearningEnv`: random start points, the step reward);
+   (:class:`~econmotor.locomotion.learning.WalkerLearningEnv`: random start points, the step reward);
 2. starts the actor from an ONNX walker's weights (``--init-policy``) or from scratch, with a fresh
    privileged critic (:mod:`.walker_ppo`);
 3. learns in the shared :class:`~econmotor.motor_backend.training_loop.TrainingLoop` as its
@@ -20,7 +20,7 @@ What a run does (:class:`WalkerTrainingRun`):
    ``checkpoint_every_s`` of wall time, at the end and when interrupted: ``--resume`` continues from it;
 5. held-out selection (:mod:`econmotor.motor_backend.selection`): at its cadence, the actor exported as
    the run's ONNX (``selection/candidate.onnx``) walks held-out seeds of the priced course through the one
-   walker evaluator (:func:`econmotor.couriers.walker_eval.evaluate`, a report's), episode ``i`` under
+   walker evaluator (:func:`econmotor.locomotion.evaluation.evaluate`, a report's), episode ``i`` under
    ``select_stresses[i % len(select_stresses)]`` (the mujoco backend passes the nominal conditions a
    report prices by default and, for a run under a datapack, the training's stress: a look's verdict
    then sees the falls the stress causes); the best by the buyer's verdict, then J, is kept
@@ -48,13 +48,13 @@ import torch
 from econmotor.couriers.onnx_actor import ImportedActor, read_actor
 from econmotor.couriers.onnx_export import export_onnx
 from econmotor.couriers.policy_import import holosoma_export_metadata
-from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_eval import WalkerEvaluation
-from econmotor.couriers.walker_eval import evaluate as evaluate_walkers
-from econmotor.couriers.walker_model import WalkerModel
-from econmotor.couriers.walker_setup import WalkerSetup
-from econmotor.couriers.walker_train import PRIVILEGED_DIM
 from econmotor.economics import courier_formulas as cf
+from econmotor.locomotion.conditions import WalkerSetup
+from econmotor.locomotion.evaluation import WalkerEvaluation
+from econmotor.locomotion.evaluation import evaluate as evaluate_walkers
+from econmotor.locomotion.learning import PRIVILEGED_DIM
+from econmotor.locomotion.model import WalkerModel
+from econmotor.locomotion.stress import Stress
 from econmotor.motor_backend.base import ProgressFn, no_progress
 from econmotor.motor_backend.mujoco import walker_collect as wc
 from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, WalkerPPO
@@ -181,7 +181,7 @@ class WalkerTrainingRun:
 
         The current actor is exported as the run exports its policy (:meth:`export`, into
         :data:`SELECTION_CANDIDATE`, overwritten at every look) and that file is priced by the one walker
-        evaluator (:func:`econmotor.couriers.walker_eval.evaluate`, what a report and the evaluation after
+        evaluator (:func:`econmotor.locomotion.evaluation.evaluate`, what a report and the evaluation after
         training run), on ``select_workers`` processes: a look's episodes are the episodes a report of that
         ONNX under the same seeds and conditions gives."""
         s = self.setup

@@ -43,7 +43,7 @@ def test_the_json_layout_is_the_runners_and_each_job_names_its_log() -> None:
 
 @pytest.mark.parametrize(("change", "key", "words"), [
     (lambda v: v.update(action="dance"), "action", "unknown job action 'dance'"),
-    # the sim-to-sim evaluation runs in the main interpreter now (couriers/walker_eval.py), not as a job
+    # the sim-to-sim evaluation runs in the main interpreter now (locomotion/evaluation.py), not as a job
     (lambda v: v.update(action="sim2sim"), "action", r"unknown job action 'sim2sim'.*evaluate, probe, train"),
     (lambda v: v.pop("seed"), "seed", "missing"),
     (lambda v: v.update(colour="red"), "colour", "not a field of a TrainJob"),

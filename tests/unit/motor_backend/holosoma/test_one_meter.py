@@ -3,7 +3,7 @@
 The same physics steps (joint forces and velocities, the base's pose) go through the training reward terms'
 formulas (``econ_formulas.overlay_term_rates`` on ``cf.mechanical_power_w`` and ``base_tilt_rad``, on numpy
 and on torch, the tensors Holosoma's terms see) and through the evaluator's meter (the batched walker env's
-``WalkerBatch._meter``), each with the constants the backend hands it (``walker_task.meter_settings``
+``WalkerBatch._meter``), each with the constants the backend hands it (``locomotion.task.meter_settings``
 of the task catalog's entry): every step's energy and risk agree, idle power and the tilt margin included.
 
 The evaluator meters a control step's ``[B, decimation]`` physics steps at once; on physics steps recorded
@@ -20,13 +20,13 @@ import mujoco
 import numpy as np
 import pytest
 
-from econmotor.couriers.course import CourseSettings
 from econmotor.couriers.physics import root_tilt_rad
-from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_env import WalkerBatch
-from econmotor.couriers.walker_model import WalkerModel
-from econmotor.couriers.walker_task import MeterSettings, meter_constants, meter_settings, task_settings
 from econmotor.economics import courier_formulas as cf
+from econmotor.locomotion.course import CourseSettings
+from econmotor.locomotion.env import WalkerBatch
+from econmotor.locomotion.model import WalkerModel
+from econmotor.locomotion.stress import Stress
+from econmotor.locomotion.task import MeterSettings, meter_constants, meter_settings, task_settings
 from econmotor.motor_backend.holosoma.econ_formulas import (
     base_tilt_rad,
     overlay_term_rates,

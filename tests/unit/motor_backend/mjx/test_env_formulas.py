@@ -14,9 +14,9 @@ import pytest
 
 from econmotor.config.datapacks import DatapackConfig
 from econmotor.couriers import overlay, physics
-from econmotor.couriers.walker_task import meter_settings, task_settings
 from econmotor.economics import courier_formulas as cf
 from econmotor.errors import ConfigError
+from econmotor.locomotion.task import meter_settings, task_settings
 from econmotor.motor_backend.mjx import env as mjx_env
 from econmotor.motor_backend.mjx.settings import HOLOSOMA_COURSE, INHERITED_KEYS, parse_mjx_settings
 from econmotor.motor_backend.mjx.wrappers import make_env

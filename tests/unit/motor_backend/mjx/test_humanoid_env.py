@@ -10,7 +10,7 @@
 - Holosoma's shipped G1 PPO walker (its ONNX, run by onnxruntime) driven by the MJX G1 env, on
   the catalog's model options (the ones training runs), walks: no fall over a short episode, and
   its speed is within 15% of what the sim-to-sim evaluator (the batched MuJoCo walker env,
-  ``couriers.walker_eval``, in this interpreter) measures on the same course.
+  ``locomotion.evaluation``, in this interpreter) measures on the same course.
 
 One jitted env per robot and model options for the whole module (compiling a humanoid's step
 takes minutes of CPU); its episode is short (:data:`EPISODE_S`) so the walker's episode ends at its step limit.
@@ -27,12 +27,12 @@ import numpy as np
 import pytest
 
 from econmotor.couriers.policy_import import resolve_contract
-from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_env import WalkerBatch
-from econmotor.couriers.walker_eval import WalkerEvaluation, evaluate
-from econmotor.couriers.walker_model import WalkerModel
-from econmotor.couriers.walker_task import MeterSettings
 from econmotor.economics.termination import TerminationReason
+from econmotor.locomotion.env import WalkerBatch
+from econmotor.locomotion.evaluation import WalkerEvaluation, evaluate
+from econmotor.locomotion.model import WalkerModel
+from econmotor.locomotion.stress import Stress
+from econmotor.locomotion.task import MeterSettings
 from econmotor.motor_backend.mjx.assets import apply_model_options
 from econmotor.robots.model import joint_indices, load_model
 
@@ -243,7 +243,7 @@ def test_holosomas_shipped_g1_walker_walks_in_the_mjx_env() -> None:
 
 def test_training_episodes_start_at_random_points_of_the_course() -> None:
     """``random_start``: the base placed along the course (in a dwell at a leg's end, or part-way along a leg),
-    the course's state and the time spent so far set as :func:`couriers.walker_train.course_point` says."""
+    the course's state and the time spent so far set as :func:`locomotion.learning.course_point` says."""
     from econmotor.motor_backend.mjx.humanoid_env import HumanoidWalkerEnv
     from econmotor.motor_backend.mjx.wrappers import make_env
 

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from econmotor.config.datapacks import DatapackBundle, DatapackProvider, load_datapack_configs
-from econmotor.couriers import locomotion_rewards as lr
-from econmotor.couriers.stress import Stress
 from econmotor.errors import ConfigError
+from econmotor.locomotion import rewards as lr
+from econmotor.locomotion.stress import Stress
 from econmotor.motor_backend.mjx.humanoid_env import (
     HUMANOID_LACKS,
     HumanoidWalkerEnv,

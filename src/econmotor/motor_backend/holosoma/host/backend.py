@@ -2,32 +2,32 @@
 
 Holosoma pins numpy<2, so it lives in its own interpreter (``make holosoma`` builds
 ``.venv-holosoma`` from ``requirements-holosoma.txt``, econmotor included). This module
-only plans and launches jobs there (:mod:`.holosoma.jobs`); it imports neither Holosoma
+only plans and launches jobs there (:mod:`.jobs`); it imports neither Holosoma
 nor torch, so it works in the main environment without Holosoma installed.
 
 Task map: a task's ``backends.holosoma`` catalog entry names its robot card and Holosoma's experiment
 preset per algorithm (``humanoid_locomotion_g1`` -> ``g1_29dof`` / ``g1_29dof_fast_sac``, ...;
-:func:`econmotor.couriers.walker_task.task_settings`).
+:func:`econmotor.locomotion.task.task_settings`).
 
 - **train_policy**: the objective compiles to overlay scales; each overlay key with a
   simulator term becomes a Holosoma reward term weighted ``overlay_gain * scale``
-  (:mod:`.reward_terms`); datapacks become randomization / curriculum / terrain /
-  motion-file overrides (:mod:`.holosoma.datapack_mapping`); ``max_steps`` counts
-  environment steps and is adapted to the simulator (:mod:`.holosoma.plan`, every change
+  (:mod:`econmotor.motor_backend.holosoma.venv.reward_terms`); datapacks become randomization / curriculum / terrain /
+  motion-file overrides (:mod:`econmotor.couriers.datapack_mapping`); ``max_steps`` counts
+  environment steps and is adapted to the simulator (:mod:`.plan`, every change
   announced as a ``holosoma: ...`` progress label and kept in ``config["messages"]``).
   Then ``eval_episodes`` episodes are evaluated.
-- **evaluate_policy**: locomotion tasks, the sim-to-sim evaluator (:mod:`econmotor.couriers.walker_eval`:
+- **evaluate_policy**: locomotion tasks, the sim-to-sim evaluator (:mod:`econmotor.locomotion.evaluation`:
   the policy's ONNX walking a delivery course in plain MuJoCo in this interpreter, metered by the
   couriers' formulas), for a
   run trained here and for an imported policy alike; whole-body tracking, Holosoma's ``eval_agent``
   with its recording callback (extended), raw metrics per episode from the recording
-  (:mod:`.holosoma.recording_metrics`).
+  (:mod:`.recording_metrics`).
 - **deploy_policy_handle**: the onnxruntime handle (:mod:`econmotor.motor_backend.onnx_policy`) over
   Holosoma's exported ONNX, carrying Holosoma's metadata (``dof_names``, ``kp``, ``kd``, ``action_scale``, ...) and
   ours (``econmotor_*``: task, objective, overlay weights, task economics).
 
 ``output_dir`` is the run directory (default: a new one under ``runs_dir``); a trained run holds
-``run_config.json`` and ``policy.onnx`` (:mod:`.holosoma.host.run_record`). ``policy_id`` names that
+``run_config.json`` and ``policy.onnx`` (:mod:`.run_record`). ``policy_id`` names that
 directory, or an imported policy: an ONNX file in Holosoma's export format or a shipped one,
 ``holosoma:<robot>/<algo>`` (:mod:`econmotor.couriers.policy_import`).
 """
@@ -49,11 +49,11 @@ from econmotor.couriers.policy_import import (
     find_shipped_policy,
     is_imported_policy,
 )
-from econmotor.couriers.walker_task import (
+from econmotor.errors import BackendError, ConfigError
+from econmotor.locomotion.task import (
     meter_settings,
     task_settings,
 )
-from econmotor.errors import BackendError, ConfigError
 from econmotor.motor_backend.base import MotorBackendBase, ProgressFn, StopFn, no_progress
 from econmotor.motor_backend.capabilities import BackendCapabilities, RunSize
 from econmotor.motor_backend.holosoma.econ_formulas import OVERLAY_TERM_KEYS
@@ -270,7 +270,7 @@ class HolosomaBackend(MotorBackendBase):
         ``holosoma:<robot>/<algo>``); episode ``i`` is seeded ``seed + i``; ``stop`` as the contract's
         (sim-to-sim: every :meth:`evaluation_batch` episodes finished in order).
 
-        Locomotion tasks: the sim-to-sim evaluator (:mod:`econmotor.couriers.walker_eval`) on the
+        Locomotion tasks: the sim-to-sim evaluator (:mod:`econmotor.locomotion.evaluation`) on the
         policy's ONNX, the same for a policy trained here and one trained elsewhere. Whole-body tracking
         (a motion clip): Holosoma's eval_agent with recording, for run directories trained here.
         """

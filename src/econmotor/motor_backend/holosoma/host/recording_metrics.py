@@ -1,6 +1,6 @@
 """Per-episode raw metrics from a Holosoma evaluation recording (numpy only).
 
-The recording (:mod:`.recording`) holds one row per control step of env 0. Episodes
+The recording (:mod:`econmotor.motor_backend.holosoma.venv.recording`) holds one row per control step of env 0. Episodes
 are split where ``reset`` is set (a fall or a time-out); the first ``num_episodes``
 episodes are kept (a last, unfinished one counts when fewer finished). Per episode,
 with ``dt`` the control step (s) and the same formulas and constants as the training reward terms
@@ -25,10 +25,10 @@ from typing import Any
 
 import numpy as np
 
-from econmotor.couriers.walker_task import meter_constants
 from econmotor.economics import courier_formulas as cf
 from econmotor.economics.termination import TerminationReason
 from econmotor.errors import BackendError
+from econmotor.locomotion.task import meter_constants
 from econmotor.motor_backend.holosoma.econ_formulas import (
     base_tilt_rad,
     commanded_progress_m_per_s,
@@ -42,7 +42,7 @@ REQUIRED_CHANNELS = ("dof_pos", "torques_substep", "dof_vel_substep", "root_quat
 
 def step_series(data: Any, settings: Mapping[str, Any], meter: Mapping[str, float]) -> dict[str, np.ndarray]:
     """Per-step progress (units/s), electrical power (W), fall flag, risk and novelty of a recording
-    (``meter``: the courier meter's settings, :func:`econmotor.couriers.walker_task.meter_settings`)."""
+    (``meter``: the courier meter's settings, :func:`econmotor.locomotion.task.meter_settings`)."""
     c = meter_constants(meter, 0.0)  # the control step does not enter power or risk
     steps = len(data["dof_pos"])
     if settings["progress_mode"] == "time":
@@ -80,7 +80,7 @@ def episode_bounds(reset: np.ndarray, num_episodes: int) -> list[tuple[int, int]
 def episodes_from_recording(path: str | Path, settings: Mapping[str, Any], meter: Mapping[str, float],
                             num_episodes: int) -> list[dict[str, Any]]:
     """Raw metrics of each evaluation episode in the recording (see the module docstring); ``settings``: the
-    run's Holosoma settings, ``meter``: its courier meter's (:func:`econmotor.couriers.walker_task.meter_settings`)."""
+    run's Holosoma settings, ``meter``: its courier meter's (:func:`econmotor.locomotion.task.meter_settings`)."""
     try:
         with np.load(path, allow_pickle=False) as npz:
             missing = [c for c in REQUIRED_CHANNELS if c not in npz.files]

@@ -23,7 +23,7 @@ each step (see :func:`econmotor.motor_backend.holosoma.econ_formulas.overlay_ter
 - novelty: distance of the joint configuration from its running statistics.
 
 Power and risk are the sim-to-sim evaluator's meter (:mod:`econmotor.economics.courier_formulas`) with
-the evaluator's constants (``params["meter"]``, the task catalog's: ``walker_task.meter_settings``).
+the evaluator's constants (``params["meter"]``, the task catalog's: ``locomotion.task.meter_settings``).
 
 All econ terms of one env share one computation per step: the first term the manager
 calls (the "leader") computes every rate, the others read them.
@@ -39,7 +39,7 @@ from holosoma.managers.observation.terms.locomotion import get_base_lin_vel
 from holosoma.managers.reward.base import RewardTermBase
 
 from econmotor.economics import courier_formulas as cf
-from econmotor.couriers.walker_task import meter_constants
+from econmotor.locomotion.task import meter_constants
 from econmotor.motor_backend.holosoma.econ_formulas import (
     OVERLAY_TERM_KEYS,
     base_tilt_rad,
@@ -124,7 +124,7 @@ class EconOverlayTerm(RewardTermBase):
     """One overlay key as a stateful Holosoma reward term (raw, unweighted value).
 
     Params (``RewardTermCfg.params``): ``key`` (one of :data:`SUPPORTED_KEYS`), ``meter`` (the
-    courier meter's constants, ``walker_task.meter_settings``: ``leg_distance_m`` metres per unit of
+    courier meter's constants, ``locomotion.task.meter_settings``: ``leg_distance_m`` metres per unit of
     work, ``drivetrain_efficiency``, ``idle_power_w``, ``tilt_margin_rad``, ``fall_tilt_rad``),
     ``unit_duration_s`` (seconds per unit in ``"time"`` mode), ``progress_mode`` (``"velocity"`` |
     ``"time"``), ``novelty_rate``, ``winding_heat_w_per_nm2`` (the robot card's motor model per joint,

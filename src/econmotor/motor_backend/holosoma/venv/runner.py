@@ -1,6 +1,6 @@
 """The job runner: ``python -m econmotor.motor_backend.holosoma.venv.runner JOB.json`` in .venv-holosoma.
 
-A job is one of :mod:`.job_specs`' dataclasses, written as JSON by :mod:`.jobs` in the main
+A job is one of :mod:`.job_specs`' dataclasses, written as JSON by :mod:`.host.jobs` in the main
 interpreter and parsed here once (:func:`.job_specs.parse_job`; a bad job is a ConfigError the caller
 raises again):
 

@@ -1,6 +1,6 @@
 """The batched walker env as a learner sees it: random start points, the step reward and a critic's view.
 
-:class:`WalkerLearningEnv` drives a :class:`~econmotor.couriers.walker_env.WalkerBatch` (the env that
+:class:`WalkerLearningEnv` drives a :class:`~econmotor.locomotion.env.WalkerBatch` (the env that
 prices the G1 and T1: the same model, course, stress, meter and fall rule) for a trainer:
 
 - **episodes start at random points of the course** (Holosoma's random episode start times): a leg
@@ -9,7 +9,7 @@ prices the G1 and T1: the same model, course, stress, meter and fall rule) for a
   (:func:`start_point`); an episode then runs to the course's end, a fall or the time limit, so
   the learner practises standing starts, dwells and every leg the priced course has;
 - **the step reward** ``r = sum_k w_k term_k dt + gain * (J_T(t) - J_T(t - 1))``: Holosoma's locomotion
-  terms that a base-state reading supports (:data:`BASE_TERMS`, :mod:`econmotor.couriers.locomotion_rewards`)
+  terms that a base-state reading supports (:data:`BASE_TERMS`, :mod:`econmotor.locomotion.rewards`)
   plus ``gain`` times the increment of the objective's J, the very J selection and the report score an
   episode by (:func:`econmotor.objectives.loader.running_objective_j` on the meter's running sums, from
   ``J = 0`` at the episode's start). While the episode runs its rates are taken over ``T``, the episode's
@@ -38,10 +38,10 @@ from typing import Any
 
 import numpy as np
 
-from econmotor.couriers import course as crs
-from econmotor.couriers import locomotion_rewards as lr
-from econmotor.couriers.walker_env import WalkerBatch
 from econmotor.economics import courier_formulas as cf
+from econmotor.locomotion import course as crs
+from econmotor.locomotion import rewards as lr
+from econmotor.locomotion.env import WalkerBatch
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.objectives.loader import running_objective_j
 from econmotor.robots.observation import projected_gravity, rotate_inverse

@@ -1,4 +1,4 @@
-"""The delivery course (couriers/course.py): hand-worked commands, the same in NumPy, in jitted JAX and over a batch.
+"""The delivery course (locomotion/course.py): hand-worked commands, the same in NumPy, in jitted JAX and over a batch.
 
 The course is one set of pure functions, run in NumPy by the batched MuJoCo walker env (a batch of
 robots at once) and in JAX inside the ``mjx`` humanoid couriers' compiled step. Held here:
@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from econmotor.couriers.course import (
+from econmotor.locomotion.course import (
     CourseSettings,
     CourseState,
     course_command,

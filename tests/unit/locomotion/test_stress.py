@@ -17,10 +17,10 @@ from pathlib import Path
 import pytest
 
 from econmotor.config.datapacks import DatapackConfig, DatapackProvider, MotionClipRef, load_datapack_configs
-from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_setup import walker_setup
-from econmotor.couriers.walker_task import task_settings
 from econmotor.errors import ConfigError
+from econmotor.locomotion.conditions import walker_setup
+from econmotor.locomotion.stress import Stress
+from econmotor.locomotion.task import task_settings
 from econmotor.robots import G1_29DOF
 from econmotor.tasks import get_task
 

@@ -15,9 +15,9 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from econmotor.config.loading import as_float
-from econmotor.couriers.course import CourseSettings
 from econmotor.economics import courier_formulas as cf
 from econmotor.errors import ConfigError
+from econmotor.locomotion.course import CourseSettings
 from econmotor.robots import CARDS
 from econmotor.robots import card as robot_card
 
@@ -109,7 +109,7 @@ def meter_settings(task_id: str, settings: Mapping[str, Any], source: str) -> di
 
 
 def meter_constants(meter: Mapping[str, float], dt_s: float) -> cf.MeterConstants:
-    """The courier meter's constants from a task's meter settings (``walker_task.meter_settings``: ``leg_distance_m``,
+    """The courier meter's constants from a task's meter settings (:func:`meter_settings`: ``leg_distance_m``,
     ``drivetrain_efficiency``, ``idle_power_w``, ``tilt_margin_rad``, ``fall_tilt_rad``), metering steps of ``dt_s``."""
     return cf.MeterConstants(leg_distance_m=float(meter["leg_distance_m"]),
                              drivetrain_efficiency=float(meter["drivetrain_efficiency"]),

@@ -6,7 +6,7 @@ the couriers' shared formulas (:func:`econmotor.economics.courier_formulas.meter
 
 - **the model**: the card's (:func:`econmotor.robots.model.model_spec`: the maker's MJCF, the floor,
   the maker's collision filter, the physics step), with the PD law inside MuJoCo's actuators
-  (:func:`.walker_model.pd_actuator_spec`: gain ``kp`` on the target, bias ``-kp q - kd qd``, force range the
+  (:func:`.model.pd_actuator_spec`: gain ``kp`` on the target, bias ``-kp q - kd qd``, force range the
   effort limits): ``tau = clip(kp (target - q) - kd qd, -limit, limit)`` at every physics step,
   exactly the law Holosoma's simulators apply, computed in C. Each slot has its own model copy,
   so its friction, payload and gains are its episode's draws.
@@ -46,13 +46,13 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from econmotor.couriers import course as crs
 from econmotor.couriers.physics import has_fallen, quat_tilt_rad
-from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_model import FULL_STATE, WalkerModel, set_pd_gains
-from econmotor.couriers.walker_task import MeterSettings
 from econmotor.economics import courier_formulas as cf
 from econmotor.economics.termination import TerminationReason
+from econmotor.locomotion import course as crs
+from econmotor.locomotion.model import FULL_STATE, WalkerModel, set_pd_gains
+from econmotor.locomotion.stress import Stress
+from econmotor.locomotion.task import MeterSettings
 from econmotor.robots import observation as robot_obs
 
 #: the meter's running sums a walker keeps (no novelty or pose tracking on the course)
@@ -80,7 +80,7 @@ class WalkerBatch:
         course: the delivery course; ``command_ranges``: the policy's (caps the speed and yaw rate).
         meter: the meter's constants; ``stress``: the per-episode conditions.
         episode_s: the time limit, s; ``num_slots``: robots stepped together (one after another, in this
-            thread: one process per core runs more, :mod:`.walker_eval`).
+            thread: one process per core runs more, :mod:`.evaluation`).
     """
 
     def __init__(self, walker: WalkerModel, course: crs.CourseSettings, meter: MeterSettings, stress: Stress,

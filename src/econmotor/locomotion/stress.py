@@ -1,7 +1,7 @@
 """The stress a walker is trained and priced under: a datapack's conditions, drawn per episode.
 
 :meth:`Stress.from_datapacks` reads the datapack schema's own keys (:mod:`econmotor.config.datapacks`)
-for both walker envs, the MuJoCo C one (:mod:`.walker_env`, through :mod:`.walker_setup`) and the MJX
+for both walker envs, the MuJoCo C one (:mod:`.env`, through :mod:`.conditions`) and the MJX
 one (:mod:`econmotor.motor_backend.mjx.humanoid_env`). ``domain_randomization`` keys:
 
 ============================  ======================================================================

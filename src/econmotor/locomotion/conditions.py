@@ -1,7 +1,7 @@
 """What prices (and trains) a card robot on a walker task: its policy contract, course, meter and stress.
 
 :func:`walker_setup` reads them from the task catalog's walker entry (``backends.holosoma``:
-:func:`econmotor.couriers.walker_task.task_settings`) and the datapacks, for every backend that runs
+:func:`econmotor.locomotion.task.task_settings`) and the datapacks, for every backend that runs
 the batched walker env (the holosoma backend's sim-to-sim evaluation, the mujoco backend's CPU trainer
 and its evaluation): one reading, so what a policy is trained on is what it is priced on.
 """
@@ -13,11 +13,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from econmotor.couriers.course import CourseSettings
 from econmotor.couriers.policy_import import PolicyContract, resolve_contract
-from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_task import SIM2SIM_KEYS, MeterSettings, course_settings, meter_settings
 from econmotor.errors import ConfigError
+from econmotor.locomotion.course import CourseSettings
+from econmotor.locomotion.stress import Stress
+from econmotor.locomotion.task import SIM2SIM_KEYS, MeterSettings, course_settings, meter_settings
 from econmotor.robots import card as robot_card
 from econmotor.robots.card import RobotCard
 

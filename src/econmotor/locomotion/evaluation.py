@@ -3,7 +3,7 @@
 :func:`evaluate` runs ``num_episodes`` episodes (episode ``i`` seeded ``seed + i``) of an ONNX walker
 (a Holosoma-format file or a shipped ``holosoma:<robot>/<algo>``) on the course, episode ``i`` under
 ``conditions[i % len(conditions)]`` (:attr:`WalkerEvaluation.conditions`: the stress alone, or the stress
-and the ones it alternates with), through :class:`~econmotor.couriers.walker_env.WalkerBatch`. It is the
+and the ones it alternates with), through :class:`~econmotor.locomotion.env.WalkerBatch`. It is the
 one walker evaluator: a report's and the evaluation after training's (``motor_backend/walker_pricing.py``)
 and the mujoco trainer's held-out looks (its actor exported to ONNX first) call it:
 
@@ -13,7 +13,7 @@ and the mujoco trainer's held-out looks (its actor exported to ONNX first) call 
   observation, policy, meter) runs beside the physics on each core, instead of one core's Python
   holding both threads back (``benchmarks/walker_throughput.py`` measures both; docs/architecture.md).
 - a worker whose episodes fall under several conditions steps one batch of robots per condition, a control
-  step of each in turn (:func:`~econmotor.couriers.walker_env.run_batches`), so every condition's robots stay
+  step of each in turn (:func:`~econmotor.locomotion.env.run_batches`), so every condition's robots stay
   busy and its episodes end in about their index order.
 - every ``batch`` episodes finished in order, ``stop(episodes)`` may end the evaluation (a sequential
   verdict); the workers are then stopped. An episode's figures depend on its seed only.
@@ -37,13 +37,13 @@ from typing import Any
 
 import numpy as np
 
-from econmotor.couriers.course import CourseSettings
 from econmotor.couriers.policy_import import PolicyContract, batched_onnx_policy, resolve_contract
-from econmotor.couriers.stress import Stress
-from econmotor.couriers.walker_env import WalkerBatch, run_batches
-from econmotor.couriers.walker_model import WalkerModel
-from econmotor.couriers.walker_task import MeterSettings
 from econmotor.errors import BackendError
+from econmotor.locomotion.course import CourseSettings
+from econmotor.locomotion.env import WalkerBatch, run_batches
+from econmotor.locomotion.model import WalkerModel
+from econmotor.locomotion.stress import Stress
+from econmotor.locomotion.task import MeterSettings
 
 #: robots stepped together per worker: the Python of a control step (course, observation, policy, meter)
 #: amortised over them (benchmarks/walker_throughput.py: 0.74 of raw mj_step on two cores at 16, 0.69 at

@@ -1,6 +1,6 @@
 """The delivery course as pure functions of an array namespace ``xp`` (NumPy, or JAX in a jitted step).
 
-One implementation for every caller: the batched MuJoCo walker env (:mod:`.walker_env`, NumPy
+One implementation for every caller: the batched MuJoCo walker env (:mod:`.env`, NumPy
 arrays over its robots) and the ``mjx`` humanoid couriers (JAX, inside their compiled step) run
 the same lines on the settings :class:`CourseSettings`:
 
