@@ -23,6 +23,7 @@ from pathlib import Path
 import pytest
 
 from econmotor.config.datapacks import load_datapack_configs
+from econmotor.locomotion.conditions import walker_setup
 from econmotor.motor_backend.holosoma.host.backend import HolosomaBackend
 from econmotor.motor_backend.mujoco import walker_backend as wb
 from econmotor.motor_backend.mujoco.backend import MujocoBackend
@@ -50,10 +51,13 @@ def test_selection_the_evaluation_after_training_and_a_report_price_the_same_epi
     objective = EconomicObjectiveSpec()
     selection = Selection(spec, objective, SelectionConfig(every_steps=1, episodes=EPISODES, seed=SEED, batch=LOOK))
     run_dir = tmp_path / "run"
+    readings = []  # the run reads the task's conditions once (its held-out nominal conditions come with them)
+    monkeypatch.setattr(wb, "walker_setup", lambda *a, **k: readings.append(a) or walker_setup(*a, **k))
     run, config = wb.walker_run(spec, objective, [pack], run_dir, num_envs=4, max_steps=1, seed=SEED,
                                 init_policy=POLICY, hyperparameters=None, selection=selection, resume=False,
                                 max_wall_s=None, described={})
     assert config["selection_conditions"] == ["nominal", "humanoid_stress"]
+    assert len(readings) == 1
 
     looks: list[list[dict]] = []
     learner, first = run.learner(), selection.config.first_seed

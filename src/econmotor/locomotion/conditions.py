@@ -9,7 +9,7 @@ and its evaluation): one reading, so what a policy is trained on is what it is p
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +34,9 @@ class WalkerSetup:
     episode_s: float
     notes: tuple[str, ...]
     datapack_ids: tuple[str, ...]
+    #: the conditions without the datapacks (the catalog's start-pose noise only): what a report prices by
+    #: default, and what a training run's held-out looks alternate with its stress
+    nominal_stress: Stress = field(default_factory=Stress)
 
 
 def stress_notes(stress: Stress) -> list[str]:
@@ -73,4 +76,5 @@ def walker_setup(spec: Any, settings: Mapping[str, Any], bundle: Any, packs: Seq
     stress = Stress.from_datapacks(datapacks, card.push_preset, noise, refuse_unapplied=False)
     return WalkerSetup(contract=contract, card=card, course=course, meter=MeterSettings(**meter), stress=stress,
                        episode_s=float(episode_s or settings["sim2sim_episode_s"]), notes=tuple(stress_notes(stress)),
-                       datapack_ids=tuple(bundle.datapack_ids))
+                       datapack_ids=tuple(bundle.datapack_ids),
+                       nominal_stress=Stress.from_datapacks([], card.push_preset, noise))

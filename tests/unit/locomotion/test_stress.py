@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -141,3 +142,22 @@ def test_the_walker_setup_names_the_pack_of_a_key_among_several() -> None:
     assert setup.stress.friction_range == (0.5, 1.0)
     assert setup.stress.ignored == ("b.yaml: domain_randomization.link_mass_range (a walker env scales no link "
                                     "masses)",)
+
+
+def test_the_setup_carries_its_nominal_conditions(tmp_path: Path) -> None:
+    """The conditions without the datapacks come with a setup (a training run's held-out looks alternate them
+    with its stress): those a setup without datapacks has, the catalog's start noise even where a pack sets
+    its own."""
+    pack = tmp_path / "noisy.yaml"
+    text = (DATAPACKS / "humanoid_stress.yaml").read_text()
+    pack.write_text(re.sub(r"initial_joint_noise_rad: [0-9.]+", "initial_joint_noise_rad: 0.2", text))
+    spec = get_task("humanoid_locomotion_g1")
+    settings = task_settings(spec.task_id, spec.backend_entry("holosoma"), spec.source)
+    none = walker_setup(spec, settings, DatapackProvider().resolve(spec.task_id, [], []), [], None)
+    for path in (DATAPACKS / "humanoid_stress.yaml", pack):
+        packs = load_datapack_configs([path])
+        setup = walker_setup(spec, settings, DatapackProvider().resolve(spec.task_id, [p.id for p in packs], packs),
+                             packs, None)
+        assert setup.nominal_stress == none.stress == none.nominal_stress == NOMINAL
+        assert setup.stress != setup.nominal_stress
+    assert setup.stress.initial_joint_noise_rad == 0.2

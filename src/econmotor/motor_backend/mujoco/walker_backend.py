@@ -123,8 +123,6 @@ def walker_run(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[Any]
     init = read_actor(policy_file(init_policy), init_policy) if init_policy else None
     setup = walker_setup(spec, settings, bundle, list(packs), str(init.path) if init else None,
                          init_policy)
-    nominal = walker_setup(spec, settings, DatapackProvider().resolve(spec.task_id, [], []), [], None) \
-        if packs else setup
     ppo = {**trainer.ppo, **dict(hyperparameters or {})}
     if num_envs > 0:
         ppo["num_envs"] = num_envs
@@ -159,7 +157,8 @@ def walker_run(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[Any]
         selection=selection, metadata=_onnx_metadata(config),
         kp=np.asarray(c.kp) if c else None, kd=np.asarray(c.kd) if c else None,
         command_ranges=c.command_ranges if c else None,
-        select_stresses=(nominal.stress, setup.stress) if packs else (nominal.stress,), collect_workers=workers)
+        select_stresses=(setup.nominal_stress, setup.stress) if packs else (setup.nominal_stress,),
+        collect_workers=workers)
     config["collect_workers"] = run.collect_workers  # a seed's rollouts depend on how the robots are split
     return run, config
 
