@@ -112,3 +112,46 @@ def test_the_cpu_trainers_export_loads_and_acts_in_holosoma_inference(tmp_path: 
         here = batched_onnx_policy(resolve_contract(str(path)))(obs)
         np.testing.assert_allclose(np.asarray(got["actions"]), here, rtol=1e-5, atol=1e-5)
         assert got["contract"]["dof_names"] == list(G1_29DOF.dof_names)
+
+
+def test_a_fine_tune_started_from_fastsac_exports_what_holosoma_inference_loads(tmp_path: Path) -> None:
+    """The mujoco walker trainer's export of an actor started from the shipped G1 FastSAC walker (its normaliser,
+    layer norms and tanh head) loads in holosoma_inference's loader: before any update it acts as the shipped
+    file there; moved as updates move it, it acts as the torch actor."""
+    import torch
+
+    from econmotor.couriers.policy_import import resolve_contract
+    from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic
+    from econmotor.motor_backend.mujoco.walker_recipe import WalkerPPOConfig
+    from econmotor.motor_backend.mujoco.walker_training import export_walker
+
+    name = "holosoma:g1_29dof/fastsac"
+    shipped = shipped_policy_path(name, find_holosoma_python(REPO / ".venv-holosoma"))
+    actor = read_actor(shipped, name)
+    contract = resolve_contract(str(shipped))
+    net = ActorCritic.from_actor(actor, 9, WalkerPPOConfig())
+    export = lambda path: export_walker(net.network(), G1_29DOF, np.asarray(contract.kp), np.asarray(contract.kd),
+                                        contract.command_ranges, actor.activation, path,
+                                        {"task_id": "humanoid_locomotion_g1", "init_policy": {"policy": name}})
+    start = export(tmp_path / "start.onnx")
+    with torch.no_grad():
+        g = torch.Generator().manual_seed(0)
+        for p in net.actor.parameters():
+            p.add_(0.02 * torch.randn(p.shape, generator=g))
+    moved = export(tmp_path / "moved.onnx")
+    obs = np.random.default_rng(2).normal(0.0, 0.5, size=(16, actor.obs_dim)).astype(np.float32)
+    np.save(tmp_path / "obs.npy", obs)
+    got = in_holosoma(LOAD, str(start), str(shipped), str(tmp_path / "obs.npy"))
+    mine, theirs = got["ours"], got["shipped"]
+    assert (mine["inputs"], mine["outputs"]) == (["actor_obs"], ["action"]) == (theirs["inputs"], theirs["outputs"])
+    assert np.abs(np.asarray(mine["actions"]) - np.asarray(theirs["actions"])).max() < 1e-4
+    assert np.std(theirs["actions"]) > 0.1
+    assert mine["kp"] == theirs["kp"] and mine["kd"] == theirs["kd"]
+    assert mine["contract"]["preset"] == "g1-29dof-loco" and mine["contract"]["obs_dim"] == 100
+    assert mine["contract"]["dof_names"] == theirs["contract"]["dof_names"]
+    assert mine["contract"]["command_ranges"] == theirs["contract"]["command_ranges"]
+    got = in_holosoma(LOAD, str(moved), str(shipped), str(tmp_path / "obs.npy"))["ours"]
+    with torch.no_grad():
+        torch_actions = net.actor(torch.from_numpy(obs)).numpy()
+    assert np.abs(np.asarray(got["actions"]) - torch_actions).max() < 1e-4
+    assert np.abs(np.asarray(got["actions"]) - np.asarray(theirs["actions"])).max() > 1e-3  # it did move

@@ -56,8 +56,9 @@ RECIPE = {"num_envs": 6, "steps_per_iteration": 40, "num_minibatches": 2, "num_e
           "critic_warmup_iterations": 0, "critic_hidden_sizes": [32, 32]}
 
 
-def _run(run_dir: Path, workers: int, seed: int = 3, max_steps: int = 10**9, **recipe) -> WalkerTrainingRun:
-    contract = resolve_contract(POLICY)
+def _run(run_dir: Path, workers: int, seed: int = 3, max_steps: int = 10**9, policy: str = POLICY, **recipe
+         ) -> WalkerTrainingRun:
+    contract = resolve_contract(policy)
     setup = WalkerSetup(contract=contract, card=contract.card, course=COURSE, meter=METER,
                         stress=Stress(friction_range=(0.5, 1.0), payload_kg_range=(0.0, 3.0)), episode_s=3.0,
                         notes=(), datapack_ids=())
@@ -65,7 +66,7 @@ def _run(run_dir: Path, workers: int, seed: int = 3, max_steps: int = 10**9, **r
         run_dir=run_dir, setup=setup, cfg=WalkerPPOConfig.from_mapping({**RECIPE, **recipe}),
         objective=objective_from_vector(ObjectiveVector.from_preset("energy_saver"), "energy_saver"),
         economics=get_task("humanoid_locomotion_g1").economics, gain=2.0, weights=WEIGHTS, params={}, seed=seed,
-        max_steps=max_steps, init=read_actor(policy_file(POLICY), POLICY), kp=np.asarray(contract.kp),
+        max_steps=max_steps, init=read_actor(policy_file(policy), policy), kp=np.asarray(contract.kp),
         kd=np.asarray(contract.kd), command_ranges=contract.command_ranges, checkpoint_every_s=1e9,
         collect_workers=workers)
 
@@ -110,6 +111,23 @@ def test_two_workers_collect_what_one_process_does(tmp_path: Path) -> None:
     assert shapes[1] == shapes[2]
     assert shapes[2]["obs"][:2] == (40, 6) and shapes[2]["last"] == (6,)
     assert counted[1][1] == counted[2][1]  # the same reward parts
+
+
+def test_workers_started_from_fastsac_act_with_the_trainers_moved_actor(tmp_path: Path) -> None:
+    """From the shipped FastSAC walker, each worker rebuilds its actor (normaliser, layer norms, tanh head) from
+    what it is sent and reloads it after an update: the means it sampled around are the trainer's actor's."""
+    learner = WalkerLearner(_run(tmp_path, 2, policy="holosoma:g1_29dof/fastsac"))
+    try:
+        net = learner.ppo.net
+        for _ in range(2):
+            rollout, last_value, *_ = learner.collect()
+            with torch.no_grad():
+                np.testing.assert_allclose(rollout.means.numpy(), net.actor(rollout.obs).numpy(), atol=1e-5)
+            assert torch.isfinite(last_value).all()
+            stats = learner.ppo.update(rollout, last_value)
+            assert stats["kl"] > 0.0  # the actor moved: the next chunk is collected by the moved actor
+    finally:
+        learner.close()
 
 
 def test_two_workers_are_reproducible(tmp_path: Path) -> None:

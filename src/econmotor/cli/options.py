@@ -49,7 +49,8 @@ EVAL_MAX_SECONDS_OPTION = typer.Option(None, "--eval-max-seconds", help="Cap on 
                                        "seconds, checked at each look (default 900).")
 INIT_POLICY_OPTION = typer.Option(
     None, "--init-policy", help="Start from a walker that exists: an ONNX file in Holosoma's format or a shipped "
-    "name (holosoma:g1_29dof/ppo); its actor is fine-tuned for the objective after a critic warm-up.")
+    "name (holosoma:g1_29dof/ppo; with mujoco also a FastSAC walker, holosoma:g1_29dof/fastsac); its actor is "
+    "fine-tuned for the objective after a critic warm-up.")
 
 #: episodes the backend evaluates right after training, unless asked otherwise
 TRAINING_EVAL_EPISODES = 5

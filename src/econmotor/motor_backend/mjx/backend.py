@@ -45,7 +45,7 @@ from econmotor.motor_backend.mjx import ppo
 from econmotor.motor_backend.mjx.compile import CompiledAhead
 from econmotor.motor_backend.mjx.device import device_description, enable_compilation_cache
 from econmotor.motor_backend.mjx.export import ONNX_FILE, export_run_policy
-from econmotor.motor_backend.mjx.onnx_import import warm_start
+from econmotor.motor_backend.mjx.onnx_import import check_architecture, warm_start
 from econmotor.motor_backend.mjx.settings import MjxTaskSettings, parse_mjx_settings
 from econmotor.motor_backend.mjx.training import (
     RUN_CONFIG_FILE,
@@ -264,7 +264,7 @@ class MjxBackend(MotorBackendBase):
 
     def check_init_policy(self, policy: str, task_id: str) -> None:
         """The ONNX file (or shipped name) exists and its actor is an architecture the mjx actor has."""
-        read_actor(policy_file(policy, self.holosoma_venv), policy)
+        check_architecture(read_actor(policy_file(policy, self.holosoma_venv), policy))
 
     # --- the MotorBackendBase contract ------------------------------------------------------
     def train_policy(self, task_id: str, objective: EconomicObjectiveSpec, datapack_ids: Sequence[str],

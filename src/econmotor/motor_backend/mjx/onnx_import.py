@@ -1,5 +1,8 @@
 """Start the mjx actor from a walker that exists: an ONNX policy's weights (:mod:`econmotor.couriers.onnx_actor`
-reads them) as the JAX actor's, in the layout of ``networks.init_params``.
+reads them) as the JAX actor's, in the layout of ``networks.init_params``. The JAX actor is an MLP: an actor of
+another architecture (Holosoma's FastSAC walkers: layer normalisation, a tanh-squashed head) or one that reads
+a selection of the observation is a ConfigError (:func:`check_architecture`; the mujoco backend's walker
+trainer starts from those).
 
 :func:`warm_start` makes the run's PPO configuration match the ONNX (hidden sizes, activation,
 observation normalisation), checks the ONNX's observation and action against the env's (width,
@@ -54,6 +57,18 @@ def _check_side(actor: ImportedActor, key: str, theirs: Any, ours: Any, what: st
                           f"env: {list(ours)}): it was trained for another robot or convention")
 
 
+def check_architecture(actor: ImportedActor) -> None:
+    """``actor`` is an MLP of the whole observation (the JAX actor's architecture); else a ConfigError."""
+    if actor.architecture != "mlp":
+        raise ConfigError(actor.source, "architecture", f"a {actor.architecture} actor (Holosoma's FastSAC layout: "
+                          "layer normalisation, tanh-squashed head) is not an architecture the mjx trainer's "
+                          "actor has (an MLP); the mujoco backend's walker trainer (--motor-backend mujoco) "
+                          "starts from it")
+    if actor.obs_index is not None:
+        raise ConfigError(actor.source, "input selection", "an actor reading a selection of the observation "
+                          "(Slice/Gather) is not an architecture the mjx trainer's actor has (an MLP of all of it)")
+
+
 def check_fits(actor: ImportedActor, env: Any) -> None:
     """The ONNX takes the env's observation and gives its action (widths; joints and gains where both say)."""
     for name, theirs, ours in (("observation", actor.obs_dim, env.observation_size),
@@ -73,6 +88,7 @@ def warm_start(actor: ImportedActor, env: Any, cfg: ppo.PPOConfig, requested: Ma
     import jax
     import jax.numpy as jnp
 
+    check_architecture(actor)
     check_fits(actor, env)
     requested = dict(requested or {})
     normalised = actor.obs_mean is not None

@@ -9,11 +9,13 @@ split of the work:
 
 - ``W`` worker processes (``spawn``: no fork of a process whose threads run), worker ``w`` owning a learning
   env of its share of the robots (:func:`split`: as even as can be, the first ones one more);
-- every iteration the trainer sends each worker the actor (its layers and ``log_std``, NumPy arrays); the
-  worker samples the actions with its own torch generator, steps its robots and sends back its
-  :class:`Chunk` (observations, privileged views, actions, log-probabilities, means, rewards, terminations
-  and truncations, the truncated episodes' last observations, the ended episodes' raw metrics, the reward's
-  parts, its next seed); every worker steps at once;
+- every iteration the trainer sends each worker the actor (its network, :meth:`ActorCritic.network`: the
+  architecture with its arrays, and ``log_std``, NumPy; :func:`actor_weights`); the worker builds the same
+  actor from the first (:func:`.walker_actor.actor_module`) and loads the arrays every iteration, samples the
+  actions with its own torch generator, steps its robots and sends back its :class:`Chunk` (observations,
+  privileged views, actions, log-probabilities, means, rewards, terminations and truncations, the truncated
+  episodes' last observations, the ended episodes' raw metrics, the reward's parts, its next seed); every
+  worker steps at once;
 - the trainer (:func:`assemble`) concatenates the chunks along the robots' axis and computes the values, the
   truncations' bootstrap ``gamma * V(last observation)`` and the last values with the critic, each in one
   batched pass (the critic does not move during collection, so these are the values the single-process
@@ -51,7 +53,8 @@ from econmotor.locomotion.evaluation import exit_with_parent
 from econmotor.locomotion.learning import WalkerLearningEnv
 from econmotor.locomotion.model import WalkerModel
 from econmotor.locomotion.stress import Stress
-from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, Rollout, load_layers, mlp
+from econmotor.motor_backend.mujoco.walker_actor import actor_module, load_network
+from econmotor.motor_backend.mujoco.walker_ppo import ActorCritic, Rollout
 from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 
 #: robots a worker steps at least by default: below that the control step's Python is no longer amortised
@@ -224,8 +227,8 @@ def assemble(chunks: Sequence[Chunk], net: ActorCritic, gamma: float
 
 
 def actor_weights(net: ActorCritic) -> dict[str, Any]:
-    """What a worker needs of the actor: its layers, ``log_std`` and activation (NumPy and a name)."""
-    return {"layers": net.layers(), "log_std": net.log_std.detach().numpy().copy(), "activation": net.activation}
+    """What a worker needs of the actor: its network (architecture and arrays) and ``log_std`` (NumPy)."""
+    return {"network": net.network(), "log_std": net.log_std.detach().numpy().copy()}
 
 
 class LocalCollector:
@@ -268,11 +271,10 @@ def _worker(conn: Any, spec: EnvSpec, slots: int, seed: int, stride: int, rng_se
             kind, weights = conn.recv()
             if kind != "collect":
                 break
-            layers = weights["layers"]
             if actor is None:
-                sizes = [layers[0]["w"].shape[0], *(layer["w"].shape[1] for layer in layers)]
-                actor = mlp(sizes, weights["activation"]).requires_grad_(False)
-            load_layers(actor, layers)
+                actor = actor_module(weights["network"]).requires_grad_(False)
+            else:
+                load_network(actor, weights["network"])
             sample = Sampler(actor, torch.from_numpy(weights["log_std"]), generator)
             chunk = collect(env, sample, steps, *obs)
             obs = (chunk.last_obs, chunk.last_privileged)

@@ -3,9 +3,10 @@
 rsl_rl's PPO, which trained Holosoma's walkers, in the few lines a CPU run needs, made robust to the rare
 fall (a reward thousands of times a step's) and to a warm start:
 
-- **the actor** is an MLP (:func:`mlp`) started from an ONNX walker's layers exactly
-  (:meth:`ActorCritic.from_actor`: before any update its mean is the ONNX's action), with a
-  state-independent exploration std: a learned ``log_std`` (starting at ``init_std``) that the actor's
+- **the actor** is an MLP (:func:`mlp`) or an ONNX walker's network exactly (:meth:`ActorCritic.from_actor`,
+  :mod:`.walker_actor`: Holosoma's PPO walkers' MLP, or its FastSAC walkers' normaliser, layer norms and
+  tanh-squashed head; before any update its mean is the ONNX's deterministic action), with a
+  state-independent exploration std around that mean: a learned ``log_std`` (starting at ``init_std``) that the actor's
   optimiser moves with the actor's layers (the entropy bonus ``entropy_coef`` optional), clamped after
   every step to at least ``min_std`` so that exploration cannot collapse;
 - **the critic** sees the observation and the env's privileged view
@@ -54,30 +55,8 @@ import torch
 from torch import nn
 
 from econmotor.couriers.onnx_actor import ImportedActor
-from econmotor.errors import ConfigError
-from econmotor.motor_backend.mujoco.walker_recipe import ACTIVATIONS, WalkerPPOConfig
-
-_ACTIVATIONS = dict(zip(ACTIVATIONS, (nn.ELU, nn.Tanh, nn.ReLU, nn.SiLU), strict=True))
-
-
-def load_layers(net: nn.Sequential, layers: Sequence[Mapping[str, np.ndarray]]) -> None:
-    """Set the linear layers of ``net`` (an :func:`mlp`), in order, to ``layers``
-    (``[{"w": [in, out], "b": [out]}]``)."""
-    linears = [m for m in net if isinstance(m, nn.Linear)]
-    with torch.no_grad():
-        for lin, layer in zip(linears, layers, strict=True):
-            lin.weight.copy_(torch.from_numpy(np.asarray(layer["w"], np.float32).T))
-            lin.bias.copy_(torch.from_numpy(np.asarray(layer["b"], np.float32)))
-
-
-def mlp(sizes: Sequence[int], activation: str) -> nn.Sequential:
-    """Linear layers of ``sizes`` with ``activation`` between them (none after the last)."""
-    layers: list[nn.Module] = []
-    for i in range(len(sizes) - 1):
-        layers.append(nn.Linear(sizes[i], sizes[i + 1]))
-        if i < len(sizes) - 2:
-            layers.append(_ACTIVATIONS[activation]())
-    return nn.Sequential(*layers)
+from econmotor.motor_backend.mujoco.walker_actor import actor_module, load_layers, load_network, mlp, network_of
+from econmotor.motor_backend.mujoco.walker_recipe import WalkerPPOConfig
 
 
 class RunningNorm(nn.Module):
@@ -105,8 +84,9 @@ class RunningNorm(nn.Module):
 
 
 class ActorCritic(nn.Module):
-    """The Gaussian actor (its mean an MLP, a learned log std) and the privileged critic (its output in
-    the returns' standardised units under ``value_norm``: :attr:`value_norm` holds their statistics)."""
+    """The Gaussian actor (its mean an MLP or an imported network, :mod:`.walker_actor`; a learned log std)
+    and the privileged critic (its output in the returns' standardised units under ``value_norm``:
+    :attr:`value_norm` holds their statistics)."""
 
     def __init__(self, obs_dim: int, privileged_dim: int, action_dim: int, cfg: WalkerPPOConfig) -> None:
         super().__init__()
@@ -120,24 +100,31 @@ class ActorCritic(nn.Module):
 
     @classmethod
     def from_actor(cls, actor: ImportedActor, privileged_dim: int, cfg: WalkerPPOConfig) -> ActorCritic:
-        """An actor-critic whose actor is ``actor``'s layers exactly (a fresh critic)."""
-        if actor.obs_mean is not None:
-            raise ConfigError(actor.source, "normaliser", "the walker trainer starts from actors without an "
-                              "in-graph normaliser (Holosoma's PPO walkers have none)")
+        """An actor-critic whose actor is ``actor``'s network exactly (its architecture, any in-graph
+        normaliser, layer norms and tanh head with it) and a fresh critic."""
         shaped = WalkerPPOConfig(**{**asdict(cfg), "hidden_sizes": actor.hidden_sizes,
                                     "activation": actor.activation})
         net = cls(actor.obs_dim, privileged_dim, actor.action_dim, shaped)
-        net.load_actor(actor.layers)
+        net.actor = actor_module(actor.network())
         return net
 
-    def load_actor(self, layers: Sequence[Mapping[str, np.ndarray]]) -> None:
-        """Set the actor's layers to ``layers`` (``[{"w": [in, out], "b": [out]}]``, :meth:`layers`'s form)."""
-        load_layers(self.actor, layers)
+    def load_actor(self, actor: Sequence[Mapping[str, np.ndarray]] | Mapping[str, Any]) -> None:
+        """Set the actor to ``actor``: a network of its architecture (:meth:`network`'s form) or, for an MLP,
+        its layers (``[{"w": [in, out], "b": [out]}]``, :meth:`layers`'s form)."""
+        if isinstance(actor, Mapping):
+            load_network(self.actor, actor)
+        else:
+            load_layers(self.actor, actor)
 
     def layers(self) -> list[dict[str, np.ndarray]]:
-        """The actor's layers as ``[{"w": [in, out], "b": [out]}]`` (what the ONNX export writes)."""
+        """The actor's linear layers as ``[{"w": [in, out], "b": [out]}]``."""
         return [{"w": m.weight.detach().numpy().T.copy(), "b": m.bias.detach().numpy().copy()}
                 for m in self.actor if isinstance(m, nn.Linear)]
+
+    def network(self) -> dict[str, Any]:
+        """The actor's network now (:func:`.walker_actor.network_of`: its architecture with its arrays), what
+        the ONNX export writes and the collect workers are sent."""
+        return network_of(self.actor)
 
     def actor_parameters(self) -> list[nn.Parameter]:
         """What the actor's optimiser group moves and its clip covers: the mean's layers and ``log_std``."""

@@ -5,8 +5,9 @@ What a run does (:class:`WalkerTrainingRun`):
 1. builds the env that prices the robot (:class:`~econmotor.locomotion.env.WalkerBatch`: the same
    model, course, stress, meter and fall rule) as a learner's env
    (:class:`~econmotor.locomotion.learning.WalkerLearningEnv`: random start points, the step reward);
-2. starts the actor from an ONNX walker's weights (``--init-policy``) or from scratch, with a fresh
-   privileged critic (:mod:`.walker_ppo`);
+2. starts the actor from an ONNX walker's network (``--init-policy``: Holosoma's PPO walkers' MLP or its
+   FastSAC walkers' layer-normalised, tanh-squashed actor, :mod:`.walker_actor`) or from scratch, with a
+   fresh privileged critic (:mod:`.walker_ppo`);
 3. learns in the shared :class:`~econmotor.motor_backend.training_loop.TrainingLoop` as its
    :class:`WalkerLearner`: each chunk is ``steps_per_iteration`` control steps of every robot, then one PPO
    update; its row goes to the training curve (``curve.jsonl``: legs per hour, Wh per leg and falls of the
@@ -26,7 +27,8 @@ What a run does (:class:`WalkerTrainingRun`):
    then sees the falls the stress causes); the best by the buyer's verdict, then J, is kept
    (``best/policy.onnx``);
 6. stops at ``max_steps`` env steps or ``max_wall_s``; the kept actor is the run's ``policy.onnx``, in
-   Holosoma's ONNX format (holosoma_inference's loader and the sim-to-sim evaluator read it).
+   Holosoma's ONNX format, of the architecture it started from (holosoma_inference's loader and the
+   sim-to-sim evaluator read it).
 
 Seeds: training episodes ``TRAIN_SEED_BASE + seed * 10**6 + i`` (worker ``w`` of ``W`` takes the ``i`` with
 ``i % W == w``); held-out selection's
@@ -188,7 +190,7 @@ class WalkerTrainingRun:
         stresses = self.select_stresses or (s.stress,)
         candidate = self.run_dir / SELECTION_CANDIDATE
         candidate.parent.mkdir(parents=True, exist_ok=True)
-        self.export(learner.net.layers(), candidate)
+        self.export(learner.net.network(), candidate)
         ev = WalkerEvaluation(policy=str(candidate), course=s.course, meter=s.meter, stress=stresses[0],
                               alternate=tuple(stresses[1:]), episode_s=s.episode_s, seed=int(first_seed),
                               slots=SELECT_SLOTS)
@@ -197,25 +199,34 @@ class WalkerTrainingRun:
         rows, _ = evaluate_walkers(ev, int(num_episodes), workers, stop=stop, batch=look)
         return rows
 
-    def export(self, layers: list[dict[str, np.ndarray]], path: Path) -> Path:
-        """``path`` (a ``policy.onnx``) of ``layers`` (:func:`export_walker`) with this run's gains and command
-        ranges."""
-        return export_walker(layers, self.setup.card, self.kp, self.kd, self.command_ranges,
+    def export(self, actor: Mapping[str, Any] | list[dict[str, np.ndarray]], path: Path) -> Path:
+        """``path`` (a ``policy.onnx``) of ``actor`` (:func:`export_walker`: the actor's network, or an MLP's
+        layers) with this run's gains and command ranges."""
+        if not isinstance(actor, Mapping) and self.init is not None and self.init.architecture != "mlp":
+            raise ValueError(f"a {self.init.architecture} actor is exported from its network, not its layers")
+        return export_walker(actor, self.setup.card, self.kp, self.kd, self.command_ranges,
                              self.init.activation if self.init else self.cfg.activation, path, self.metadata)
 
 
-def export_walker(layers: list[dict[str, np.ndarray]], card: Any, kp: np.ndarray, kd: np.ndarray,
-                  command_ranges: Mapping[str, Any], activation: str, path: Path,
+def export_walker(actor: Mapping[str, Any] | list[dict[str, np.ndarray]], card: Any, kp: np.ndarray,
+                  kd: np.ndarray, command_ranges: Mapping[str, Any], activation: str, path: Path,
                   metadata: Mapping[str, Any]) -> Path:
-    """A walker's actor (``layers``: its mean) in Holosoma's ONNX format: input ``actor_obs``, output ``action``
-    clipped to the card's bounds, the robot's export metadata with the gains and command ranges the env
-    applied, and econmotor's entries (``metadata``)."""
+    """A walker's actor (its mean) in Holosoma's ONNX format: input ``actor_obs``, output ``action`` clipped to
+    the card's bounds, the robot's export metadata with the gains and command ranges the env applied, and
+    econmotor's entries (``metadata``). ``actor``: its network (``ActorCritic.network()``: the architecture
+    with its arrays, FastSAC's normaliser, layer norms and tanh head included) or an MLP's layers
+    (``[{"w", "b"}]``, with ``activation``)."""
     holosoma = holosoma_export_metadata(card)
     holosoma.update({"kp": [float(v) for v in kp], "kd": [float(v) for v in kd],
                      "command_ranges": {k: [float(x) for x in v] for k, v in command_ranges.items()}})
     bound = np.full(card.num_dofs, card.action_clip, np.float32)
-    return export_onnx({"policy": layers}, None, 0.0, -bound, bound, path, dict(metadata), activation=activation,
-                       holosoma=holosoma)
+    net = dict(actor) if isinstance(actor, Mapping) else {"layers": actor, "activation": activation}
+    normaliser = (net["obs_mean"], net["obs_std"], net.get("clip_obs")) if net.get("obs_mean") is not None else None
+    return export_onnx({"policy": net["layers"]}, None, 0.0, -bound, bound, path, dict(metadata),
+                       activation=net["activation"], holosoma=holosoma, normaliser=normaliser,
+                       obs_index=net.get("obs_index"), obs_dim=net.get("obs_dim"),
+                       layer_norms=net.get("layer_norms") or (), layer_norm_eps=net.get("layer_norm_eps", 1e-5),
+                       squash=net.get("squash"))
 
 
 def _status(env_steps: int, row: Mapping[str, Any]) -> str:
@@ -296,13 +307,13 @@ class WalkerLearner(LoopLearner):
         return self.env_steps
 
     def save_policy(self, directory: Path) -> None:
-        self.run.export(self.ppo.net.layers(), directory / ONNX_FILE)
+        self.run.export(self.ppo.net.network(), directory / ONNX_FILE)
 
     def load_policy(self, directory: Path) -> None:
-        self.ppo.net.load_actor(read_actor(directory / ONNX_FILE).layers)
+        self.ppo.net.load_actor(read_actor(directory / ONNX_FILE).network())
 
     def export(self, run_dir: Path) -> Path:
-        return self.run.export(self.ppo.net.layers(), run_dir / ONNX_FILE)
+        return self.run.export(self.ppo.net.network(), run_dir / ONNX_FILE)
 
     def timing(self) -> dict[str, Any]:
         return {"iterations": self.iteration, "collect_workers": self.workers}

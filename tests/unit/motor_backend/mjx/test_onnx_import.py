@@ -2,7 +2,8 @@
 
 Holosoma's shipped PPO walkers, converted, act as onnxruntime runs them; an econmotor export
 (either format) reads back into the same parameters; an architecture the mjx actor lacks (the
-FastSAC walkers' layer normalisation) and a shipped name that does not exist are clear errors.
+FastSAC walkers' layer normalisation and tanh head, which ``read_actor`` reads for the mujoco
+trainer) and a shipped name that does not exist are clear errors.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from econmotor.couriers.policy_import import find_holosoma_python, shipped_polic
 from econmotor.errors import ConfigError
 from econmotor.motor_backend.mjx import networks as nets
 from econmotor.motor_backend.mjx import ppo
+from econmotor.motor_backend.mjx.onnx_import import check_architecture, warm_start
 
 REPO = Path(__file__).resolve().parents[4]
 BOUND = np.float32(1e4)  # wide action bounds: the comparison is of the network, not of a clip
@@ -67,11 +69,15 @@ def test_shipped_ppo_walker_converted_acts_as_onnxruntime_runs_it(name: str, hol
 
 
 @pytest.mark.holosoma
-def test_fastsac_walker_is_refused_naming_the_node(holosoma_python: Path) -> None:
+def test_fastsac_walker_is_refused_by_the_mjx_actor(holosoma_python: Path) -> None:
     path = shipped_policy_path("holosoma:g1_29dof/fastsac", holosoma_python)
+    actor = read_actor(path, "holosoma:g1_29dof/fastsac")  # the mujoco walker trainer starts from it
+    assert actor.architecture == "fastsac"
     with pytest.raises(ConfigError, match="FastSAC") as info:
-        read_actor(path, "holosoma:g1_29dof/fastsac")
-    assert "Slice" in str(info.value) and "holosoma:g1_29dof/fastsac" in str(info.value)
+        check_architecture(actor)
+    assert "holosoma:g1_29dof/fastsac" in str(info.value) and "--motor-backend mujoco" in str(info.value)
+    with pytest.raises(ConfigError, match="FastSAC"):  # before it looks at the env
+        warm_start(actor, None, ppo.PPOConfig(), None, 0)
 
 
 @pytest.mark.holosoma
