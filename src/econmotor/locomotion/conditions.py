@@ -51,10 +51,13 @@ def stress_notes(stress: Stress) -> list[str]:
 
 def walker_setup(spec: Any, settings: Mapping[str, Any], bundle: Any, packs: Sequence[Any], policy: str | None,
                  policy_id: str | None = None, course_speed_m_per_s: float | None = None,
-                 episode_s: float | None = None, fallback_python: str | Path | None = None) -> WalkerSetup:
+                 episode_s: float | None = None, fallback_python: str | Path | None = None,
+                 refuse_unapplied: bool = False) -> WalkerSetup:
     """The conditions of task ``spec`` (its walker ``settings``, the datapacks' resolved ``bundle`` and
     ``packs``) for ``policy`` (an ONNX path or a shipped name; None: the task's robot card, for a policy
-    trained from scratch); a ConfigError names a missing catalog key or a policy for another robot."""
+    trained from scratch); a ConfigError names a missing catalog key or a policy for another robot, and with
+    ``refuse_unapplied`` (a training run: it would not train under what it was asked to) a datapack key the
+    walker env cannot apply; pricing notes such keys instead (a policy trained under them elsewhere)."""
     task_id = spec.task_id
     missing = [k for k in SIM2SIM_KEYS if k not in settings]
     if missing:
@@ -73,7 +76,7 @@ def walker_setup(spec: Any, settings: Mapping[str, Any], bundle: Any, packs: Seq
     datapacks = [by_id[i] for i in bundle.datapack_ids] if set(bundle.datapack_ids) <= set(by_id) else [bundle]
     # a policy is priced under what it was trained under elsewhere (Holosoma applies a curriculum, clips,
     # rough terrain): what the walker env cannot apply is a note, not an error
-    stress = Stress.from_datapacks(datapacks, card.push_preset, noise, refuse_unapplied=False)
+    stress = Stress.from_datapacks(datapacks, card.push_preset, noise, refuse_unapplied=refuse_unapplied)
     return WalkerSetup(contract=contract, card=card, course=course, meter=MeterSettings(**meter), stress=stress,
                        episode_s=float(episode_s or settings["sim2sim_episode_s"]), notes=tuple(stress_notes(stress)),
                        datapack_ids=tuple(bundle.datapack_ids),

@@ -122,7 +122,7 @@ def walker_run(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[Any]
     bundle = DatapackProvider().resolve(spec.task_id, [p.id for p in packs], list(packs))
     init = read_actor(policy_file(init_policy), init_policy) if init_policy else None
     setup = walker_setup(spec, settings, bundle, list(packs), str(init.path) if init else None,
-                         init_policy)
+                         init_policy, refuse_unapplied=True)
     ppo = {**trainer.ppo, **dict(hyperparameters or {})}
     if num_envs > 0:
         ppo["num_envs"] = num_envs
