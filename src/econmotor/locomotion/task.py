@@ -1,8 +1,8 @@
 """A walker task's settings: the catalog entry of a locomotion task, its course and its meter.
 
 Read alike by every backend that trains or prices the card robots (the ``holosoma`` backend's
-training terms, the ``mjx`` humanoid couriers, the batched MuJoCo walker env): the built-in
-the task's ``backends.holosoma`` catalog entry (its robot card, Holosoma's experiment names per
+training terms, the ``mjx`` humanoid couriers, the batched MuJoCo walker env): the task's
+``backends.holosoma`` catalog entry (its robot card, Holosoma's experiment names per
 algorithm, the overlay's physical parameters over :data:`OVERLAY_DEFAULTS`)
 (:func:`task_settings`); the meter's constants (:func:`meter_settings`, :class:`MeterSettings`);
 the delivery course (:func:`course_settings`).
