@@ -29,7 +29,7 @@ import numpy as np
 from econmotor.config.datapacks import DatapackProvider
 from econmotor.locomotion.conditions import walker_setup
 from econmotor.locomotion.evaluation import WalkerEvaluation, _run
-from econmotor.locomotion.task import task_settings
+from econmotor.locomotion.task import walker_settings
 from econmotor.robots.card import scaled_heat_model
 from econmotor.tasks import get_task
 
@@ -41,7 +41,7 @@ def draw(task_id: str, policy: str, episodes: int, seed: int, heat_at_limit: flo
     """Mean electrical, heat and mechanical power (W) over ``episodes`` of the task's course, the card's
     motor model replaced by ``scaled_heat_model(a=heat_at_limit)`` where given."""
     spec = get_task(task_id)
-    settings = task_settings(task_id, spec.backend_entry("holosoma"), spec.source)
+    settings = walker_settings(spec)
     bundle = DatapackProvider().resolve(task_id, [], [])
     setup = walker_setup(spec, settings, bundle, [], policy, episode_s=episode_s)
     contract = setup.contract
@@ -71,7 +71,7 @@ def standing(task_id: str, policy: str, heat_at_limit: float | None, seconds: fl
     from econmotor.locomotion.model import WalkerModel
 
     spec = get_task(task_id)
-    settings = task_settings(task_id, spec.backend_entry("holosoma"), spec.source)
+    settings = walker_settings(spec)
     setup = walker_setup(spec, settings, DatapackProvider().resolve(task_id, [], []), [], policy)
     card = setup.contract.card
     if heat_at_limit is not None:

@@ -29,7 +29,7 @@ EPISODES, SEED = 2, 4
 @pytest.fixture(scope="module")
 def easy_tasks(tmp_path_factory: pytest.TempPathFactory) -> Path:
     task = yaml.safe_load(CATALOG.read_text(encoding="utf-8"))["tasks"]["humanoid_locomotion_g1"]
-    task["backends"]["holosoma"].update(sim2sim_legs=1, unit_length_m=4.0, dwell_s=1.0, sim2sim_episode_s=20.0)
+    task["locomotion"].update(sim2sim_legs=1, unit_length_m=4.0, dwell_s=1.0, sim2sim_episode_s=20.0)
     task["acceptance"] = {"max_error_rate": {"value": 1.0, "source": "test: any fall rate"},
                           "min_units_per_hour": {"value": 0.0, "source": "test: any throughput"}, "error_name": "fall"}
     task["description"] = "G1 on a short course, accepted whenever it walks (test)"

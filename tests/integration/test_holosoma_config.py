@@ -23,7 +23,7 @@ from econmotor.couriers import policy_import
 from econmotor.couriers.datapack_mapping import map_datapacks, validate_motion_npz
 from econmotor.economics import courier_formulas as cf
 from econmotor.errors import BackendError, ConfigError
-from econmotor.locomotion.task import meter_constants, meter_settings
+from econmotor.locomotion.task import meter_constants, meter_settings, task_settings
 from econmotor.motor_backend.holosoma.econ_formulas import (
     base_tilt_rad,
     commanded_progress_m_per_s,
@@ -146,13 +146,13 @@ def test_econ_formulas_by_hand() -> None:
 
 def test_meter_settings_come_from_the_catalog_entry_and_name_a_missing_key() -> None:
     spec = get_task("humanoid_locomotion_g1")
-    entry = spec.backend_entry("holosoma")
+    entry = dict(spec.locomotion)
     meter = meter_settings(spec.task_id, entry, spec.source)
     assert meter == {"leg_distance_m": entry["unit_length_m"], "drivetrain_efficiency": entry["drivetrain_efficiency"],
                      "idle_power_w": entry["idle_power_w"], "tilt_margin_rad": entry["tilt_margin_rad"],
                      "fall_tilt_rad": card(entry["robot"]).fall_tilt_rad}  # the fall rule is the robot card's
     without_idle = {k: v for k, v in entry.items() if k != "idle_power_w"}
-    with pytest.raises(ConfigError, match=r"holosoma.yaml.*backends\.holosoma\.idle_power_w.*courier meter"):
+    with pytest.raises(ConfigError, match=r"holosoma.yaml.*g1\.locomotion\.idle_power_w.*courier meter"):
         meter_settings(spec.task_id, without_idle, spec.source)
     with pytest.raises(ConfigError, match=r"tilt_margin_rad.*fall tilt of robot card g1_29dof"):
         meter_settings(spec.task_id, {**entry, "tilt_margin_rad": 0.9}, spec.source)
@@ -179,7 +179,7 @@ def test_recording_is_split_into_episodes_with_econ_raw_metrics(tmp_path: Path) 
     path = tmp_path / "rec.npz"
     _recording(path, steps=100, fall_at=29)
     spec = get_task("humanoid_locomotion_g1")
-    settings = spec.backend_entry("holosoma") | {"unit_duration_s": 10.0, "novelty_rate": 0.01}
+    settings = task_settings(spec) | {"unit_duration_s": 10.0, "novelty_rate": 0.01}
     meter = meter_settings(spec.task_id, settings, spec.source)
     episodes = episodes_from_recording(path, settings, meter, num_episodes=5)
     assert [e["length_steps"] for e in episodes] == [30, 70]

@@ -4,7 +4,7 @@ As tests/unit/couriers/test_courier_robots.py holds the Gymnasium records to
 Gymnasium, a script run in .venv-holosoma reads every fact a card copies from the installed
 holosoma (experiment preset: robot, simulator, randomization, rewards), holosoma_inference
 (inference preset: observation, task, robot) and the shipped ONNX walkers' metadata; each must
-equal the card's, and the mjx couriers' locomotion reward weights (``tasks/mjx.yaml``) must be
+equal the card's, and the walker tasks' locomotion reward weights (their ``locomotion`` block) must be
 Holosoma's reward preset of the robot's experiment. The same script drives the card's model in
 MuJoCo C and records holosoma_inference's own ``actor_obs`` rows (its ``LocomotionPolicy`` code)
 for those states: the observation the card builds in JAX, in the main interpreter, equals them.
@@ -182,9 +182,10 @@ def test_observation_built_in_jax_equals_holosoma_inference(holosoma: dict, name
 
 
 @pytest.mark.parametrize("name", sorted(CARDS))
-def test_mjx_locomotion_rewards_are_holosomas_preset(holosoma: dict, name: str) -> None:
+def test_the_walker_tasks_reward_terms_are_holosomas_preset(holosoma: dict, name: str) -> None:
+    """The one reward set of a robot's walker task (its locomotion block, every engine's learner) is Holosoma's."""
     from econmotor.tasks import load_catalog
 
     catalog = load_catalog()
-    [task] = [t for t in catalog.ids("mjx") if catalog.get(t).backends["mjx"].get("robot") == name]
-    assert catalog.get(task).backends["mjx"]["locomotion"]["rewards"] == holosoma[name]["facts"]["rewards"]
+    [task] = [t for t in catalog.ids() if (catalog.get(t).locomotion or {}).get("robot") == name]
+    assert catalog.get(task).locomotion["rewards"] == holosoma[name]["facts"]["rewards"]

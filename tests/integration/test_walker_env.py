@@ -24,7 +24,7 @@ from econmotor.locomotion.env import WalkerBatch, run_episodes
 from econmotor.locomotion.evaluation import WalkerEvaluation, build_batch, evaluate
 from econmotor.locomotion.model import WalkerModel
 from econmotor.locomotion.stress import Stress
-from econmotor.locomotion.task import MeterSettings, course_settings, meter_settings, task_settings
+from econmotor.locomotion.task import MeterSettings, course_settings, meter_settings, walker_settings
 from econmotor.robots.model import joint_indices, model_spec
 from econmotor.tasks.catalog import load_catalog
 
@@ -113,7 +113,7 @@ def test_an_episode_depends_on_its_seed_only(g1_ppo):
 ])
 def test_the_shipped_walkers_walk_at_todays_nominal_speed_and_energy(policy, task_id, speed, wh_per_leg):
     spec = load_catalog().get(task_id)
-    settings = task_settings(task_id, spec.backend_entry("holosoma"), spec.source)
+    settings = walker_settings(spec)
     ev = WalkerEvaluation(policy=policy, course=course_settings(settings),
                           meter=MeterSettings(**meter_settings(task_id, settings, spec.source)),
                           stress=Stress(initial_joint_noise_rad=float(settings["sim2sim_start_joint_noise_rad"])),
@@ -169,7 +169,7 @@ def test_standing_under_the_dwell_draws_the_windings_heat_above_the_idle_draw(g1
     from econmotor.locomotion.evaluation import batched_onnx_policy
 
     spec = load_catalog().get("humanoid_locomotion_g1")
-    settings = task_settings(spec.task_id, spec.backend_entry("holosoma"), spec.source)
+    settings = walker_settings(spec)
     meter = MeterSettings(**meter_settings(spec.task_id, settings, spec.source))
     stand = CourseSettings(leg_m=10.0, dwell_s=20.0, speed_m_per_s=0.0, legs=1)
 

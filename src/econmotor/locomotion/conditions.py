@@ -1,7 +1,7 @@
 """What prices (and trains) a card robot on a walker task: its policy contract, course, meter and stress.
 
-:func:`walker_setup` reads them from the task catalog's walker entry (``backends.holosoma``:
-:func:`econmotor.locomotion.task.task_settings`) and the datapacks, for every backend that runs
+:func:`walker_setup` reads them from the task's locomotion block (:func:`econmotor.locomotion.task.walker_settings`,
+the one place per robot task) and the datapacks, for every backend that runs
 the batched walker env (the holosoma backend's sim-to-sim evaluation, the mujoco backend's CPU trainer
 and its evaluation): one reading, so what a policy is trained on is what it is priced on.
 """
@@ -61,16 +61,16 @@ def walker_setup(spec: Any, settings: Mapping[str, Any], bundle: Any, packs: Seq
     task_id = spec.task_id
     missing = [k for k in SIM2SIM_KEYS if k not in settings]
     if missing:
-        raise ConfigError(spec.source, f"tasks.{task_id}.backends.holosoma.{missing[0]}",
-                          "the sim-to-sim evaluation needs it (with its unit and source)", SIM2SIM_KEYS)
+        raise ConfigError(spec.source, f"tasks.{task_id}.locomotion.{missing[0]}",
+                          "the walker's course needs it (with its unit and source)", SIM2SIM_KEYS)
     course = course_settings(settings, course_speed_m_per_s)
     meter = meter_settings(task_id, settings, spec.source)
     contract = resolve_contract(policy, fallback_python) if policy is not None else None
     card = contract.card if contract is not None else robot_card(str(settings["robot"]), spec.source)
-    experiments = sorted(set(settings["experiment"].values()))
-    if contract is not None and contract.experiment not in experiments:
-        raise ConfigError("--policy", policy_id or policy, f"drives Holosoma's '{contract.experiment}' robot but "
-                          f"task '{task_id}' is priced for {experiments} (its catalog's experiments)")
+    if contract is not None and contract.card.name != str(settings["robot"]):
+        raise ConfigError("--policy", policy_id or policy, f"drives robot card '{contract.card.name}' (Holosoma's "
+                          f"'{contract.experiment}') but task '{task_id}' is walked by '{settings['robot']}' (its "
+                          "locomotion block's robot)", [str(settings["robot"])])
     noise = float(settings["sim2sim_start_joint_noise_rad"])
     by_id = {p.id: p for p in packs}  # the bundle's packs, each naming its own file in an error or note
     datapacks = [by_id[i] for i in bundle.datapack_ids] if set(bundle.datapack_ids) <= set(by_id) else [bundle]

@@ -17,6 +17,7 @@ order; a user file may add tasks or replace a shipped one whole. File schema::
           battery_swap_h: {value: 0.1, source: "..."}          # a pack swap's hours (used when given)
         backends:                           # backend name -> that backend's own settings
           dishwashing: {econ_preset: toy}
+        locomotion: {robot: g1_29dof, ...}  # a card robot's walker task: its one place (locomotion/task.py)
         acceptance:                         # optional: what evaluation must show before a price
           max_error_rate: {value: 0.05, source: "..."}     # upper bound of the error rate (default: human's)
           min_units_per_hour: {value: 30, source: "..."}   # lower bound of MPL (default: any work)
@@ -50,7 +51,7 @@ from econmotor.config.task_economics import ECONOMICS_UNITS, TaskEconomics
 from econmotor.errors import ConfigError, UnknownNameError
 
 _PACKAGE_DIR = Path(__file__).parent
-_TASK_KEYS = ("description", "unit", "error_definition", "economics", "backends", "tags", "acceptance")
+_TASK_KEYS = ("description", "unit", "error_definition", "economics", "backends", "tags", "acceptance", "locomotion")
 _ACCEPTANCE_KEYS = ("max_error_rate", "min_units_per_hour", "error_name")
 
 
@@ -67,6 +68,9 @@ class TaskSpec:
     tags: tuple[str, ...] = ()
     source: str = "<builtin>"
     acceptance_rule: Acceptance | None = None
+    #: a card robot's walker task: its robot, meter, course and reward terms, read by every backend that runs
+    #: it (checked by :func:`econmotor.locomotion.task.walker_settings`); None for any other task
+    locomotion: Mapping[str, Any] | None = None
 
     @property
     def acceptance(self) -> Acceptance:
@@ -160,6 +164,8 @@ def parse_task(task_id: str, data: Any, source: str | Path) -> TaskSpec:
         backends=backends,
         tags=tuple(tags),
         source=str(source),
+        locomotion=require_mapping(data["locomotion"], source, f"{prefix}.locomotion") if "locomotion" in data
+        else None,
     )
 
 

@@ -21,7 +21,7 @@ from econmotor.config.datapacks import DatapackConfig, DatapackProvider, MotionC
 from econmotor.errors import ConfigError
 from econmotor.locomotion.conditions import walker_setup
 from econmotor.locomotion.stress import Stress
-from econmotor.locomotion.task import task_settings
+from econmotor.locomotion.task import walker_settings
 from econmotor.robots import G1_29DOF
 from econmotor.tasks import get_task
 
@@ -46,7 +46,7 @@ def setup_stress(task_id: str, path: Path) -> tuple[Stress, tuple[str, ...]]:
     spec = get_task(task_id)
     packs = load_datapack_configs([path])
     bundle = DatapackProvider().resolve(task_id, [p.id for p in packs], packs)
-    setup = walker_setup(spec, task_settings(task_id, spec.backend_entry("holosoma"), spec.source), bundle, packs,
+    setup = walker_setup(spec, walker_settings(spec), bundle, packs,
                          None)
     return setup.stress, setup.notes
 
@@ -134,7 +134,7 @@ def test_unknown_keys_and_bad_values_name_the_pack_that_set_them() -> None:
 
 def test_the_walker_setup_names_the_pack_of_a_key_among_several() -> None:
     spec = get_task("humanoid_locomotion_g1")
-    settings = task_settings(spec.task_id, spec.backend_entry("holosoma"), spec.source)
+    settings = walker_settings(spec)
     packs = [DatapackConfig(id="a", domain_randomization={"friction_range": [0.5, 1.0]}, source="a.yaml"),
              DatapackConfig(id="b", domain_randomization={"link_mass_range": [0.9, 1.1]}, source="b.yaml")]
     bundle = DatapackProvider().resolve(spec.task_id, ["a", "b"], packs)
@@ -152,7 +152,7 @@ def test_the_setup_carries_its_nominal_conditions(tmp_path: Path) -> None:
     text = (DATAPACKS / "humanoid_stress.yaml").read_text()
     pack.write_text(re.sub(r"initial_joint_noise_rad: [0-9.]+", "initial_joint_noise_rad: 0.2", text))
     spec = get_task("humanoid_locomotion_g1")
-    settings = task_settings(spec.task_id, spec.backend_entry("holosoma"), spec.source)
+    settings = walker_settings(spec)
     none = walker_setup(spec, settings, DatapackProvider().resolve(spec.task_id, [], []), [], None)
     for path in (DATAPACKS / "humanoid_stress.yaml", pack):
         packs = load_datapack_configs([path])

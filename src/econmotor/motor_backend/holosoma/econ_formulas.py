@@ -2,8 +2,8 @@
 
 One meter per robot: a G1 trained here (Holosoma's reward terms, torch) and a G1 priced here (the
 sim-to-sim evaluator, :mod:`econmotor.locomotion.env`) are metered by the same formulas,
-:mod:`econmotor.economics.courier_formulas`, with the same constants (the task catalog's
-``backends.holosoma`` entry, ``locomotion.task.meter_settings``):
+:mod:`econmotor.economics.courier_formulas`, with the same constants (the task's locomotion
+block in the catalog, ``locomotion.task.meter_settings``):
 
 - electrical power ``P_el = sum_i |tau_i qd_i| / eta + sum_i k_i tau_i^2 + idle_power_w`` (W;
   ``cf.mechanical_power_w``, ``cf.winding_heat_w`` with the robot card's motor model, ``cf.electrical_power_w``;

@@ -3,7 +3,7 @@
 A thin env of :mod:`econmotor.motor_backend.mjx.base_env` (``reset(key)`` / ``step(state, action)`` of one
 env), batched, auto-reset and economically metered by :func:`~econmotor.motor_backend.mjx.wrappers.make_env`
 as the Gymnasium couriers are, so the mjx backend trains, evaluates and exports it unchanged. A task runs
-here when its mjx entry names a robot card (``robot: g1_29dof``, ``tasks/mjx.yaml``); everything
+here when its mjx entry inherits the task's locomotion block (``inherit: locomotion``, ``tasks/mjx.yaml``); everything
 robot-specific is read from the card (:mod:`econmotor.robots`), never from the robot's name.
 
 - **the robot**: the card's MJCF with its maker's collision filter and feet-only contacts
@@ -18,13 +18,13 @@ robot-specific is read from the card (:mod:`econmotor.robots`), never from the r
   evaluator and in holosoma_inference, and theirs here.
 - **the course** (:mod:`econmotor.locomotion.course`): the sim-to-sim evaluator's,
   legs of ``leg_m`` at the course speed with a dwell at each end; the episode ends at its time
-  limit (``locomotion.episode_s``), when the course is done, or at a fall.
+  limit (the locomotion block's ``sim2sim_episode_s``), when the course is done, or at a fall.
 - **metering**: every physics step is a reading (``State.readings``: x, ``sum |qfrc_actuator qvel|``,
   tilt, the card's fall rule), metered by ``wrappers.EconomicMeter`` as the evaluator meters it
   (frozen after a fall); the walker's own raw metrics (legs, speed, walking time, lateral drift,
   mean power, course done) come from :meth:`HumanoidWalkerEnv.extra_metrics`.
-- **reward**: the locomotion terms of :mod:`econmotor.locomotion.rewards` with the catalog's weights (the
-  meter adds the economic overlay's ``J(t) - J(t-1)``).
+- **reward**: the locomotion terms of :mod:`econmotor.locomotion.rewards` with the task's locomotion block's
+  weights, the set the MuJoCo C learner computes too (the meter adds the economic overlay's ``J(t) - J(t-1)``).
 - **stress in the graph**, from the datapacks (``humanoid_stress.yaml``, read by
   :meth:`econmotor.locomotion.stress.Stress.from_datapacks` as for the MuJoCo C walker env):
   floor friction and torso payload per episode, base-velocity pushes at random intervals, kp/kd
@@ -42,7 +42,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from econmotor.config.loading import as_float, check_keys, require_mapping
 from econmotor.couriers.physics import has_fallen, root_tilt_rad
 from econmotor.economics import courier_formulas as cf
 from econmotor.errors import ConfigError
@@ -55,12 +54,11 @@ from econmotor.locomotion.course import (
     heading_yaw,
 )
 from econmotor.locomotion.learning import course_point
-from econmotor.locomotion.rewards import TERMS, LocomotionReading, locomotion_reward
+from econmotor.locomotion.rewards import LocomotionReading, locomotion_reward
 from econmotor.locomotion.stress import Stress
 from econmotor.motor_backend.mjx._mjx import mjx
 from econmotor.motor_backend.mjx.assets import apply_model_options
 from econmotor.motor_backend.mjx.base_env import Env, State, like, reading
-from econmotor.motor_backend.mjx.settings import MjxTaskSettings
 from econmotor.robots import card as robot_card
 from econmotor.robots.model import joint_indices, load_model
 from econmotor.robots.observation import (
@@ -73,8 +71,6 @@ from econmotor.robots.observation import (
 
 #: overlay keys a walker can weight (no novelty table, no pose tracking)
 HUMANOID_TERMS = ("mpl_per_hour", "error_rate", "energy_kwh", "risk_score")
-#: ``locomotion`` keys of the mjx entry
-LOCOMOTION_KEYS = ("episode_s", "rewards")
 #: the walker's own running sums (besides the episode's and the meter's)
 WALKER_EPISODE_KEYS = ("walk_s", "walk_m", "max_lateral_m", "legs_done", "start_steps")
 #: the walker's own raw metrics of a finished episode
@@ -89,23 +85,6 @@ def check_humanoid_datapack(pack: Any, source: str) -> None:
     else its ConfigError naming ``source`` and the key."""
     Stress.from_datapacks([replace(pack, source=source)], {"push_interval_s": (1.0, 1.0), "max_push_vel": (0.0, 0.0)},
                           lacks=HUMANOID_LACKS)
-
-
-def parse_locomotion(settings: MjxTaskSettings) -> tuple[float, dict[str, float], dict[str, dict[str, Any]]]:
-    """``(episode_s, weights, params)`` of the entry's ``locomotion`` mapping; errors name the catalog key."""
-    src, prefix = settings.source, f"backend_entries.mjx.{settings.task_id}.locomotion"
-    loco = settings.locomotion
-    check_keys(loco, LOCOMOTION_KEYS, src, prefix, required=LOCOMOTION_KEYS)
-    episode_s = as_float(loco["episode_s"], src, f"{prefix}.episode_s", min_value=1e-3)
-    rewards = require_mapping(loco["rewards"], src, f"{prefix}.rewards")
-    weights, params = {}, {}
-    for name, entry in rewards.items():
-        if name not in TERMS:
-            raise ConfigError(src, f"{prefix}.rewards.{name}", "unknown locomotion reward term", sorted(TERMS))
-        entry = dict(require_mapping(entry, src, f"{prefix}.rewards.{name}"))
-        weights[name] = as_float(entry.pop("weight"), src, f"{prefix}.rewards.{name}.weight", allow_negative=True)
-        params[name] = entry
-    return episode_s, weights, params
 
 
 class HumanoidWalkerEnv(Env):
@@ -130,7 +109,8 @@ class HumanoidWalkerEnv(Env):
         self.random_start = bool(random_start)
         s, where = self.settings, self.where
         self.card = c = robot_card(s.robot, where)
-        self.episode_s, self.weights, self.reward_params = parse_locomotion(s)
+        loco = s.locomotion  # the task's locomotion block: time limit and reward terms (mjx/settings.py)
+        self.episode_s, self.weights, self.reward_params = loco["episode_s"], loco["weights"], loco["params"]
         self.course = CourseSettings(**{"leg_m": s.leg_distance_m, **s.course})
         self.stress = Stress.from_datapacks(datapacks, c.push_preset, s.start_joint_noise_rad, lacks=HUMANOID_LACKS)
         m = load_model(c, contacts="feet")

@@ -17,18 +17,16 @@ Schema::
           eulerdamp: false           # implicit joint damping in the Euler integrator (default true)
           contact_geoms: [foot_geom] # the only robot geoms that collide (default: all of them)
 
-A real robot's courier (``mjx/humanoid_env.py``) names its robot card instead of a Gymnasium env::
+A real robot's courier (``mjx/humanoid_env.py``) takes its task's locomotion block instead of a Gymnasium env::
 
-        inherit: holosoma            # metering and course from the task's backends.holosoma entry
-        robot: g1_29dof              # econmotor.robots card: model, joints, PD, observation
-        locomotion: {...}            # episode, reward terms, start: validated by mjx/humanoid_env.py
+        inherit: locomotion          # robot card, meter, course and reward terms: the task's locomotion block
 
 The metering keys (:data:`INHERITED_KEYS`) are the couriers' (``couriers/settings.py``): with
 ``inherit: mujoco`` they are read from the task's ``backends.mujoco`` entry, so the two backends
-cannot drift; with ``inherit: holosoma`` from its ``backends.holosoma`` entry
-(:func:`~econmotor.locomotion.task.meter_settings`: the constants Holosoma's training terms
-and the sim-to-sim evaluator read, one meter per robot; and the course:
-:data:`HOLOSOMA_COURSE`); without it they may be written here with the same meaning. Both go through
+cannot drift; with ``inherit: locomotion`` from the task's ``locomotion`` block
+(:func:`~econmotor.locomotion.task.walker_settings`: the robot card, the meter every backend reads
+(:func:`~econmotor.locomotion.task.meter_settings`), the course (:data:`LOCOMOTION_COURSE`) and the reward
+terms); without it they may be written here with the same meaning. Both go through
 :func:`~econmotor.couriers.settings.parse_metering_settings`.
 """
 
@@ -40,16 +38,16 @@ from typing import Any
 from econmotor.config.loading import as_int, as_str, check_keys, require_mapping
 from econmotor.couriers.settings import METERING_KEYS, MeteringSettings, parse_metering_settings
 from econmotor.errors import ConfigError
-from econmotor.locomotion.task import meter_settings, task_settings
+from econmotor.locomotion.task import meter_settings, reward_terms, walker_settings
 from econmotor.tasks.catalog import TaskSpec
 
 #: keys shared with the mujoco backend's entry (the economics of the physics).
 INHERITED_KEYS = METERING_KEYS
 OWN_KEYS = ("inherit", "num_envs", "cpu_num_envs_cap", "cpu_physics", "normalize_obs", "checkpoint_every_steps", "ppo",
-            "novelty_table_size", "model_options", "robot", "locomotion")
-INHERITS = ("mujoco", "holosoma")
-#: the holosoma entry's course keys -> the course's (``locomotion/course.py``)
-HOLOSOMA_COURSE = {"unit_length_m": "leg_m", "dwell_s": "dwell_s", "course_speed_m_per_s": "speed_m_per_s",
+            "novelty_table_size", "model_options")
+INHERITS = ("mujoco", "locomotion")
+#: the locomotion block's course keys -> the course's (``locomotion/course.py``)
+LOCOMOTION_COURSE = {"unit_length_m": "leg_m", "dwell_s": "dwell_s", "course_speed_m_per_s": "speed_m_per_s",
                    "sim2sim_legs": "legs"}
 #: ``model_options`` keys; values are validated by :func:`parse_model_options`.
 MODEL_OPTION_KEYS = ("integrator", "iterations", "ls_iterations", "eulerdamp", "contact_geoms")
@@ -73,6 +71,7 @@ class MjxTaskSettings:
     ppo: dict[str, Any] = field(default_factory=dict)
     model_options: dict[str, Any] = field(default_factory=dict)
     robot: str | None = None  # a robot card (econmotor.robots): the task runs mjx/humanoid_env.py
+    #: a walker task's time limit and reward terms (``episode_s``, ``weights``, ``params``: its locomotion block)
     locomotion: dict[str, Any] = field(default_factory=dict)
     course: dict[str, Any] = field(default_factory=dict)  # locomotion/course.py CourseSettings keys
     start_joint_noise_rad: float = 0.0  # each joint's start drawn within +- this of the default pose, rad
@@ -96,34 +95,32 @@ def parse_mjx_settings(spec: TaskSpec) -> MjxTaskSettings:
     check_keys(entry, OWN_KEYS + INHERITED_KEYS, src, prefix)
     key = lambda name: f"{prefix}.{name}"
     inherit = entry.get("inherit")
-    robot = as_str(entry["robot"], src, key("robot")) if "robot" in entry else None
+    robot: str | None = None
     course: dict[str, Any] = {}
     start_noise = 0.0
+    locomotion: dict[str, Any] = {}
     if inherit is not None:
         as_str(inherit, src, key("inherit"), INHERITS)
         repeated = [k for k in INHERITED_KEYS if k in entry]
         if repeated:
             raise ConfigError(src, key(repeated[0]), f"comes from the {inherit} entry (inherit: {inherit}); "
                               "remove it here")
-        parent = spec.backend_entry(inherit)
-        if inherit == "holosoma":
-            if robot is None:
-                raise ConfigError(src, key("robot"), "is required with inherit: holosoma (a robot card)")
-            holosoma = task_settings(spec.task_id, parent, spec.source)
-            if holosoma["robot"] != robot:
-                raise ConfigError(src, key("robot"), f"the holosoma entry's robot is {holosoma['robot']!r}: one "
-                                  "robot, one meter", [str(holosoma["robot"])])
-            # one meter per robot: the constants Holosoma's training terms and the sim-to-sim evaluator read
-            parent = {"env_id": robot, **meter_settings(spec.task_id, holosoma, spec.source)}
-            course = {ours: holosoma[theirs] for theirs, ours in HOLOSOMA_COURSE.items() if theirs in holosoma}
-            start_noise = float(holosoma.get("sim2sim_start_joint_noise_rad", 0.0))
-        base = parse_metering_settings(parent, spec.source, f"tasks.{spec.task_id}.backends.{inherit}")
+    if inherit == "locomotion":  # the walker task's one place: robot, meter, course, reward terms
+        walker = walker_settings(spec)
+        robot = str(walker["robot"])
+        parent = {"env_id": robot, **meter_settings(spec.task_id, walker, spec.source)}
+        course = {ours: walker[theirs] for theirs, ours in LOCOMOTION_COURSE.items()}
+        start_noise = float(walker["sim2sim_start_joint_noise_rad"])
+        weights, params = reward_terms(spec)
+        locomotion = {"episode_s": float(walker["sim2sim_episode_s"]), "weights": weights, "params": params}
+        base = parse_metering_settings(parent, spec.source, f"tasks.{spec.task_id}.locomotion")
+    elif inherit is not None:
+        base = parse_metering_settings(spec.backend_entry(inherit), spec.source,
+                                       f"tasks.{spec.task_id}.backends.{inherit}")
     else:  # the metering keys written here, with the same rules
-        base = parse_metering_settings({"env_id": robot, **entry} if robot else entry, src, prefix)
+        base = parse_metering_settings(entry, src, prefix)
     kw: dict[str, Any] = {"task_id": spec.task_id, "metering": base, "source": src, "robot": robot,
-                          "course": course, "start_joint_noise_rad": start_noise}
-    if entry.get("locomotion"):
-        kw["locomotion"] = dict(require_mapping(entry["locomotion"], src, key("locomotion")))
+                          "course": course, "start_joint_noise_rad": start_noise, "locomotion": locomotion}
     for name in ("num_envs", "cpu_num_envs_cap", "checkpoint_every_steps", "novelty_table_size"):
         if name in entry:
             kw[name] = as_int(entry[name], src, key(name), min_value=1)

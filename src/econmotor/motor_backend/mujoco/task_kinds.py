@@ -1,7 +1,7 @@
 """The two kinds of task the mujoco backend trains, declared in one place (:func:`task_kind`).
 
 A Gymnasium courier (``tasks/mujoco.yaml``) trains with SB3 from scratch (:mod:`.courier_tasks`); a card
-robot's walker task (the G1, T1: a ``backends.mujoco`` entry holding ``walker:``) trains with the torch
+robot's walker task (the G1, T1: a task with a ``locomotion`` block) trains with the torch
 walker PPO on the env that prices it, from scratch or from a policy trained elsewhere, and is priced
 there (:mod:`.walker_backend`). What differs between them is a :class:`TaskKind`; the backend asks a
 task's kind and never tests which it is.
@@ -13,12 +13,12 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from econmotor.locomotion.task import is_walker_task, walker_settings
 from econmotor.motor_backend.mujoco.courier_tasks import evaluate_courier, train_courier
 from econmotor.motor_backend.mujoco.run import HELD_OUT_BATCH
 from econmotor.motor_backend.mujoco.settings import parse_mujoco_settings
 from econmotor.motor_backend.mujoco.walker_backend import (
     evaluate_walker_task,
-    holosoma_settings,
     train_walker_task,
     walker_train_settings,
 )
@@ -52,16 +52,16 @@ COURIER = TaskKind("courier", train_courier, evaluate_courier,
                    exports_on_demand=True)
 #: a card robot's walker task (the G1, T1): the torch walker PPO on the env that prices it, priced there
 WALKER = TaskKind("walker", train_walker_task, evaluate_walker_task,
-                  lambda backend: 10 * backend.eval_workers, lambda spec: str(holosoma_settings(spec)["robot"]),
-                  lambda spec: (walker_train_settings(spec), holosoma_settings(spec)), starts_from_policies=True,
+                  lambda backend: 10 * backend.eval_workers, lambda spec: str(walker_settings(spec)["robot"]),
+                  lambda spec: (walker_train_settings(spec), walker_settings(spec)), starts_from_policies=True,
                   final_policy_file="policy.onnx", exports_on_demand=False)
 
 
 def task_kind(spec: TaskSpec) -> TaskKind:
-    """The one place a task's kind is declared: a ``backends.mujoco`` entry holding ``walker:`` is a card
-    robot's walker task (``mujoco/walker_backend.py``), any other a Gymnasium courier."""
-    entry = spec.backends.get("mujoco")
-    return WALKER if isinstance(entry, Mapping) and "walker" in entry else COURIER
+    """The one place a task's kind is declared: a task with a ``locomotion`` block is a card robot's walker
+    task (``mujoco/walker_backend.py``; :func:`econmotor.locomotion.task.is_walker_task`), any other a
+    Gymnasium courier."""
+    return WALKER if is_walker_task(spec) else COURIER
 
 
 def run_kind(config: Mapping[str, Any]) -> TaskKind:

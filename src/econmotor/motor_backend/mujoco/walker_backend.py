@@ -1,14 +1,13 @@
 """The mujoco backend's walker tasks: the card robots (G1, T1) trained and priced on the CPU.
 
-A task whose ``backends.mujoco`` entry holds ``walker:`` (``tasks/holosoma.yaml``) is a walker task:
-its robot, course, meter and sim-to-sim settings are the task's walker entry (``backends.holosoma``,
-:func:`econmotor.locomotion.task.task_settings`), and its ``walker:`` mapping holds the trainer's:
+A task with a ``locomotion`` block (``tasks/holosoma.yaml``) is a walker task: its robot, course, meter and
+locomotion reward terms are that block (the one place per robot task,
+:func:`econmotor.locomotion.task.walker_settings`), and its ``backends.mujoco.walker`` mapping holds the
+trainer's recipe (each key optional):
 
 - ``econ_gain``: the objective's J against the locomotion terms (reward units per unit of J: the learner
   is paid ``econ_gain`` times each step's increment of the J selection and the report score,
   :func:`econmotor.objectives.loader.running_objective_j`);
-- ``rewards``: Holosoma's locomotion terms the trainer keeps (``{name: {weight, ...params}}``, names in
-  :data:`econmotor.locomotion.learning.BASE_TERMS`);
 - ``ppo``: the recipe (:class:`~econmotor.motor_backend.mujoco.walker_ppo.WalkerPPOConfig`), under the
   run's ``--hyperparameters``;
 - ``checkpoint_every_s``: wall seconds between checkpoints.
@@ -32,8 +31,7 @@ from econmotor.config.loading import as_float
 from econmotor.couriers.onnx_actor import policy_file, read_actor
 from econmotor.errors import ConfigError
 from econmotor.locomotion.conditions import walker_setup
-from econmotor.locomotion.learning import BASE_TERMS
-from econmotor.locomotion.task import task_settings
+from econmotor.locomotion.task import reward_terms, walker_settings
 from econmotor.motor_backend.base import ProgressFn, StopFn
 from econmotor.motor_backend.capabilities import HeldOutCadence
 from econmotor.motor_backend.mujoco.walker_recipe import WalkerPPOConfig
@@ -52,7 +50,7 @@ from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.objectives.loader import objective_weights_vector
 from econmotor.tasks.catalog import TaskSpec
 
-WALKER_KEYS = ("econ_gain", "rewards", "ppo", "checkpoint_every_s")
+WALKER_KEYS = ("econ_gain", "ppo", "checkpoint_every_s")
 
 
 @dataclass(frozen=True)
@@ -69,7 +67,7 @@ class WalkerTrainSettings:
 def walker_train_settings(spec: Any) -> WalkerTrainSettings:
     """The task's ``backends.mujoco.walker`` settings; a ConfigError names the file and key."""
     where = f"tasks.{spec.task_id}.backends.mujoco.walker"
-    entry = spec.backends["mujoco"]["walker"]
+    entry = dict(spec.backends.get("mujoco") or {}).get("walker") or {}
     if not isinstance(entry, Mapping):
         raise ConfigError(spec.source, where, "must be a mapping", WALKER_KEYS)
     unknown = [k for k in entry if k not in WALKER_KEYS]
@@ -78,22 +76,11 @@ def walker_train_settings(spec: Any) -> WalkerTrainSettings:
     gain = as_float(entry.get("econ_gain", 1.0), spec.source, f"{where}.econ_gain")
     if not gain >= 0:
         raise ConfigError(spec.source, f"{where}.econ_gain", f"must be >= 0, got {gain}")
-    weights, params = {}, {}
-    for name, term in dict(entry.get("rewards") or {}).items():
-        if name not in BASE_TERMS or not isinstance(term, Mapping) or "weight" not in term:
-            raise ConfigError(spec.source, f"{where}.rewards.{name}", "a term {weight: w, ...params} of the walker "
-                              "trainer's", BASE_TERMS)
-        weights[name] = as_float(term["weight"], spec.source, f"{where}.rewards.{name}.weight")
-        params[name] = {k: v for k, v in term.items() if k != "weight"}
+    weights, params = reward_terms(spec)  # the task's one set (its locomotion block), as the mjx couriers'
     ppo = dict(entry.get("ppo") or {})
     WalkerPPOConfig.from_mapping(ppo, f"{spec.source}: {where}.ppo")
     every = as_float(entry.get("checkpoint_every_s", 300.0), spec.source, f"{where}.checkpoint_every_s")
     return WalkerTrainSettings(gain, weights, params, ppo, every)
-
-
-def holosoma_settings(spec: Any) -> dict[str, Any]:
-    """The task's walker entry (robot, course, meter, sim-to-sim settings)."""
-    return task_settings(spec.task_id, spec.backend_entry("holosoma"), spec.source)
 
 
 def train_walker(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[Any], run_dir: Path, *,
@@ -118,7 +105,7 @@ def walker_run(spec: Any, objective: EconomicObjectiveSpec, packs: Sequence[Any]
     episodes alternate the nominal conditions a report prices by default and, under datapacks, the training's
     stress (``select_stresses``, recorded as ``selection_conditions``)."""
     trainer = walker_train_settings(spec)
-    settings = holosoma_settings(spec)
+    settings = walker_settings(spec)
     bundle = DatapackProvider().resolve(spec.task_id, [p.id for p in packs], list(packs))
     init = read_actor(policy_file(init_policy), init_policy) if init_policy else None
     setup = walker_setup(spec, settings, bundle, list(packs), str(init.path) if init else None,
@@ -220,7 +207,7 @@ def evaluate_walker_task(backend: Any, policy_id: str, spec: TaskSpec, *, num_ep
                          progress: ProgressFn, stop: StopFn | None, **_: Any) -> MotorEvalResult:
     """A walker run's ``policy.onnx`` priced sim-to-sim on the env it learned on (the one pricer)."""
     return price_walker(WalkerPricing(
-        backend=backend.name, spec=spec, settings=holosoma_settings(spec), packs=datapack_configs,
+        backend=backend.name, spec=spec, settings=walker_settings(spec), packs=datapack_configs,
         policy=str(Path(policy_id).resolve() / ONNX_FILE), policy_id=str(policy_id), imported=False,
         workers=backend.eval_workers, batch=backend.evaluation_batch(spec.task_id), label="mujoco"),
         num_episodes, seed, backend.run_dir(output_dir, spec.task_id, seed).resolve(), progress, stop)

@@ -42,7 +42,7 @@ ROBOTS = {"humanoid_locomotion_g1": "g1_29dof", "humanoid_locomotion_t1": "t1_29
 
 def _meter(task_id: str) -> dict[str, float]:
     spec = get_task(task_id)
-    return meter_settings(task_id, task_settings(task_id, spec.backend_entry("holosoma"), spec.source), spec.source)
+    return meter_settings(task_id, task_settings(spec), spec.source)
 
 
 def _steps(seed: int) -> dict[str, np.ndarray]:
@@ -132,10 +132,11 @@ def test_training_terms_meter_each_step_as_the_evaluator_does(task_id: str, name
 
 
 def test_the_robots_are_metered_with_the_catalogs_constants() -> None:
-    """Both robots' training and evaluation read their meter from the catalog entry and the robot card it names
-    (no default hides in code)."""
+    """Both robots' training and evaluation read their meter from the catalog (a walker task's locomotion block,
+    the whole-body tracking task's holosoma entry) and the robot card it names (no default hides in code)."""
     for task_id in ("humanoid_locomotion_g1", "humanoid_locomotion_t1", "humanoid_wbt_g1"):
-        entry = get_task(task_id).backend_entry("holosoma")
+        spec = get_task(task_id)
+        entry = spec.locomotion or spec.backend_entry("holosoma")
         meter = _meter(task_id)
         assert (meter["idle_power_w"], meter["tilt_margin_rad"]) == (entry["idle_power_w"], entry["tilt_margin_rad"])
         assert meter["fall_tilt_rad"] == card(entry["robot"]).fall_tilt_rad  # the robot card's fall rule

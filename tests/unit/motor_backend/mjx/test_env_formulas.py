@@ -16,12 +16,13 @@ from econmotor.config.datapacks import DatapackConfig
 from econmotor.couriers import overlay, physics
 from econmotor.economics import courier_formulas as cf
 from econmotor.errors import ConfigError
-from econmotor.locomotion.task import meter_settings, task_settings
+from econmotor.locomotion.task import meter_settings, reward_terms, task_settings
 from econmotor.motor_backend.mjx import env as mjx_env
-from econmotor.motor_backend.mjx.settings import HOLOSOMA_COURSE, INHERITED_KEYS, parse_mjx_settings
+from econmotor.motor_backend.mjx.settings import INHERITED_KEYS, LOCOMOTION_COURSE, parse_mjx_settings
 from econmotor.motor_backend.mjx.wrappers import make_env
 from econmotor.motor_backend.mujoco import metering
 from econmotor.motor_backend.mujoco.settings import parse_mujoco_settings
+from econmotor.motor_backend.mujoco.walker_backend import walker_train_settings
 from econmotor.robots import card
 from econmotor.robots import gym_couriers as robots
 from econmotor.tasks import load_catalog
@@ -146,21 +147,27 @@ def test_mjx_catalog_entries_inherit_the_mujoco_metering():
         assert spec.backend_source("mjx").endswith("mjx.yaml")
 
 
-def test_robot_couriers_inherit_the_sim_to_sim_meter_and_course():
+def test_robot_couriers_inherit_the_walker_tasks_one_place():
+    """The mjx couriers of the card robots take robot, meter, course and reward terms from the task's locomotion
+    block, the one the holosoma and mujoco backends read."""
     catalog = load_catalog()
-    robots = {t: catalog.get(t).backends["mjx"]["robot"] for t in catalog.ids("mjx")
-              if catalog.get(t).backends["mjx"].get("inherit") == "holosoma"}
+    robots = {t: catalog.get(t).locomotion["robot"] for t in catalog.ids("mjx")
+              if catalog.get(t).backends["mjx"].get("inherit") == "locomotion"}
     assert robots == {"humanoid_locomotion_g1": "g1_29dof", "humanoid_locomotion_t1": "t1_29dof"}
     for task_id in robots:
         spec = catalog.get(task_id)
-        settings, holosoma = parse_mjx_settings(spec), spec.backends["holosoma"]
-        meter = meter_settings(task_id, task_settings(task_id, holosoma, spec.source), spec.source)
+        settings, block = parse_mjx_settings(spec), spec.locomotion
+        assert settings.robot == robots[task_id]
+        meter = meter_settings(task_id, task_settings(spec), spec.source)  # the holosoma backend's meter
         for key, value in meter.items():  # one meter per robot: Holosoma's training terms and sim-to-sim read it
             assert getattr(settings, key) == value, (task_id, key)
         assert settings.fall_tilt_rad == card(robots[task_id]).fall_tilt_rad
-        for theirs, ours in HOLOSOMA_COURSE.items():
-            assert settings.course[ours] == holosoma[theirs], (task_id, ours)
-        assert settings.start_joint_noise_rad == holosoma["sim2sim_start_joint_noise_rad"]
+        for theirs, ours in LOCOMOTION_COURSE.items():
+            assert settings.course[ours] == block[theirs], (task_id, ours)
+        assert settings.start_joint_noise_rad == block["sim2sim_start_joint_noise_rad"]
+        assert settings.locomotion["episode_s"] == block["sim2sim_episode_s"]
+        assert (settings.locomotion["weights"], settings.locomotion["params"]) == reward_terms(spec)
+        assert set(settings.locomotion["weights"]) == set(walker_train_settings(spec).weights)  # one reward set
 
 
 def test_an_inherited_key_written_again_is_a_config_error():

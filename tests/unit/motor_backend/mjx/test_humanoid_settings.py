@@ -16,10 +16,10 @@ from econmotor.motor_backend.mjx.humanoid_env import (
     HUMANOID_LACKS,
     HumanoidWalkerEnv,
     check_humanoid_datapack,
-    parse_locomotion,
 )
 from econmotor.robots import G1_29DOF
 from econmotor.tasks import load_catalog
+from econmotor.tasks.catalog import TaskCatalog
 
 from .conftest import catalog_with_mjx_entry
 
@@ -77,15 +77,18 @@ def test_expected_foot_height_rises_to_the_swing_height_and_back() -> None:
     np.testing.assert_allclose(heights, [0.0, 0.045, 0.09, 0.045, 0.0], atol=1e-12)
 
 
-def test_an_unknown_reward_term_or_missing_key_names_the_catalog_key() -> None:
+def test_an_unknown_reward_term_or_a_robot_written_in_the_mjx_entry_names_the_catalog_key() -> None:
+    """The env's reward terms and time limit are the task's locomotion block's (its one place): a term no
+    engine computes names the block's key; a robot written in the mjx entry is refused there."""
     task = "humanoid_locomotion_g1"
-    loco = load_catalog().get(task).backends["mjx"]["locomotion"]
-    catalog = catalog_with_mjx_entry(task, source="my_mjx.yaml",
-                                     locomotion={**loco, "rewards": {**loco["rewards"], "moonwalk": {"weight": 1.0}}})
-    with pytest.raises(ConfigError, match=r"my_mjx.yaml.*locomotion.rewards.moonwalk.*tracking_lin_vel"):
-        HumanoidWalkerEnv(task, catalog=catalog)
+    spec = load_catalog().get(task)
+    loco = dict(spec.locomotion)
+    bad = replace(spec, locomotion={**loco, "rewards": {**loco["rewards"], "moonwalk": {"weight": 1.0}}},
+                  source="my_tasks.yaml")
+    with pytest.raises(ConfigError, match=r"my_tasks.yaml.*locomotion.rewards.moonwalk.*tracking_lin_vel"):
+        HumanoidWalkerEnv(task, catalog=TaskCatalog({task: bad}))
     env = HumanoidWalkerEnv(task)
-    episode_s, weights, params = parse_locomotion(env.settings)
-    assert episode_s == loco["episode_s"] and weights["feet_phase"] == 5.0 and params["feet_phase"]["swing_height"]
-    with pytest.raises(ConfigError, match="episode_s"):
-        parse_locomotion(replace(env.settings, locomotion={"rewards": {}}))
+    assert env.episode_s == loco["sim2sim_episode_s"] and env.weights["feet_phase"] == 5.0
+    assert env.reward_params["feet_phase"]["swing_height"] == loco["rewards"]["feet_phase"]["swing_height"]
+    with pytest.raises(ConfigError, match=r"my_mjx.yaml.*humanoid_locomotion_g1.robot.*unknown key"):
+        HumanoidWalkerEnv(task, catalog=catalog_with_mjx_entry(task, source="my_mjx.yaml", robot="g1_29dof"))

@@ -5,9 +5,9 @@ Holosoma pins numpy<2, so it lives in its own interpreter (``make holosoma`` bui
 only plans and launches jobs there (:mod:`.jobs`); it imports neither Holosoma
 nor torch, so it works in the main environment without Holosoma installed.
 
-Task map: a task's ``backends.holosoma`` catalog entry names its robot card and Holosoma's experiment
-preset per algorithm (``humanoid_locomotion_g1`` -> ``g1_29dof`` / ``g1_29dof_fast_sac``, ...;
-:func:`econmotor.locomotion.task.task_settings`).
+Task map: a task's ``backends.holosoma`` catalog entry names Holosoma's experiment preset per algorithm
+(``humanoid_locomotion_g1`` -> ``g1_29dof`` / ``g1_29dof_fast_sac``, ...); a walker task's robot card, meter
+and course are its locomotion block, the one every backend reads (:func:`econmotor.locomotion.task.task_settings`).
 
 - **train_policy**: the objective compiles to overlay scales; each overlay key with a
   simulator term becomes a Holosoma reward term weighted ``overlay_gain * scale``
@@ -50,10 +50,7 @@ from econmotor.couriers.policy_import import (
     is_imported_policy,
 )
 from econmotor.errors import BackendError, ConfigError
-from econmotor.locomotion.task import (
-    meter_settings,
-    task_settings,
-)
+from econmotor.locomotion.task import locomotion_where, meter_settings, task_settings
 from econmotor.motor_backend.base import MotorBackendBase, ProgressFn, StopFn, no_progress
 from econmotor.motor_backend.capabilities import BackendCapabilities, RunSize
 from econmotor.motor_backend.holosoma.econ_formulas import OVERLAY_TERM_KEYS
@@ -160,12 +157,13 @@ class HolosomaBackend(MotorBackendBase):
     @classmethod
     def robot_id(cls, spec: Any) -> str:
         """The robot card the task's entry names (``g1_29dof``), for a policy trained here or imported alike."""
-        return str(task_settings(spec.task_id, spec.backend_entry("holosoma"), spec.source)["robot"])
+        return str(task_settings(spec)["robot"])
 
     @classmethod
     def check_task_entry(cls, spec: Any) -> None:
-        """The ``backends.holosoma`` entry's keys, experiment, progress mode and efficiency."""
-        task_settings(spec.task_id, spec.backend_entry("holosoma"), spec.source)
+        """The ``backends.holosoma`` entry's keys, experiment and progress mode, and a walker task's locomotion
+        block."""
+        task_settings(spec)
 
     # -- helpers ---------------------------------------------------------------------------------
     @property
@@ -181,7 +179,7 @@ class HolosomaBackend(MotorBackendBase):
 
     def _task(self, task_id: str) -> tuple[Any, dict[str, Any]]:
         spec = self.catalog.get(task_id)
-        return spec, task_settings(task_id, spec.backend_entry("holosoma"), spec.source)
+        return spec, task_settings(spec)
 
     @staticmethod
     def _overlay(objective: EconomicObjectiveSpec, gain: float) -> tuple[dict[str, float], list[str]]:
@@ -226,7 +224,8 @@ class HolosomaBackend(MotorBackendBase):
         for text in messages:
             progress(f"holosoma: {text}", 1.0, 1.0)
         overlay_params = {k: settings[k] for k in ("progress_mode", "unit_duration_s", "novelty_rate")}
-        overlay_params["meter"] = meter_settings(task_id, settings, spec.source)  # the evaluator's constants too
+        # the evaluator's constants too
+        overlay_params["meter"] = meter_settings(task_id, settings, spec.source, locomotion_where(spec))
         overlay_params["winding_heat_w_per_nm2"] = robot_card(str(settings["robot"]), spec.source).heat_coeff().tolist()
         job = TrainJob(run_dir=str(run_dir), run_name=f"{task_id}-seed{seed}", plan=plan, seed=int(seed),
                        motion_task=bool(settings["uses_motion_clip"]),
@@ -313,7 +312,7 @@ class HolosomaBackend(MotorBackendBase):
                     progress: ProgressFn) -> MotorEvalResult:
         """Holosoma's eval_agent with recording; econ metrics from the recording's episodes."""
         settings = record["settings"]  # the physical parameters the policy was trained with
-        meter = meter_settings(task_id, settings, str(Path(policy_id) / RUN_CONFIG_FILE))
+        meter = meter_settings(task_id, settings, str(Path(policy_id) / RUN_CONFIG_FILE), "settings")
         episode_s = float(self.eval_episode_length_s or record["episode_length_s"])
         steps = num_episodes * math.ceil(episode_s / float(record["control_dt_s"]))
         simulator = self._eval_simulator(record.get("simulator", "mujoco"), run_dir, progress)
