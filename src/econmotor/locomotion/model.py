@@ -1,16 +1,24 @@
-"""A card robot's MuJoCo model with the PD law inside its actuators, for the walker env.
+"""A card robot's MuJoCo model with the PD law inside its actuators, for both engines.
 
-:func:`pd_actuator_spec` turns the card's model (:func:`econmotor.robots.model.model_spec`: the maker's
-MJCF, the floor, the maker's collision filter, the physics step) into one whose actuators apply
-``tau = clip(kp (target - q) - kd qd, -limit, limit)`` (gain ``kp`` on the target, bias ``-kp q - kd
-qd``, force range the effort limits): the law Holosoma's simulators apply, computed by MuJoCo at
-every physics step, and adds one ``actuatorfrc`` sensor per actuator for the meter.
+The law ``tau = clip(kp (target - q) - kd qd, -limit, limit)`` (Holosoma's simulators') is written
+once, here: :func:`pd_actuator_spec` turns the card's model (:func:`econmotor.robots.model.model_spec`:
+the maker's MJCF, the floor, the maker's collision filter, the physics step; ``contacts`` as there)
+into one whose actuators apply it (gain ``kp`` on ``ctrl = target``, bias ``-kp q - kd qd``, force
+range the card's effort limits; the MJCF's control range is dropped: the G1's hip roll motors say
++-88 where the card and the joints' ``actuatorfrcrange`` say +-139), computed by MuJoCo at every
+physics step, and adds one ``actuatorfrc``
+sensor per actuator for the meter. :func:`pd_gain_bias` gives the actuator parameters of other
+gains, for a NumPy ``MjModel`` (:func:`set_pd_gains`, the walker env's per-episode gains) and an MJX
+model alike (``model.replace(actuator_gainprm=..., actuator_biasprm=...)``, the MJX humanoid env's).
+Under the Euler integrator (the cards' MJCFs') the ``kd`` term is explicit, as when the law is
+computed outside MuJoCo; ``implicitfast`` would integrate it implicitly (actuator velocity derivatives).
 :class:`WalkerModel` is the compiled model and where to read it.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -22,10 +30,11 @@ from econmotor.robots.model import FLOOR, joint_indices, model_spec
 FULL_STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 
-def pd_actuator_spec(card: RobotCard, kp: np.ndarray, kd: np.ndarray) -> mujoco.MjSpec:
-    """The card's model with the PD law in its actuators (card joint order), and one ``actuatorfrc``
-    sensor per actuator (named ``econmotor_frc_<joint>``)."""
-    spec = model_spec(card)
+def pd_actuator_spec(card: RobotCard, kp: np.ndarray, kd: np.ndarray, *, contacts: str = "robot") -> mujoco.MjSpec:
+    """The card's model (``contacts`` as :func:`~econmotor.robots.model.model_spec`'s) with the PD law in its
+    actuators (gains per joint, card joint order), and one ``actuatorfrc`` sensor per actuator (named
+    ``econmotor_frc_<joint>``)."""
+    spec = model_spec(card, contacts=contacts)
     model = spec.compile()
     _, _, actuators = joint_indices(model, card)
     limit = card.array("effort_limits")
@@ -44,11 +53,22 @@ def pd_actuator_spec(card: RobotCard, kp: np.ndarray, kd: np.ndarray) -> mujoco.
     return spec
 
 
+def pd_gain_bias(gainprm: Any, biasprm: Any, actuators: Any, kp: Any, kd: Any) -> tuple[Any, Any]:
+    """``(actuator_gainprm, actuator_biasprm)`` of a model built by :func:`pd_actuator_spec` with the PD
+    law's gains ``kp``/``kd`` (per joint, card order) at ``actuators``; NumPy or JAX arrays, the given ones
+    left unchanged (a JAX array's ``.at[].set``, a NumPy array's copy)."""
+    if hasattr(gainprm, "at"):  # JAX
+        return (gainprm.at[actuators, 0].set(kp),
+                biasprm.at[actuators, 1].set(-kp).at[actuators, 2].set(-kd))
+    gain, bias = np.array(gainprm, copy=True), np.array(biasprm, copy=True)
+    gain[actuators, 0], bias[actuators, 1], bias[actuators, 2] = kp, -kp, -kd
+    return gain, bias
+
+
 def set_pd_gains(model: mujoco.MjModel, actuators: np.ndarray, kp: np.ndarray, kd: np.ndarray) -> None:
     """Set the PD law's gains of a model built by :func:`pd_actuator_spec` (per joint, card order)."""
-    model.actuator_gainprm[actuators, 0] = kp
-    model.actuator_biasprm[actuators, 1] = -kp
-    model.actuator_biasprm[actuators, 2] = -kd
+    model.actuator_gainprm[:], model.actuator_biasprm[:] = pd_gain_bias(
+        model.actuator_gainprm, model.actuator_biasprm, actuators, kp, kd)
 
 
 @dataclass

@@ -6,13 +6,14 @@ as the Gymnasium couriers are, so the mjx backend trains, evaluates and exports 
 here when its mjx entry inherits the task's locomotion block (``inherit: locomotion``, ``tasks/mjx.yaml``); everything
 robot-specific is read from the card (:mod:`econmotor.robots`), never from the robot's name.
 
-- **the robot**: the card's MJCF with its maker's collision filter and feet-only contacts
-  (:func:`econmotor.robots.model.load_model` with ``contacts="feet"``), the task's
-  ``model_options`` (solver iterations) applied; the start: ``card.init_pos``, upright, the default
-  pose plus the start-pose noise.
+- **the robot**: the card's MJCF with its maker's collision filter and feet-only contacts, its
+  actuators applying the card's PD law (:func:`econmotor.locomotion.model.pd_actuator_spec` with
+  ``contacts="feet"``: the MuJoCo C walker env's law), the task's ``model_options`` (solver
+  iterations) applied; the start: ``card.init_pos``, upright, the default pose plus the start-pose noise.
 - **action -> torques**, Holosoma's convention: the action clipped to ``+-card.action_clip``,
-  PD targets ``default + action_scale * action``, ``card.decimation`` physics steps per action each
-  applying ``tau = clip(kp (target - q) - kd qd, -effort_limit, effort_limit)``.
+  PD targets ``default + action_scale * action`` written to ``ctrl``, ``card.decimation`` physics
+  steps per action in which the actuators apply ``tau = clip(kp (target - q) - kd qd, -effort_limit,
+  effort_limit)`` (the episode's kp/kd scales set in the model by :meth:`HumanoidWalkerEnv.randomized_model`).
 - **observation**: holosoma_inference's ``actor_obs`` (:func:`econmotor.robots.observation.build_observation`),
   the command being the course's (below); so a policy trained here runs in the sim-to-sim
   evaluator and in holosoma_inference, and theirs here.
@@ -54,13 +55,14 @@ from econmotor.locomotion.course import (
     heading_yaw,
 )
 from econmotor.locomotion.learning import course_point
+from econmotor.locomotion.model import pd_actuator_spec, pd_gain_bias
 from econmotor.locomotion.rewards import LocomotionReading, locomotion_reward
 from econmotor.locomotion.stress import Stress
 from econmotor.motor_backend.mjx._mjx import mjx
 from econmotor.motor_backend.mjx.assets import apply_model_options
 from econmotor.motor_backend.mjx.base_env import Env, State, like, reading
 from econmotor.robots import card as robot_card
-from econmotor.robots.model import joint_indices, load_model
+from econmotor.robots.model import joint_indices
 from econmotor.robots.observation import (
     advance_phase,
     build_observation,
@@ -113,7 +115,7 @@ class HumanoidWalkerEnv(Env):
         self.episode_s, self.weights, self.reward_params = loco["episode_s"], loco["weights"], loco["params"]
         self.course = CourseSettings(**{"leg_m": s.leg_distance_m, **s.course})
         self.stress = Stress.from_datapacks(datapacks, c.push_preset, s.start_joint_noise_rad, lacks=HUMANOID_LACKS)
-        m = load_model(c, contacts="feet")
+        m = pd_actuator_spec(c, c.array("kp"), c.array("kd"), contacts="feet").compile()
         apply_model_options(m, s.model_options, where)
         self._use_model(m)
         qadr, dadr, act = joint_indices(m, c)
@@ -140,7 +142,6 @@ class HumanoidWalkerEnv(Env):
         self._qpos0 = jnp.asarray(qpos0, jnp.float32)
         self._default = jnp.asarray(c.default_dof_angles, jnp.float32)
         self._kp, self._kd = jnp.asarray(c.kp, jnp.float32), jnp.asarray(c.kd, jnp.float32)
-        self._limit = jnp.asarray(c.effort_limits, jnp.float32)
         self._heat_coeff = jnp.asarray(c.heat_coeff(np.float32))  # the card's motor model (W per (N m)^2)
 
     # ------------------------------------------------------------------ physics readouts
@@ -149,8 +150,13 @@ class HumanoidWalkerEnv(Env):
         return has_fallen(self.card, qpos, qvel, jnp)
 
     def randomized_model(self, draws: Mapping[str, jax.Array]) -> Any:
-        """The card's model with the episode's floor friction and torso payload."""
+        """The card's model with the episode's floor friction, torso payload and PD gains (the card's
+        kp/kd scaled by the episode's draws, in the actuators' parameters)."""
         m = self.model
+        if self.stress.kp_range or self.stress.kd_range:
+            gain, bias = pd_gain_bias(m.actuator_gainprm, m.actuator_biasprm, self._act,
+                                      self._kp * draws["kp_scale"], self._kd * draws["kd_scale"])
+            m = m.replace(actuator_gainprm=gain, actuator_biasprm=bias)
         if "friction" in draws:
             mu = draws["friction"]
             m = m.replace(geom_friction=m.geom_friction.at[self._floor, 0].set(mu),
@@ -231,15 +237,13 @@ class HumanoidWalkerEnv(Env):
         return data, {**robot, "next_push_s": jnp.where(push, robot["time_s"] + self._draw(k_next, st.push_interval_s),
                                                         robot["next_push_s"])}
 
-    def _physics(self, m: Any, data: Any, target: jax.Array, dr: Mapping[str, jax.Array]):
-        """``card.decimation`` physics steps of the PD loop: ``(data, fell, readings)`` (a reading per step)."""
-        kp, kd = self._kp * dr["kp_scale"], self._kd * dr["kd_scale"]
+    def _physics(self, m: Any, data: Any, target: jax.Array):
+        """``card.decimation`` physics steps of the PD loop on the PD ``target`` (the actuators' ``ctrl``;
+        they apply the law): ``(data, fell, readings)`` (a reading per step)."""
 
         def physics_step(carry, _):
             d, alive = carry
-            q, qd = d.qpos[self._qadr], d.qvel[self._dadr]
-            tau = jnp.clip(kp * (target - q) - kd * qd, -self._limit, self._limit)
-            d = mjx.step(m, d.replace(ctrl=d.ctrl.at[self._act].set(tau)))
+            d = mjx.step(m, d)
             fell = self.has_fallen(d.qpos, d.qvel)
             frc = d.qfrc_actuator[self._dadr]
             now = reading(d.qpos[0], cf.mechanical_power_w(frc, d.qvel[self._dadr], jnp),
@@ -247,6 +251,7 @@ class HumanoidWalkerEnv(Env):
                 if self.readings else {}
             return (d, alive & ~fell), now
 
+        data = data.replace(ctrl=data.ctrl.at[self._act].set(target))
         (data, alive), readings = jax.lax.scan(physics_step, (data, jnp.ones((), bool)), None,
                                                length=self.card.decimation)
         return data, ~alive, readings
@@ -259,7 +264,7 @@ class HumanoidWalkerEnv(Env):
         if self.stress.push_interval_s is not None:
             data, robot = self._push(data, robot, state.key)
         x_before = data.qpos[0]
-        data, fell, readings = self._physics(m, data, self._default + c.action_scale * action, state.randomization)
+        data, fell, readings = self._physics(m, data, self._default + c.action_scale * action)
         qpos, qvel = data.qpos, data.qvel
         quat = qpos[3:7]
         loco = LocomotionReading(

@@ -3,10 +3,12 @@
 - Parity: every control step the C model's state (the card's model with the task's
   ``model_options``, as MJX runs it, the solver run to convergence; the T1's under the stress
   datapack, its draws applied to both) is copied into the MJX env,
-  both apply the same action through Holosoma's PD loop, and the step's physics, metering (the
-  sim-to-sim evaluator's meter, ``WalkerBatch._meter``, on the C side's physics steps) and next
-  observation (the evaluator's ``WalkerBatch.observe`` on the C state: its course command, gait
-  clock and observation) are compared. Float32 MJX vs float64 C: stated tolerances in the test.
+  both apply the same action through Holosoma's PD loop (the PD targets in ``ctrl``, the law in the
+  actuators of :func:`econmotor.locomotion.model.pd_actuator_spec`, the episode's gains set in both),
+  and the step's physics, metering (the sim-to-sim evaluator's meter, ``WalkerBatch._meter``, on
+  the C side's physics steps) and next observation (the evaluator's ``WalkerBatch.observe`` on the
+  C state: its course command, gait clock and observation) are compared. Float32 MJX vs float64 C:
+  stated tolerances in the test.
 - Holosoma's shipped G1 PPO walker (its ONNX, run by onnxruntime) driven by the MJX G1 env, on
   the catalog's model options (the ones training runs), walks: no fall over a short episode, and
   its speed is within 15% of what the sim-to-sim evaluator (the batched MuJoCo walker env,
@@ -30,11 +32,11 @@ from econmotor.couriers.policy_import import resolve_contract
 from econmotor.economics.termination import TerminationReason
 from econmotor.locomotion.env import WalkerBatch
 from econmotor.locomotion.evaluation import WalkerEvaluation, evaluate
-from econmotor.locomotion.model import WalkerModel
+from econmotor.locomotion.model import WalkerModel, pd_actuator_spec, set_pd_gains
 from econmotor.locomotion.stress import Stress
 from econmotor.locomotion.task import MeterSettings
 from econmotor.motor_backend.mjx.assets import apply_model_options
-from econmotor.robots.model import joint_indices, load_model
+from econmotor.robots.model import joint_indices
 
 from .conftest import JittedEnv, catalog_with_mjx_entry
 
@@ -78,10 +80,11 @@ def humanoid(robot: str, stress: bool = False, **model_options) -> JittedEnv:
 
 
 def c_robot(env, draws):
-    """MuJoCo C on the model the MJX env runs: the card's, feet-only contacts, the task's model options,
-    and the episode's stress ``draws`` (floor friction unless None, torso payload)."""
+    """MuJoCo C on the model the MJX env runs: the card's with the PD law in its actuators, feet-only
+    contacts, the task's model options, and the episode's stress ``draws`` (floor friction unless None,
+    torso payload, kp/kd scales)."""
     card = env.card
-    model = load_model(card, contacts="feet")
+    model = pd_actuator_spec(card, card.array("kp"), card.array("kd"), contacts="feet").compile()
     apply_model_options(model, env.settings.model_options)
     if draws["friction"] is not None:
         model.geom_friction[model.geom("floor").id, 0] = draws["friction"]
@@ -89,6 +92,7 @@ def c_robot(env, draws):
     model.body_mass[model.body(card.torso_body).id] += draws["payload_kg"]
     data = mujoco.MjData(model)
     qadr, dadr, act = joint_indices(model, card)
+    set_pd_gains(model, act, card.array("kp") * draws["kp_scale"], card.array("kd") * draws["kd_scale"])
     data.qpos[0:3], data.qpos[3:7] = card.init_pos, (1.0, 0.0, 0.0, 0.0)
     data.qpos[qadr] = card.default_dof_angles
     mujoco.mj_forward(model, data)
@@ -152,8 +156,6 @@ def test_mjx_humanoid_steps_meter_and_observe_as_mujoco_c(robot: str) -> None:
         assert lo <= float(state.info["next_push_s"][0]) <= hi
         assert np.all((0.9 <= draws["kp_scale"]) & (draws["kp_scale"] <= 1.1)) and np.ptp(draws["kd_scale"]) > 0
     model, data, qadr, dadr, act = c_robot(env, draws)
-    kp, kd = card.array("kp") * draws["kp_scale"], card.array("kd") * draws["kd_scale"]
-    limit = card.array("effort_limits")
     # the evaluator (the batched walker env) on the C states: the same joints, read in the card's order
     batch, slot = evaluator(env), np.array([0])
     assert (batch.nq, batch.nv) == (model.nq, model.nv) and np.array_equal(batch.walker.qpos_adr, qadr)
@@ -173,8 +175,8 @@ def test_mjx_humanoid_steps_meter_and_observe_as_mujoco_c(robot: str) -> None:
             getattr(batch.sums, name)[0] = 0.0
         batch.sums.best_x[0] = data.qpos[0]
         states, frc = [], []
+        data.ctrl[act] = target  # the PD targets: the actuators apply the law
         for _ in range(card.decimation):
-            data.ctrl[act] = np.clip(kp * (target - data.qpos[qadr]) - kd * data.qvel[dadr], -limit, limit)
             mujoco.mj_step(model, data)
             states.append(evaluator_state(batch, data))
             frc.append(data.qfrc_actuator[dadr].copy())
@@ -187,6 +189,8 @@ def test_mjx_humanoid_steps_meter_and_observe_as_mujoco_c(robot: str) -> None:
         if fell:
             break
         qpos_j = np.asarray(state.data.qpos)[0]
+        # the MJX step wrote the PD targets, not torques, into the actuators' ctrl
+        np.testing.assert_allclose(np.asarray(state.data.ctrl)[0][act], target, rtol=1e-6, atol=1e-6)
         # stated tolerances (measured worst cases over the 30 steps, G1 nominal / T1 stressed: qpos
         # 6.2e-5 / 2.9e-5 rad or m, energy 1.8e-4 / 1.2e-4 relative, observation 6.6e-4 / 3.1e-4)
         np.testing.assert_allclose(qpos_j, data.qpos, atol=2e-3, err_msg=f"step {t}")
