@@ -8,19 +8,19 @@ prices the G1 and T1: the same model, course, stress, meter and fall rule) for a
   there and the time the course would have taken so far counted against the episode's limit
   (:func:`start_point`); an episode then runs to the course's end, a fall or the time limit, so
   the learner practises standing starts, dwells and every leg the priced course has;
-- **the step reward** ``r = sum_k w_k term_k dt + gain * (J_T(t) - J_T(t - 1))``: Holosoma's locomotion
-  terms that a base-state reading supports (:data:`BASE_TERMS`, :mod:`econmotor.locomotion.rewards`)
-  plus ``gain`` times the increment of the objective's J, the very J selection and the report score an
-  episode by (:func:`econmotor.objectives.loader.running_objective_j` on the meter's running sums, from
-  ``J = 0`` at the episode's start). While the episode runs its rates are taken over ``T``, the episode's
-  nominal length (:func:`nominal_length_s`: the course left from the start point at the course's speed,
-  dwells included, within the time limit), so each leg walked is paid ``3600 w_mpl / T`` when it is
-  walked and each Wh when it is drawn; the step that ends the episode adds the difference between its J
-  over its own length and over ``T``. An episode's economic rewards sum to ``gain * J`` of that episode,
-  with its own length and legs. (Paying the increments of the running rate ``3600 legs / t`` instead
-  credits a leg walked at ``t`` with about ``3600 H / t^2`` within the discount's horizon ``H``: far too much
-  in an episode's first seconds and almost nothing later, and a fall, which keeps the rate, would cost
-  next to nothing);
+- **the step reward** ``r = sum_k w_k term_k dt + gain * (J_T(t) - J_T(t - 1))``: Holosoma's locomotion terms
+  (:data:`BASE_TERMS`: all of :mod:`econmotor.locomotion.rewards`, on the reading the MJX env takes,
+  :meth:`WalkerLearningEnv.reading`) plus ``gain`` times the increment of the objective's J, the very J
+  selection and the report score an episode by (:func:`econmotor.objectives.loader.running_objective_j` on the
+  meter's running sums, from ``J = 0`` at the episode's start). While the episode runs its rates are taken
+  over ``T``, the episode's nominal length (:func:`nominal_length_s`: the course left from the start point at
+  the course's speed, dwells included, within the time limit), so each leg walked is paid ``3600 w_mpl / T``
+  when it is walked and each Wh when it is drawn; the step that ends the episode adds the difference between
+  its J over its own length and over ``T``. An episode's economic rewards sum to ``gain * J`` of that episode,
+  with its own length and legs. (Paying the increments of the running rate ``3600 legs / t`` instead credits a
+  leg walked at ``t`` with about ``3600 H / t^2`` within the discount's horizon ``H``: far too much in an
+  episode's first seconds and almost nothing later, and a fall, which keeps the rate, would cost next to
+  nothing);
 - **terminated** only by a fall (the card's rule, the runaway rule included); the course's end and the
   time limit **truncate** (the trainer bootstraps them with the critic);
 - **a privileged view** for the critic (:meth:`WalkerLearningEnv.privileged`): the base's velocity
@@ -46,9 +46,8 @@ from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.objectives.loader import running_objective_j
 from econmotor.robots.observation import projected_gravity, rotate_inverse
 
-#: Holosoma's locomotion terms computed from the base's state and the actions (no feet or pose terms)
-BASE_TERMS = ("tracking_lin_vel", "tracking_ang_vel", "penalty_ang_vel_xy", "penalty_orientation",
-              "penalty_action_rate", "alive")
+#: Holosoma's locomotion terms the walker trainer computes: all of them (the MJX env's set), on a batch of robots
+BASE_TERMS = tuple(lr.TERMS)
 #: width of :meth:`WalkerLearningEnv.privileged`
 PRIVILEGED_DIM = 9
 
@@ -127,8 +126,7 @@ class WalkerLearningEnv:
                  random_start: bool = True, seed_stride: int = 1) -> None:
         unknown = sorted(set(weights) - set(BASE_TERMS))
         if unknown:
-            raise ValueError(f"locomotion terms {unknown} need feet or pose readings; the walker trainer has "
-                             f"{list(BASE_TERMS)}")
+            raise ValueError(f"unknown locomotion terms {unknown}; the walker trainer has {list(BASE_TERMS)}")
         self.batch, self.objective, self.economics, self.gain = batch, objective, economics, float(gain)
         self._j = np.zeros(batch.n)  # each slot's episode J so far, over its nominal length
         self._limit_s = batch.control_steps * batch.card.control_dt_s
@@ -137,6 +135,8 @@ class WalkerLearningEnv:
         self.next_seed, self.random_start, self.seed_stride = int(seed), bool(random_start), int(seed_stride)
         self.slots = np.arange(batch.n)
         self._obs = np.zeros((batch.n, batch.card.obs_dim), np.float32)
+        m, card = batch.walker.model, batch.card  # the feet's bodies: the contact points, then the feet
+        self._points = np.array([m.body(name).id for name in (*card.foot_contact_bodies, *card.foot_bodies)])
 
     @property
     def num_envs(self) -> int:
@@ -173,16 +173,27 @@ class WalkerLearningEnv:
         legs = b.course_state.legs_done[slots] / max(b.course.legs, 1)
         return np.column_stack([lin, qpos[:, 2], friction, payload / 5.0, dwell, left, legs]).astype(np.float32)
 
-    def _locomotion(self, slots: np.ndarray, action: np.ndarray, last_action: np.ndarray) -> tuple[np.ndarray, dict]:
-        b = self.batch
+    def reading(self, slots: np.ndarray, action: np.ndarray, last_action: np.ndarray) -> lr.LocomotionReading:
+        """What the locomotion terms read of ``slots`` after their control step (a leading robot axis), as the MJX
+        env reads one env after its step: the base and joints from the state; the feet from each slot's
+        ``MjData`` (its kinematics at the start of the last physics step, as ``mj_step`` leaves them: what
+        ``data.xpos``/``data.xmat`` hold after ``mjx.step``); the step's command and gait clock."""
+        b, n = self.batch, len(slots)
         state = b.state[slots]
         qpos, qvel = b._qpos(state), b._qvel(state)
         quat = qpos[:, 3:7]
-        command = np.column_stack([b.command[slots, 0], np.zeros(len(slots)), b.command[slots, 1]])
-        reading = lr.LocomotionReading(
+        xpos = np.stack([b.datas[s].xpos for s in slots])[:, self._points]  # whole arrays, then the feet: faster
+        xmat = np.stack([b.datas[s].xmat for s in slots])[:, self._points[2:]]
+        command = np.column_stack([b.command[slots, 0], np.zeros(n), b.command[slots, 1]])
+        return lr.LocomotionReading(
             command=command, lin_vel_body=rotate_inverse(quat, qvel[:, 0:3], np), ang_vel_body=qvel[:, 3:6],
-            gravity_body=projected_gravity(quat, np), action=action, last_action=last_action, q=None,
-            default_q=None, phase=None, foot_z=None, feet_xy=None, feet_gravity_xy=None, base_yaw=None)
+            gravity_body=projected_gravity(quat, np), action=action, last_action=last_action,
+            q=qpos[:, b.walker.qpos_adr], default_q=b.default, phase=b.phase[slots], foot_z=xpos[:, 0:2, 2],
+            feet_xy=xpos[:, 2:4, 0:2], feet_gravity_xy=-xmat[:, :, 6:8], base_yaw=crs.heading_yaw(quat, np))
+
+    def _locomotion(self, slots: np.ndarray, action: np.ndarray, last_action: np.ndarray) -> tuple[np.ndarray, dict]:
+        b = self.batch
+        reading = self.reading(slots, action, last_action)
         raw = {k: np.broadcast_to(lr.TERMS[k](reading, np, **self.params.get(k, {})), (len(slots),))
                for k in self.weights}
         dt = b.card.control_dt_s

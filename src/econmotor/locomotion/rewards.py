@@ -3,10 +3,11 @@
 Holosoma's locomotion terms (``holosoma/managers/reward/terms/locomotion.py``; its G1 and T1
 presets in ``holosoma/config_values/loco/{g1,t1}/reward.py`` give the weights the catalog copies,
 ``tasks/mjx.yaml``), which in turn follow MuJoCo Playground's G1 joystick: each reads a
-:class:`LocomotionReading` of one env after a control step and returns a scalar (the terms the
-mujoco walker trainer uses also read a batch: arrays with a leading robot axis give one value per robot). The step's
-locomotion reward is ``sum_k weight_k * term_k * control_dt_s`` (Holosoma's reward manager
-scales by the step), :func:`locomotion_reward`.
+:class:`LocomotionReading` of one env after a control step and returns a scalar; a reading whose
+arrays carry a leading robot axis (the mujoco walker trainer's batch) gives one value per robot
+(``alive`` gives 1, which broadcasts). The step's locomotion reward is
+``sum_k weight_k * term_k * control_dt_s`` (Holosoma's reward manager scales by the step),
+:func:`locomotion_reward`.
 """
 
 from __future__ import annotations
@@ -71,26 +72,26 @@ def expected_foot_height(phase: Any, swing_height: float, xp: Any) -> Any:
 
 def feet_phase(r: LocomotionReading, xp: Any, swing_height: float = 0.08, tracking_sigma: float = 0.25) -> Any:
     """``exp(-sum_feet (z - z_expected(phase))^2 / sigma)``: feet that swing as the clock says."""
-    error = xp.sum(xp.square(r.foot_z - expected_foot_height(r.phase, swing_height, xp)))
+    error = xp.sum(xp.square(r.foot_z - expected_foot_height(r.phase, swing_height, xp)), axis=-1)
     return xp.exp(-error / tracking_sigma)
 
 
 def pose(r: LocomotionReading, xp: Any, pose_weights: Any = None) -> Any:
     """``sum_j w_j (q_j - default_j)^2``: a pose away from the default one."""
     weights = xp.asarray(pose_weights) if pose_weights is not None else 1.0
-    return xp.sum(weights * xp.square(r.q - r.default_q))
+    return xp.sum(weights * xp.square(r.q - r.default_q), axis=-1)
 
 
 def penalty_close_feet_xy(r: LocomotionReading, xp: Any, close_feet_threshold: float = 0.05) -> Any:
     """1 when the feet are closer than the threshold across the base's heading (a step onto the other foot)."""
-    d = r.feet_xy[0] - r.feet_xy[1]
-    across = xp.abs(xp.cos(r.base_yaw) * d[1] - xp.sin(r.base_yaw) * d[0])
+    d = r.feet_xy[..., 0, :] - r.feet_xy[..., 1, :]
+    across = xp.abs(xp.cos(r.base_yaw) * d[..., 1] - xp.sin(r.base_yaw) * d[..., 0])
     return xp.where(across < close_feet_threshold, 1.0, 0.0)
 
 
 def penalty_feet_ori(r: LocomotionReading, xp: Any) -> Any:
     """``sum_feet |g_xy|`` in each foot's frame: feet that are not flat."""
-    return xp.sum(xp.sqrt(xp.sum(xp.square(r.feet_gravity_xy), axis=-1)))
+    return xp.sum(xp.sqrt(xp.sum(xp.square(r.feet_gravity_xy), axis=-1)), axis=-1)
 
 
 def alive(r: LocomotionReading, xp: Any) -> Any:
