@@ -20,6 +20,7 @@ takes minutes of CPU); its episode is short (:data:`EPISODE_S`) so the walker's 
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import jax
@@ -65,17 +66,17 @@ def humanoid(robot: str, stress: bool = False, **model_options) -> JittedEnv:
         from econmotor.motor_backend.mjx.humanoid_env import HumanoidWalkerEnv
         from econmotor.motor_backend.mjx.wrappers import make_env
         from econmotor.objectives import EconomicObjectiveSpec
-        from econmotor.tasks.catalog import load_catalog
+        from econmotor.tasks.catalog import TaskCatalog, load_catalog
 
         task = TASKS[robot]
         entry = load_catalog().get(task).backends["mjx"]
-        changes = {"locomotion": {**entry["locomotion"], "episode_s": EPISODE_S}}
-        if model_options:
-            changes["model_options"] = {**entry["model_options"], **model_options}
+        changes = {"model_options": {**entry["model_options"], **model_options}} if model_options else {}
+        spec = catalog_with_mjx_entry(task, **changes).get(task)
+        spec = replace(spec, locomotion={**spec.locomotion, "sim2sim_episode_s": EPISODE_S})  # the time limit
         objective = EconomicObjectiveSpec(mpl_weight=1.0, energy_weight=0.5, error_weight=0.2, risk_weight=0.4)
         _ENVS[key] = JittedEnv(make_env(HumanoidWalkerEnv, task, objective=objective,
                                           datapacks=[stress_bundle(task)] if stress else [],
-                                          catalog=catalog_with_mjx_entry(task, **changes)))
+                                          catalog=TaskCatalog({task: spec})))
     return _ENVS[key]
 
 
