@@ -27,7 +27,7 @@ def geoms_that_collide(model: mujoco.MjModel) -> set[str]:
 def test_the_catalog_runs_every_courier_as_brax_does_on_mjx():
     catalog = load_catalog()
     for task_id in catalog.ids("mjx"):
-        if "robot" in catalog.get(task_id).backends["mjx"]:
+        if catalog.get(task_id).backends["mjx"].get("inherit") == "locomotion":
             env = HumanoidWalkerEnv(task_id, catalog=catalog)  # feet-only contacts from its robot card
             assert geoms_that_collide(env.mj_model) - {"floor"} == set(env.card.foot_geoms)
             assert env.mj_model.opt.iterations <= 4 and env.mj_model.opt.ls_iterations <= 8

@@ -224,8 +224,7 @@ class HolosomaBackend(MotorBackendBase):
         for text in messages:
             progress(f"holosoma: {text}", 1.0, 1.0)
         overlay_params = {k: settings[k] for k in ("progress_mode", "unit_duration_s", "novelty_rate")}
-        # the evaluator's constants too
-        overlay_params["meter"] = meter_settings(task_id, settings, spec.source, locomotion_where(spec))
+        overlay_params["meter"] = meter_settings(task_id, settings, spec.source, locomotion_where(spec))  # pricing's
         overlay_params["winding_heat_w_per_nm2"] = robot_card(str(settings["robot"]), spec.source).heat_coeff().tolist()
         job = TrainJob(run_dir=str(run_dir), run_name=f"{task_id}-seed{seed}", plan=plan, seed=int(seed),
                        motion_task=bool(settings["uses_motion_clip"]),
