@@ -45,8 +45,8 @@ RAW = ("units_completed", "units_attempted", "errors", "energy_wh", "episode_len
 def test_selection_the_evaluation_after_training_and_a_report_price_the_same_episodes(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     spec = get_task(TASK)
-    short = {**wb.holosoma_settings(spec), "sim2sim_episode_s": EPISODE_S}
-    monkeypatch.setattr(wb, "holosoma_settings", lambda _spec: short)  # the run's and its evaluation's course
+    short = {**wb.walker_settings(spec), "sim2sim_episode_s": EPISODE_S}
+    monkeypatch.setattr(wb, "walker_settings", lambda _spec: short)  # the run's and its evaluation's course
     [pack] = load_datapack_configs([REPO / "configs/datapacks/humanoid_stress.yaml"])
     objective = EconomicObjectiveSpec()
     selection = Selection(spec, objective, SelectionConfig(every_steps=1, episodes=EPISODES, seed=SEED, batch=LOOK))
@@ -105,7 +105,7 @@ def test_a_walker_held_out_evaluation_may_run_to_a_hundred_legs(tmp_path: Path,
     """A walker's held-out look runs 100 legs or more of its task's course (34 episodes of the G1's 3 legs) before
     the sequential plan is asked, so every look can see falls."""
     for task in ("humanoid_locomotion_g1", "humanoid_locomotion_t1"):
-        legs = int(wb.holosoma_settings(get_task(task))["sim2sim_legs"])
+        legs = int(wb.walker_settings(get_task(task))["sim2sim_legs"])
         assert wb.WALKER_SELECT_BATCH * legs >= wb.MIN_SELECT_LEGS, task
     assert wb.WALKER_SELECT_EPISODES >= wb.WALKER_SELECT_BATCH
     seen: dict[str, Selection] = {}
