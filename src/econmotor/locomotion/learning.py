@@ -9,7 +9,7 @@ prices the G1 and T1: the same model, course, stress, meter and fall rule) for a
   (:func:`start_point`); an episode then runs to the course's end, a fall or the time limit, so
   the learner practises standing starts, dwells and every leg the priced course has;
 - **the step reward** ``r = sum_k w_k term_k dt + gain * (J_T(t) - J_T(t - 1))``: Holosoma's locomotion terms
-  (:data:`BASE_TERMS`: all of :mod:`econmotor.locomotion.rewards`, on the reading the MJX env takes,
+  (all of :data:`econmotor.locomotion.rewards.TERMS`, on the reading the MJX env takes,
   :meth:`WalkerLearningEnv.reading`) plus ``gain`` times the increment of the objective's J, the very J
   selection and the report score an episode by (:func:`econmotor.objectives.loader.running_objective_j` on the
   meter's running sums, from ``J = 0`` at the episode's start). While the episode runs its rates are taken
@@ -46,8 +46,6 @@ from econmotor.objectives.economic_objective import EconomicObjectiveSpec
 from econmotor.objectives.loader import running_objective_j
 from econmotor.robots.observation import projected_gravity, rotate_inverse
 
-#: Holosoma's locomotion terms the walker trainer computes: all of them (the MJX env's set), on a batch of robots
-BASE_TERMS = tuple(lr.TERMS)
 #: width of :meth:`WalkerLearningEnv.privileged`
 PRIVILEGED_DIM = 9
 
@@ -115,7 +113,7 @@ class WalkerLearningEnv:
         objective / economics: the objective whose J the learner is paid in, and the task's economics (its
             electricity price, for an objective that prices energy).
         gain: J's weight against the locomotion terms (reward units per unit of J).
-        weights / params: locomotion term weights and parameters (keys of :data:`BASE_TERMS`).
+        weights / params: locomotion term weights and parameters (keys of :data:`econmotor.locomotion.rewards.TERMS`).
         seed: episode ``i`` started by this env is seeded ``seed + i * seed_stride`` (a stride of ``W``: one of
             ``W`` envs that share a run's seed range, each started ``w`` apart).
         random_start: start episodes at random points of the course (else at its start).
@@ -124,9 +122,9 @@ class WalkerLearningEnv:
     def __init__(self, batch: WalkerBatch, objective: EconomicObjectiveSpec, economics: Any, gain: float,
                  weights: Mapping[str, float], params: Mapping[str, Mapping[str, Any]] | None = None, seed: int = 0,
                  random_start: bool = True, seed_stride: int = 1) -> None:
-        unknown = sorted(set(weights) - set(BASE_TERMS))
+        unknown = sorted(set(weights) - set(lr.TERMS))
         if unknown:
-            raise ValueError(f"unknown locomotion terms {unknown}; the walker trainer has {list(BASE_TERMS)}")
+            raise ValueError(f"unknown locomotion terms {unknown}; the walker trainer has {list(lr.TERMS)}")
         self.batch, self.objective, self.economics, self.gain = batch, objective, economics, float(gain)
         self._j = np.zeros(batch.n)  # each slot's episode J so far, over its nominal length
         self._limit_s = batch.control_steps * batch.card.control_dt_s
