@@ -362,14 +362,16 @@ def _g1_episode(legs: float, fell: bool) -> dict:
 
 def test_the_walker_run_keeps_the_mid_run_policy_its_evaluations_selected(tmp_path: Path,
                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
-    """Held-out evaluations scripted as falling, then safe (acceptable), then fast but falling (the highest J, not
-    acceptable): the run's policy.onnx is the actor the middle evaluation saw, not the last."""
+    """Held-out evaluations scripted as falling (the shipped walker it starts from, judged first at env step 0,
+    and the first checkpoint), then safe (acceptable), then fast but falling (the highest J, not acceptable): the
+    run's policy.onnx is the actor the third evaluation saw, not the start's or the last."""
     from econmotor.motor_backend.mujoco import walker_training
     from econmotor.motor_backend.mujoco.backend import MujocoBackend
     from econmotor.objectives import EconomicObjectiveSpec
 
     episodes = 80
-    script = ([_g1_episode(2.0, i % 2 == 0) for i in range(episodes)], [_g1_episode(6.0, False)] * episodes,
+    script = ([_g1_episode(2.0, i % 2 == 0) for i in range(episodes)],
+              [_g1_episode(2.0, i % 2 == 0) for i in range(episodes)], [_g1_episode(6.0, False)] * episodes,
               [_g1_episode(9.0, i % 3 == 0) for i in range(episodes)])
     seen: list[list[np.ndarray]] = []
 
@@ -389,11 +391,12 @@ def test_the_walker_run_keeps_the_mid_run_policy_its_evaluations_selected(tmp_pa
         select_every_steps=per_iteration, select_episodes=episodes,
         hyperparameters={"steps_per_iteration": 16, "num_minibatches": 1, "critic_warmup_iterations": 0,
                          "learning_rate": 1e-3})
-    assert len(seen) == 3 and not np.array_equal(seen[1][0], seen[2][0])  # PPO moved between the evaluations
+    assert len(seen) == 4 and not np.array_equal(seen[2][0], seen[3][0])  # PPO moved between the evaluations
     record = result.config["selection"]
-    assert [e["deployable"] for e in record["evaluations"]] == [False, True, False]
+    assert [(e["env_steps"], e["deployable"]) for e in record["evaluations"]] == [
+        (0, False), (per_iteration, False), (2 * per_iteration, True), (3 * per_iteration, False)]
     assert record["kept"]["env_steps"] == 2 * per_iteration
     kept = read_actor(tmp_path / "run" / "policy.onnx")
-    for layer, weights in zip(kept.layers, seen[1], strict=True):
+    for layer, weights in zip(kept.layers, seen[2], strict=True):
         np.testing.assert_allclose(layer["w"], weights, rtol=0, atol=1e-6,
                                    err_msg="policy.onnx is not the actor the held-out evaluations selected")

@@ -14,6 +14,10 @@ training's seeds, from the post-training evaluation's ``seed + 10,000`` and from
   then the higher J wins; the trainer then saves it as the run's policy;
 - with ``until_deployable``, asks the trainer to stop at the first acceptable evaluation.
 
+A run that starts from a policy (a learner's ``warm_start``: ``--init-policy``) evaluates that policy
+first, at env step 0, on the same held-out episodes: a fine-tune keeps a checkpoint only when it beats
+the walker it started from, and its looks read as a curve from there.
+
 Each held-out evaluation is sequential (:mod:`econmotor.motor_backend.sequential`, the rule the
 report's evaluation follows): its episodes run in the backend's batches and are judged after every
 batch (the fall rate by its confidence sequence, the bootstrap bounds at the plan's look confidence),
@@ -270,7 +274,8 @@ class Selection:
         best = self.best
         if best is None:
             return "no held-out evaluation ran: the last weights are kept"
-        what = f"the checkpoint at {best.env_steps:,} env steps"
+        what = (f"the checkpoint at {best.env_steps:,} env steps" if best.env_steps else
+                "the policy the run started from (its look at env step 0: no later look beat it)")
         if best.deployable:
             if self.config.until_deployable:
                 return (f"{what}: the first to pass the task's acceptance rule on {best.episodes} held-out "

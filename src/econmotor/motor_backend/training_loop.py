@@ -61,6 +61,9 @@ class Learner:
     policy_file: str = "policy"
     #: env steps a call to :meth:`learn` takes at least (one iteration); the loop reports between chunks
     chunk_steps: int = 1
+    #: the policy a new run starts from (``--init-policy``), or None: a warm-started run's held-out selection
+    #: judges it first, at env step 0, so the run keeps it unless a later look beats it
+    warm_start: str | None = None
 
     def learn(self, until_steps: int) -> Mapping[str, Any] | None:
         """Learn until ``env_steps >= until_steps`` (one iteration at least); the chunk's curve row
@@ -188,6 +191,9 @@ class TrainingLoop:
         last_selected, last_ckpt = first, (first, started)
         self._report(learner, started)
         try:
+            if self.selection is not None and learner.warm_start and first == 0 and not self.selection.history:
+                self._consider(learner, beside=False)  # the policy it starts from: the look to beat
+                self._report(learner, started)
             while not self._done(learner, started):
                 row = learner.learn(self._next_stop(learner, last_selected, last_ckpt[0]))
                 self._record(learner, row, started)

@@ -416,6 +416,7 @@ class StepLearner:
     GOOD_AT = 2000
     policy_file = "policy.txt"
     chunk_steps = 100
+    warm_start = None
 
     def __init__(self, beside: bool, interrupt_at: int | None = None) -> None:
         import threading
@@ -439,7 +440,10 @@ class StepLearner:
             with self.progressed:
                 self.progressed.wait_for(lambda: self.env_steps >= self.GOOD_AT + 500, timeout=30)
                 self.seen_while_evaluating.append(self.env_steps)
-        return evaluation(SAFE if policy_steps == self.GOOD_AT else FALLING)(160, SELECTION_SEED_OFFSET, stop)
+        return evaluation(SAFE if policy_steps in self.good_at() else FALLING)(160, SELECTION_SEED_OFFSET, stop)
+
+    def good_at(self) -> tuple[int, ...]:
+        return (self.GOOD_AT,)
 
     def evaluate(self, num_episodes: int, first_seed: int, stop) -> list[dict]:
         return self.rows_of(self.env_steps, stop)
@@ -512,3 +516,34 @@ def test_an_interrupt_ends_the_evaluation_beside_training_and_leaves_no_thread(t
     with pytest.raises(KeyboardInterrupt):
         run_steps(tmp_path, beside=True, interrupt_at=2300)  # the evaluation of 2,000 steps waits for 2,500
     assert not [t for t in threading.enumerate() if t.name == "econmotor-held-out"]
+
+
+class WarmLearner(StepLearner):
+    """A StepLearner started from a shipped policy (the one at 0 steps), safe where ``safe_at`` says."""
+
+    warm_start = "holosoma:g1_29dof/ppo"
+
+    def __init__(self, safe_at: tuple[int, ...]) -> None:
+        super().__init__(beside=False)
+        self.safe_at = safe_at
+
+    def good_at(self) -> tuple[int, ...]:
+        return self.safe_at
+
+
+@pytest.mark.parametrize("safe_at", [(0,), (0, 3000), (3000,)])
+def test_a_warm_started_run_judges_its_start_first_and_keeps_it_unless_a_later_look_beats_it(tmp_path, safe_at):
+    from econmotor.motor_backend.training_loop import TrainingLoop
+
+    learner = WarmLearner(safe_at)
+    loop = TrainingLoop(tmp_path / "run", "mujoco", {"task_id": "hopper_courier"}, 4000, selection=selection())
+    record = loop.run(learner).config["selection"]
+    looks = [(e["env_steps"], e["deployable"]) for e in record["evaluations"]]
+    assert looks == [(0, 0 in safe_at), (1000, False), (2000, False), (3000, 3000 in safe_at), (4000, False)]
+    kept = 0 if 0 in safe_at else 3000  # an equal later look does not replace the start
+    assert record["kept"]["env_steps"] == kept and (loop.run_dir / "policy.txt").read_text() == str(kept)
+    assert ("the policy the run started from" in record["why"]) == (kept == 0)
+    cold = StepLearner(beside=False)  # no warm start: no look before any learning
+    cold_record = TrainingLoop(tmp_path / "cold", "mujoco", {"task_id": "hopper_courier"}, 2000,
+                               selection=selection()).run(cold).config["selection"]
+    assert [e["env_steps"] for e in cold_record["evaluations"]] == [1000, 2000]

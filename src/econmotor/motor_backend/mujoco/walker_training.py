@@ -254,6 +254,7 @@ class WalkerLearner(LoopLearner):
         self.next_seeds = wc.first_seeds(TRAIN_SEED_BASE + run.seed * 1_000_000, self.workers)
         self.collection: wc.LocalCollector | wc.CollectPool | None = None
         self.last: dict[str, Any] | None = None
+        self.warm_start = run.init.source if run.init is not None else None
 
     def collect(self) -> tuple[Any, torch.Tensor, list[dict[str, Any]], dict[str, float]]:
         """One iteration's rollout under the current actor, its last values, the ended episodes and the
