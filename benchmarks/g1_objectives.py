@@ -269,13 +269,12 @@ def goals_line(nominal: dict, stressed: dict) -> str:
 
 def plot_curves(results: Path, runs: list[str]) -> Path | None:
     """The held-out looks of each run (J, falls per episode) against env steps: ``results/curves.png``."""
-    looks = {}
+    looks, kept = {}, {}
     for name in runs:
         path = results / f"{name}.run_config.json"
-        evaluations = (json.loads(path.read_text()).get("selection") or {}).get("evaluations") if path.is_file() \
-            else None
-        if evaluations:
-            looks[name] = evaluations
+        selection = (json.loads(path.read_text()).get("selection") or {}) if path.is_file() else {}
+        if selection.get("evaluations"):
+            looks[name], kept[name] = selection["evaluations"], (selection.get("kept") or {}).get("env_steps")
     if not looks:
         return None
     import matplotlib
@@ -283,16 +282,23 @@ def plot_curves(results: Path, runs: list[str]) -> Path | None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    presets = sorted({name.rsplit("_s", 1)[0] for name in looks})
+    fig, axes = plt.subplots(2, len(presets), figsize=(4.5 * len(presets), 6), sharex=True, squeeze=False)
     for name, evaluations in looks.items():
+        top, bottom = axes[:, presets.index(name.rsplit("_s", 1)[0])]
         steps = [e["env_steps"] / 1e6 for e in evaluations]
-        style = "-" if name.startswith("energy_saver") else "--"
-        top.plot(steps, [e["j_mean"] for e in evaluations], style, marker="o", label=name)
-        bottom.plot(steps, [e["errors"] / max(e["episodes"], 1) for e in evaluations], style, marker="o")
-    top.set_ylabel("held-out J (mean)")
-    bottom.set_ylabel("falls per episode")
-    bottom.set_xlabel("env steps (millions)")
-    top.legend(fontsize=7, ncol=2)
+        line, = top.plot(steps, [e["j_mean"] for e in evaluations], marker="o", label=name)
+        bottom.plot(steps, [e["errors"] / max(e["episodes"], 1) for e in evaluations], marker="o")
+        for e in evaluations:  # the kept look, ringed
+            if e["env_steps"] == kept[name]:
+                top.plot([e["env_steps"] / 1e6], [e["j_mean"]], "o", ms=12, mfc="none", color=line.get_color())
+    for col, preset in enumerate(presets):
+        axes[0, col].set_title(preset, fontsize=10)
+        axes[0, col].legend(fontsize=7)
+        axes[1, col].set_xlabel("env steps (millions)")
+    axes[0, 0].set_ylabel("held-out J (mean)")
+    axes[1, 0].set_ylabel("falls per episode")
+    fig.suptitle("held-out looks (at 0 steps: the walker a run started from; ringed: the look kept)", fontsize=9)
     fig.tight_layout()
     out = results / "curves.png"
     fig.savefig(out, dpi=110)
