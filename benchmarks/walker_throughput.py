@@ -16,7 +16,9 @@ as control steps per wall second (50 Hz policy steps; 4 physics steps each) and 
   the same course): its robots stepped in its own process (``collect_workers: 1``) / in two collect workers
   (``collect_workers: 2``, :mod:`econmotor.motor_backend.mujoco.walker_collect`), the update in the trainer's
   process; env steps per wall second over ``--train-iterations`` iterations after a first one (the workers'
-  start-up) untimed, the update included (``collect_1`` / ``collect_2``: collection alone).
+  start-up) untimed, the update included (``collect_1`` / ``collect_2``: collection alone);
+  ``train_2_update_1``: ``train_2`` with its update on one torch thread (the trainer's default runs it on
+  every usable CPU, the workers' cores idle while they wait for the next actor).
 
 Printed last: the trainer's ``train_2 / raw_2`` (the share of the machine's MuJoCo speed a training run
 gets on both cores; the goal is at least 0.5), then ``env_processes / raw_2``, the share a price gets.
@@ -151,9 +153,11 @@ def one_robot(ev, episodes: int) -> float:
     return time.perf_counter() - t0
 
 
-def train_rate(ev, workers: int, num_envs: int, steps: int, iterations: int) -> tuple[float, float]:
+def train_rate(ev, workers: int, num_envs: int, steps: int, iterations: int,
+               update_threads: int | None = None) -> tuple[float, float]:
     """(env steps per wall second, of collection alone) of the trainer's iterations with ``workers`` collect
-    workers (after a first iteration, untimed: the workers' start-up)."""
+    workers (after a first iteration, untimed: the workers' start-up); ``update_threads``: the update's torch
+    threads (None: the trainer's default)."""
     import numpy as np
 
     from econmotor.config.objective_profile import ObjectiveVector
@@ -180,7 +184,8 @@ def train_rate(ev, workers: int, num_envs: int, steps: int, iterations: int) -> 
         objective=objective_from_vector(ObjectiveVector.from_preset("energy_saver"), "energy_saver"),
         economics=spec.economics, gain=trainer.econ_gain, weights=trainer.weights, params=trainer.params, seed=0,
         max_steps=10**12, init=read_actor(policy_file(ev.policy), ev.policy), kp=np.asarray(c.kp),
-        kd=np.asarray(c.kd), command_ranges=c.command_ranges, collect_workers=workers)
+        kd=np.asarray(c.kd), command_ranges=c.command_ranges, collect_workers=workers,
+        update_threads=update_threads)
     learner = WalkerLearner(run)
     try:
         learner.learn(learner.env_steps + 1)  # one iteration: the workers' start-up
@@ -239,6 +244,8 @@ def main() -> None:
     for workers in (1, 2):
         rates[f"train_{workers}"], rates[f"collect_{workers}"] = train_rate(
             ev, workers, args.train_envs, args.train_steps, args.train_iterations)
+    # the same two-worker trainer with its update on one torch thread (one core idle while the workers wait)
+    rates["train_2_update_1"], _ = train_rate(ev, 2, args.train_envs, args.train_steps, args.train_iterations, 1)
     print(f"policy {args.policy}: {args.episodes} episodes x {args.episode_s:g} s = {sim_s:g} simulated s, "
           f"{control_steps} control steps; {args.slots} robots per process; cores: {os.cpu_count()}; trainer: "
           f"{args.train_envs} robots x {args.train_steps} steps per iteration, {args.train_iterations} timed")
@@ -248,6 +255,8 @@ def main() -> None:
              for name in rates}
     print(f"train_1 / raw_1: {ratio['train_1']:.3f}; collect_1 / raw_1: {ratio['collect_1']:.3f}; "
           f"collect_2 / raw_2: {ratio['collect_2']:.3f}; train_2 / train_1: {rates['train_2'] / rates['train_1']:.3f}")
+    print(f"train_2 / train_2_update_1 (the update on every core / on one): "
+          f"{rates['train_2'] / rates['train_2_update_1']:.3f}")
     print(f"train_2 / raw_2: {ratio['train_2']:.3f}")
     if not args.trainer_only:
         print(f"env_processes start-up: {startup_s:.2f} s (spawn, imports, model, ONNX session); "

@@ -258,3 +258,28 @@ def test_held_out_looks_alternate_nominal_and_the_training_stress(tmp_path: Path
     again = alone.evaluate(alone.learner(), 4, 50_000, lambda rows: False)
     # the look prices the run's ONNX export (locomotion.evaluation.evaluate): an episode depends on its seed only
     assert again[1] == rows[1] and again[3] == rows[3]
+
+
+def test_the_update_runs_on_every_usable_cpu_while_the_workers_wait_and_gives_the_threads_back(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from econmotor.motor_backend.mujoco.walker_ppo import WalkerPPO
+
+    during: list[int] = []
+    update = WalkerPPO.update
+    monkeypatch.setattr(WalkerPPO, "update",
+                        lambda self, *a: during.append(torch.get_num_threads()) or update(self, *a))
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        for workers in (2, 1):
+            learner = WalkerLearner(_run(tmp_path / f"w{workers}", workers))
+            try:
+                learner.learn(1)
+            finally:
+                learner.close()
+            assert torch.get_num_threads() == 1  # the process's own setting, back
+        assert learner.timing()["update_threads"] == 1
+    finally:
+        torch.set_num_threads(before)
+    # with workers, their cores are idle while the update runs; in one process it keeps the process's threads
+    assert during == [wc.usable_cpus(), 1]

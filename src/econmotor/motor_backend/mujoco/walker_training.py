@@ -16,7 +16,9 @@ What a run does (:class:`WalkerTrainingRun`):
    the robots are stepped in ``collect_workers`` worker processes (:mod:`.walker_collect`: each steps its
    share of the robots with the actor the trainer sends it; the critic's values and the update run here),
    or in this process with ``collect_workers: 1``; by default one worker per usable CPU with at least 8
-   robots each (:func:`~.walker_collect.default_workers`);
+   robots each (:func:`~.walker_collect.default_workers`); while the workers wait for the next actor, the
+   critic's values and the update run on ``update_threads`` torch threads (by default every usable CPU when
+   the robots are in workers: their cores are idle meanwhile);
 4. checkpoints (``checkpoints/latest.pt``: learner, iteration, env steps, each worker's next seed) every
    ``checkpoint_every_s`` of wall time, at the end and when interrupted: ``--resume`` continues from it;
 5. held-out selection (:mod:`econmotor.motor_backend.selection`): at its cadence, the actor exported as
@@ -39,7 +41,8 @@ Seeds: training episodes ``TRAIN_SEED_BASE + seed * 10**6 + i`` (worker ``w`` of
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -105,6 +108,9 @@ class WalkerTrainingRun:
     collect_workers: int | None = None
     #: processes a held-out look's episodes run in (None: every usable CPU: the collection is idle meanwhile)
     select_workers: int | None = None
+    #: torch threads of the critic's values and the update, which run while the collect workers wait (None:
+    #: every usable CPU with collect workers, else the process's own setting)
+    update_threads: int | None = None
 
     def __post_init__(self) -> None:
         card = self.setup.card
@@ -117,6 +123,8 @@ class WalkerTrainingRun:
         if not 1 <= workers <= n:
             raise ValueError(f"collect_workers must be between 1 and num_envs ({n}), got {workers}")
         self.collect_workers = workers
+        if self.update_threads is None:
+            self.update_threads = wc.usable_cpus() if workers > 1 else torch.get_num_threads()
 
     # ------------------------------------------------------------------ the pieces
     def env_spec(self) -> wc.EnvSpec:
@@ -239,6 +247,19 @@ def _status(env_steps: int, row: Mapping[str, Any]) -> str:
     return said + f"; kl {row['kl']:.4f} lr {row['learning_rate']:.1e}"
 
 
+@contextmanager
+def torch_threads(n: int) -> Iterator[None]:
+    """torch's intra-op threads set to ``n`` for the block, then back to what they were."""
+    before = torch.get_num_threads()
+    if n != before:
+        torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        if n != before:
+            torch.set_num_threads(before)
+
+
 class WalkerLearner(LoopLearner):
     """The walker PPO on the learner's env as the loop's learner (module docstring)."""
 
@@ -264,7 +285,8 @@ class WalkerLearner(LoopLearner):
             self.collection = self.run.collector(self.next_seeds, self.iteration)
         chunks = self.collection.collect(self.ppo.net)
         self.next_seeds = self.collection.next_seeds
-        return wc.assemble(chunks, self.ppo.net, self.run.cfg.gamma)
+        with torch_threads(int(self.run.update_threads or 1)):
+            return wc.assemble(chunks, self.ppo.net, self.run.cfg.gamma)
 
     def learn(self, until_steps: int) -> dict[str, Any]:
         run = self.run
@@ -272,7 +294,8 @@ class WalkerLearner(LoopLearner):
             t0 = time.perf_counter()
             rollout, last_value, episodes, parts = self.collect()
             collect_s = time.perf_counter() - t0
-            stats = self.ppo.update(rollout, last_value)
+            with torch_threads(int(run.update_threads or 1)):
+                stats = self.ppo.update(rollout, last_value)
             self.iteration += 1
             self.env_steps += self.chunk_steps
             self.last = run._curve_row(self.iteration, stats, episodes, parts, time.perf_counter() - t0, collect_s)
@@ -317,7 +340,8 @@ class WalkerLearner(LoopLearner):
         return self.run.export(self.ppo.net.network(), run_dir / ONNX_FILE)
 
     def timing(self) -> dict[str, Any]:
-        return {"iterations": self.iteration, "collect_workers": self.workers}
+        return {"iterations": self.iteration, "collect_workers": self.workers,
+                "update_threads": self.run.update_threads}
 
     def close(self) -> None:
         if self.collection is not None:
