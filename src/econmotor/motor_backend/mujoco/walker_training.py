@@ -285,7 +285,7 @@ class WalkerLearner(LoopLearner):
             self.collection = self.run.collector(self.next_seeds, self.iteration)
         chunks = self.collection.collect(self.ppo.net)
         self.next_seeds = self.collection.next_seeds
-        with torch_threads(int(self.run.update_threads or 1)):
+        with torch_threads(int(self.run.update_threads)):
             return wc.assemble(chunks, self.ppo.net, self.run.cfg.gamma)
 
     def learn(self, until_steps: int) -> dict[str, Any]:
@@ -294,7 +294,7 @@ class WalkerLearner(LoopLearner):
             t0 = time.perf_counter()
             rollout, last_value, episodes, parts = self.collect()
             collect_s = time.perf_counter() - t0
-            with torch_threads(int(run.update_threads or 1)):
+            with torch_threads(int(run.update_threads)):
                 stats = self.ppo.update(rollout, last_value)
             self.iteration += 1
             self.env_steps += self.chunk_steps
