@@ -268,7 +268,8 @@ def goals_line(nominal: dict, stressed: dict) -> str:
 
 
 def plot_curves(results: Path, runs: list[str]) -> Path | None:
-    """The held-out looks of each run (J, falls per episode) against env steps: ``results/curves.png``."""
+    """The held-out looks of each run (J, falls per episode, Wh per leg where the look recorded it) against env
+    steps: ``results/curves.png``."""
     looks, kept = {}, {}
     for name in runs:
         path = results / f"{name}.run_config.json"
@@ -283,21 +284,27 @@ def plot_curves(results: Path, runs: list[str]) -> Path | None:
     import matplotlib.pyplot as plt
 
     presets = sorted({name.rsplit("_s", 1)[0] for name in looks})
-    fig, axes = plt.subplots(2, len(presets), figsize=(4.5 * len(presets), 6), sharex=True, squeeze=False)
+    fig, axes = plt.subplots(3, len(presets), figsize=(4.5 * len(presets), 8.5), sharex=True, squeeze=False)
     for name, evaluations in looks.items():
-        top, bottom = axes[:, presets.index(name.rsplit("_s", 1)[0])]
+        top, bottom, energy = axes[:, presets.index(name.rsplit("_s", 1)[0])]
         steps = [e["env_steps"] / 1e6 for e in evaluations]
         line, = top.plot(steps, [e["j_mean"] for e in evaluations], marker="o", label=name)
-        bottom.plot(steps, [e["errors"] / max(e["episodes"], 1) for e in evaluations], marker="o")
+        bottom.plot(steps, [e["errors"] / max(e["episodes"], 1) for e in evaluations], marker="o",
+                    color=line.get_color())
+        metered = [(x, e["energy_wh_per_unit"]) for x, e in zip(steps, evaluations, strict=True)
+                   if e.get("energy_wh_per_unit") is not None]  # looks recorded before it was: none
+        if metered:
+            energy.plot(*zip(*metered, strict=True), marker="o", color=line.get_color())
         for e in evaluations:  # the kept look, ringed
             if e["env_steps"] == kept[name]:
                 top.plot([e["env_steps"] / 1e6], [e["j_mean"]], "o", ms=12, mfc="none", color=line.get_color())
     for col, preset in enumerate(presets):
         axes[0, col].set_title(preset, fontsize=10)
         axes[0, col].legend(fontsize=7)
-        axes[1, col].set_xlabel("env steps (millions)")
+        axes[2, col].set_xlabel("env steps (millions)")
     axes[0, 0].set_ylabel("held-out J (mean)")
     axes[1, 0].set_ylabel("falls per episode")
+    axes[2, 0].set_ylabel("Wh per leg (the look's episodes)")
     fig.suptitle("held-out looks (at 0 steps: the walker a run started from; ringed: the look kept)", fontsize=9)
     fig.tight_layout()
     out = results / "curves.png"

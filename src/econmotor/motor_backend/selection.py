@@ -136,6 +136,8 @@ class HeldOutResult:
     why: str = ""
     #: it ran in a thread beside training (its seconds were not taken from training)
     beside_training: bool = False
+    energy_wh_per_unit: float | None = None
+    price_usd_per_unit: float | None = None
 
     def status(self) -> str:
         """One short line for a progress bar: ``'@120k: deployable'`` / ``'@40k: falls<=0.31'``."""
@@ -151,7 +153,9 @@ class HeldOutResult:
         """The TensorBoard scalars of this evaluation (``held_out/...``)."""
         return {"held_out/fall_rate_upper95": self.fall_rate_upper, "held_out/units_per_hour": self.units_per_hour,
                 "held_out/units_per_hour_low95": self.units_per_hour_low, "held_out/J": self.j_mean,
-                "held_out/deployable": float(self.deployable), "held_out/eval_s": self.eval_s}
+                "held_out/deployable": float(self.deployable), "held_out/eval_s": self.eval_s,
+                **({"held_out/energy_wh_per_unit": self.energy_wh_per_unit}
+                   if self.energy_wh_per_unit is not None else {})}
 
 
 @dataclass
@@ -197,6 +201,8 @@ class Selection:
         # the deciding look judged exactly these episodes (the first decided_at): its judgement is the evaluation's
         uncertainty, verdict, j_mean = self._scored(run.judged)
         errors, mpl = uncertainty.intervals["error_rate"], uncertainty.intervals["mpl_units_per_hour"]
+        pooled = run.judged.pricing.aggregate
+        per_unit = pooled.mpl_units_per_hour > 0 and math.isfinite(pooled.price_usd_per_unit)
         result = HeldOutResult(
             env_steps=int(env_steps), wall_s=round(time.perf_counter() - self.started, 3),
             eval_s=round(time.perf_counter() - t0, 3), episodes=len(rows), episodes_planned=self.config.episodes,
@@ -206,7 +212,9 @@ class Selection:
             eval_env_steps=int(sum(float(r.get("length_steps", 0.0)) for r in rows)),
             reasons=tuple(verdict.reasons) if not run.passed else (),
             outcome=str(run.outcome), why=run.why if run.outcome == FAIL or not run.passed else "",
-            beside_training=beside_training)
+            beside_training=beside_training,
+            energy_wh_per_unit=1000.0 * pooled.energy_kwh_per_hour / pooled.mpl_units_per_hour if per_unit else None,
+            price_usd_per_unit=float(pooled.price_usd_per_unit) if per_unit else None)
         return result
 
     def admit(self, result: HeldOutResult) -> bool:

@@ -196,11 +196,22 @@ def test_a_held_out_result_carries_the_evaluations_figures():
     assert falling.status() == f"@40k: not deployable (fall rate<={falling.fall_rate_upper:.2f})"
     assert falling.errors == 16.0 and falling.eval_env_steps == 16 * 1000 and falling.reasons
     assert isinstance(falling.to_dict()["reasons"], list) and falling.to_dict()["reasons"] == list(falling.reasons)
+    # the look's energy and price per leg, pooled as a report prices them (ratios of sums)
+    assert result.energy_wh_per_unit == pytest.approx(0.05 / 1.2)
+    assert falling.energy_wh_per_unit == pytest.approx(0.05 / 0.1)
+    assert result.price_usd_per_unit == pytest.approx(
+        judge_raw(TASK, SAFE[:64], sequential=True).pricing.aggregate.price_usd_per_unit)
+    assert result.price_usd_per_unit < falling.price_usd_per_unit
     assert result.scalars() == {"held_out/fall_rate_upper95": result.fall_rate_upper,
                                 "held_out/units_per_hour": result.units_per_hour,
                                 "held_out/units_per_hour_low95": result.units_per_hour_low,
                                 "held_out/J": result.j_mean, "held_out/deployable": 1.0,
-                                "held_out/eval_s": result.eval_s}
+                                "held_out/eval_s": result.eval_s,
+                                "held_out/energy_wh_per_unit": result.energy_wh_per_unit}
+    # a look that completed no leg has no figure per leg
+    none, _ = sel.consider(50_000, evaluation([episode(0.0, True) for _ in range(160)]))
+    assert none.energy_wh_per_unit is None and none.price_usd_per_unit is None
+    assert "held_out/energy_wh_per_unit" not in none.scalars()
 
 
 def test_the_run_record_says_every_field():
