@@ -1,0 +1,39 @@
+"""benchmarks/g1_objectives.py's goals line: each objective is held to its own goal, any objective can be run."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parents[3] / "benchmarks" / "g1_objectives.py"
+
+
+@pytest.fixture(scope="module")
+def bench():
+    spec = importlib.util.spec_from_file_location("g1_objectives", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def condition(goals_by_run: dict[str, dict[str, bool]]) -> dict:
+    return {"paired": {f"{run}-fastsac": {"goals": goals} for run, goals in goals_by_run.items()}}
+
+
+def test_each_objective_is_shown_its_own_goal_and_an_unnamed_one_every_goal(bench) -> None:
+    met = {"energy_cut": False, "faster": True, "falls_halved": False, "cheaper": True}
+    runs = {f"{p}_s{s}": dict(met, energy_cut=s == 0) for p in ("energy_saver", "price_weighted") for s in (0, 1)}
+    line = bench.goals_line(condition(runs), condition(runs), ["energy_saver", "price_weighted", "throughput"])
+    saver, weighted = line.splitlines()  # throughput has no runs: no line
+    assert saver.startswith("energy_saver: energy_cut on 1/2 seeds nominal, 1/2 under stress; cheaper")
+    assert "faster" not in saver
+    assert weighted.startswith("price_weighted: energy_cut on 1/2 seeds nominal, 1/2 under stress; faster on 2/2")
+    assert "cheaper than its start on 2/2 nominal, 2/2 under stress; falls halved under stress on 0/2" in weighted
+
+
+def test_every_objective_yaml_can_be_trained_for(bench) -> None:
+    names = {path.stem for path in bench.OBJECTIVES.glob("*.yaml")}
+    assert {"energy_saver", "throughput", "price_weighted"} <= names
+    assert all((bench.OBJECTIVES / f"{p}.yaml").is_file() for p in bench.PRESETS)
