@@ -51,6 +51,9 @@ INIT_POLICY_OPTION = typer.Option(
     None, "--init-policy", help="Start from a walker that exists: an ONNX file in Holosoma's format or a shipped "
     "name (holosoma:g1_29dof/ppo; with mujoco also a FastSAC walker, holosoma:g1_29dof/fastsac); its actor is "
     "fine-tuned for the objective after a critic warm-up.")
+HYPERPARAMETERS_OPTION = typer.Option(
+    [], "--hyperparameters", help="KEY=VALUE: one setting of the learner's recipe for this run, over the task "
+    "catalog's (repeatable; VALUE read as YAML: 0.998, true, [1.0e-6, 1.0e-3]); the run records the recipe it used.")
 
 #: episodes the backend evaluates right after training, unless asked otherwise
 TRAINING_EVAL_EPISODES = 5
@@ -148,6 +151,33 @@ def time_budget_options(backend: type[MotorBackendBase], max_minutes: float | No
     if not backend.capabilities.time_budget:
         raise ConfigError("--max-minutes", None, f"backend '{backend.name}' trains to --max-steps only")
     return {"max_wall_s": 60.0 * float(max_minutes)}
+
+
+def hyperparameter_options(backend: type[MotorBackendBase], values: list[str],
+                           resume: bool = False) -> dict[str, Any]:
+    """The backend option of ``--hyperparameters KEY=VALUE ...`` (``{"hyperparameters": {KEY: VALUE read as
+    YAML}}``, nothing when none is given); an error for a backend whose recipe cannot be set, a resumed run
+    (it continues with the recipe it recorded) or an item that is not KEY=VALUE. The learner checks the keys
+    and values when the run starts."""
+    import yaml
+
+    if not values:
+        return {}
+    if not backend.capabilities.hyperparameters:
+        raise ConfigError("--hyperparameters", None, f"backend '{backend.name}' has no recipe to set",
+                          _backends_with("hyperparameters"))
+    if resume:
+        raise ConfigError("--hyperparameters", None, "a resumed run continues with the recipe it recorded")
+    out: dict[str, Any] = {}
+    for item in values:
+        key, sep, raw = item.partition("=")
+        if not sep or not key.strip():
+            raise ConfigError("--hyperparameters", item, "expected KEY=VALUE, such as gamma=0.998")
+        try:
+            out[key.strip()] = yaml.safe_load(raw)
+        except yaml.YAMLError as exc:
+            raise ConfigError("--hyperparameters", key.strip(), f"VALUE is not YAML: {raw!r}") from exc
+    return {"hyperparameters": out}
 
 
 def init_policy_options(backend: type[MotorBackendBase], init_policy: str | None,

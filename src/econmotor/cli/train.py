@@ -19,11 +19,13 @@ from econmotor.cli._app import (
     set_cpu_threads,
 )
 from econmotor.cli.options import (
+    HYPERPARAMETERS_OPTION,
     INIT_POLICY_OPTION,
     SELECT_EPISODES_OPTION,
     SELECT_EVERY_OPTION,
     TRAINING_EVAL_EPISODES,
     UNTIL_DEPLOYABLE_OPTION,
+    hyperparameter_options,
     init_policy_options,
     resolve_objective,
     selection_options,
@@ -191,6 +193,7 @@ def train_command(
     select_every: int = SELECT_EVERY_OPTION,
     select_episodes: int = SELECT_EPISODES_OPTION,
     init_policy: str = INIT_POLICY_OPTION,
+    hyperparameters: list[str] = HYPERPARAMETERS_OPTION,
     max_minutes: float = typer.Option(None, "--max-minutes", help="Stop training after this many minutes of wall "
                                       "time (held-out selection included; backends with a time budget)."),
     db_url: str = DB_URL_OPTION,
@@ -212,7 +215,8 @@ def train_command(
     extra: dict[str, Any] = {**selection_options(cls, until_deployable, select_every, select_episodes),
                              **init_policy_options(cls, init_policy, resume),
                              **({"resume": True} if resume else {}), **({"algorithm": algorithm} if algorithm else {}),
-                             **time_budget_options(cls, max_minutes)}
+                             **time_budget_options(cls, max_minutes),
+                             **hyperparameter_options(cls, hyperparameters, resume)}
     if resume and nothing_to_resume(backend, output_dir):
         return
     motor = make_backend(backend, **({"vec_env": vec_env} if vec_env else {}))

@@ -29,6 +29,8 @@ class BackendCapabilities:
             (``compare --command-speed``).
         time_budget: ``train_policy(..., max_wall_s=...)`` stops training at a wall-time budget
             (``train --max-minutes``).
+        hyperparameters: ``train_policy(..., hyperparameters={...})`` overrides the learner's recipe for one
+            run, each key checked by the learner (``train --hyperparameters KEY=VALUE``).
     """
 
     resume: bool = False
@@ -41,6 +43,7 @@ class BackendCapabilities:
     shadow_env: bool = False
     course_speed: bool = False
     time_budget: bool = False
+    hyperparameters: bool = False
 
 
 class ShadowEnv(NamedTuple):

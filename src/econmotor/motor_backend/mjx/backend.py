@@ -110,7 +110,8 @@ class MjxBackend(MotorBackendBase):
     """
 
     name = "mjx"
-    capabilities = BackendCapabilities(resume=True, algorithms=("ppo",), evaluation_driven=True, init_policies=True)
+    capabilities = BackendCapabilities(resume=True, algorithms=("ppo",), evaluation_driven=True, init_policies=True,
+                                       hyperparameters=True)
     defaults = RunSize(num_envs=0, max_steps=10_000_000)
     # the integration tests' size: 8 envs x unroll 20, so XLA's cache serves every CPU test
     smoke_run = RunSize(num_envs=8, max_steps=320, task_id="hopper_courier")

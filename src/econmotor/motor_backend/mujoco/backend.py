@@ -67,7 +67,7 @@ class MujocoBackend(MotorBackendBase):
     name = "mujoco"
     capabilities = BackendCapabilities(resume=True, algorithms=("ppo", "sac"), vec_env_kinds=("dummy", "subproc"),
                                        records_clips=True, evaluation_driven=True, shadow_env=True,
-                                       init_policies=True, time_budget=True)
+                                       init_policies=True, time_budget=True, hyperparameters=True)
     defaults = RunSize(num_envs=0, max_steps=100_000)
     smoke_run = RunSize(num_envs=1, max_steps=1024, task_id="hopper_courier")  # two PPO rollouts of 512
     max_num_envs = 256  # SB3 vector envs: one process (subproc) or one env object (dummy) each
