@@ -314,7 +314,7 @@ def plot_curves(results: Path, runs: list[str]) -> Path | None:
     axes[0, 0].set_ylabel("held-out J (mean)")
     axes[1, 0].set_ylabel("falls per episode")
     axes[2, 0].set_ylabel("Wh per leg (the look's episodes)")
-    fig.suptitle("held-out looks (at 0 steps: the walker a run started from; ringed: the look kept)", fontsize=9)
+    fig.suptitle("held-out looks\n(at 0 steps: the walker a run started from; ringed: the look kept)", fontsize=9)
     fig.tight_layout()
     out = results / "curves.png"
     fig.savefig(out, dpi=110)
