@@ -109,16 +109,20 @@ def trained_steps(run_dir: Path) -> int:
 
 
 def train(args: argparse.Namespace, results: Path, work: Path) -> None:
-    """The fine-tunes one after the other (a run collects on every core), each resumed where it stopped until it
-    has run ``--minutes`` in all (a later call with a larger budget resumes them again); their exports, configs
-    and curves to ``results``."""
+    """The fine-tunes one after the other (a run collects on every core), an interrupted one resumed from its
+    checkpoint with what is left of ``--minutes``; a complete run (stopped by its budget or its steps) is kept as
+    it is (train further from its export in a new run); their exports, configs and curves to ``results``."""
+    from econmotor.motor_backend.factory import backend_class
+
     results.mkdir(parents=True, exist_ok=True)
     for preset in args.presets:
         for seed in args.seeds:
             name = run_name(preset, seed)
             out = work / name
             left = args.minutes - spent_wall_s(out) / 60.0
-            if left > 0.05 and trained_steps(out) < args.max_steps:
+            if backend_class("mujoco").is_complete_run(out):
+                print(f"kept {name}: a complete run, {trained_steps(out):,} env steps", flush=True)
+            elif left > 0.05 and trained_steps(out) < args.max_steps:
                 resume = (out / "checkpoints" / "latest.pt").is_file()
                 started = time.perf_counter()
                 with (work / f"{name}.log").open("a") as log:

@@ -1,8 +1,11 @@
-"""benchmarks/g1_objectives.py's goals line: each objective is held to its own goal, any objective can be run."""
+"""benchmarks/g1_objectives.py: each objective is held to its own goal, any objective can be run, and a complete
+run is kept as it is."""
 
 from __future__ import annotations
 
+import argparse
 import importlib.util
+import json
 from pathlib import Path
 
 import pytest
@@ -37,3 +40,20 @@ def test_every_objective_yaml_can_be_trained_for(bench) -> None:
     names = {path.stem for path in bench.OBJECTIVES.glob("*.yaml")}
     assert {"energy_saver", "throughput", "price_weighted"} <= names
     assert all((bench.OBJECTIVES / f"{p}.yaml").is_file() for p in bench.PRESETS)
+
+
+def test_a_complete_run_is_kept_not_resumed(bench, tmp_path: Path, capsys, monkeypatch) -> None:
+    run = tmp_path / "work" / "price_weighted_s0"
+    run.mkdir(parents=True)
+    (run / "policy.onnx").write_bytes(b"x")
+    (run / "run_config.json").write_text(json.dumps({"backend": "mujoco", "trainer": "walker"}))
+    (run / "curve.jsonl").write_text(json.dumps({"env_steps": 1003520, "wall_s": 510.0}) + "\n")
+    def train_command(*_: object) -> list[str]:
+        raise AssertionError("a complete run was trained again")
+
+    monkeypatch.setattr(bench, "train_command", train_command)
+    args = argparse.Namespace(presets=["price_weighted"], seeds=[0], minutes=30.0, max_steps=2_000_000,
+                              num_envs=None, start="fastsac")
+    bench.train(args, tmp_path / "results", tmp_path / "work")
+    assert "kept price_weighted_s0: a complete run, 1,003,520 env steps" in capsys.readouterr().out
+    assert (tmp_path / "results" / "price_weighted_s0.onnx").read_bytes() == b"x"
