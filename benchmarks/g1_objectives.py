@@ -326,7 +326,7 @@ def plot_curves(results: Path, runs: list[str]) -> Path | None:
     return out
 
 
-def main() -> None:
+def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--train", action="store_true", help="fine-tune every preset and seed first (else: the "
                         "exports in --results)")
@@ -343,7 +343,11 @@ def main() -> None:
     parser.add_argument("--results", type=Path, default=RESULTS, help="where the exports are (and go)")
     parser.add_argument("--work", type=Path, default=REPO / "runs" / "g1_objectives",
                         help="the runs (kept: an unfinished one resumes)")
-    args = parser.parse_args()
+    return parser
+
+
+def main() -> None:
+    args = build_parser().parse_args()
     args.work, args.results = args.work.resolve(), args.results.resolve()  # the runs start in the repository
     args.work.mkdir(parents=True, exist_ok=True)
     if args.train:
