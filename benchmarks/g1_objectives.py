@@ -44,6 +44,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -89,7 +90,7 @@ def spent_wall_s(run_dir: Path) -> float:
 
 
 def train_command(preset: str, seed: int, out: Path, minutes: float, max_steps: int, num_envs: int | None,
-                  start: str, resume: bool) -> list[str]:
+                  start: str, resume: bool, hyperparameters: Sequence[str] = ()) -> list[str]:
     command = [sys.executable, "-m", "econmotor", "train", "--motor-backend", "mujoco", "--task-id", TASK,
                "--max-minutes", f"{minutes:.3f}", "--max-steps", str(max_steps), "--output-dir", str(out),
                "--db-url", f"sqlite:///{out.parent / 'train.sqlite'}"]
@@ -98,6 +99,7 @@ def train_command(preset: str, seed: int, out: Path, minutes: float, max_steps: 
     command += ["--init-policy", SHIPPED[start], "--objective-config", str(OBJECTIVES / f"{preset}.yaml"),
                 "--datapacks", str(STRESS),
                 "--select-episodes", "34", "--eval-episodes", "0", "--seed", str(seed)]
+    command += [arg for item in hyperparameters for arg in ("--hyperparameters", item)]
     return command + (["--num-envs", str(num_envs)] if num_envs else [])
 
 
@@ -127,7 +129,7 @@ def train(args: argparse.Namespace, results: Path, work: Path) -> None:
                 started = time.perf_counter()
                 with (work / f"{name}.log").open("a") as log:
                     proc = subprocess.Popen(train_command(preset, seed, out, left, args.max_steps, args.num_envs,
-                                                          args.start, resume),
+                                                          args.start, resume, args.hyperparameters),
                                             stdout=log, stderr=subprocess.STDOUT, cwd=REPO)
                 if proc.wait() != 0:
                     raise SystemExit(f"training {name} failed: see {work / f'{name}.log'}")
@@ -338,6 +340,9 @@ def build_parser() -> argparse.ArgumentParser:
                         choices=sorted(path.stem for path in OBJECTIVES.glob("*.yaml")),
                         help="the objectives to fine-tune for (their YAML in configs/objectives)")
     parser.add_argument("--start", choices=sorted(SHIPPED), default="ppo", help="the shipped walker to start from")
+    parser.add_argument("--hyperparameters", action="append", default=[], metavar="KEY=VALUE",
+                        help="one setting of the learner's recipe for every new run (`econmotor train "
+                        "--hyperparameters`; repeatable)")
     parser.add_argument("--nominal-episodes", type=int, default=120)
     parser.add_argument("--stress-episodes", type=int, default=60)
     parser.add_argument("--results", type=Path, default=RESULTS, help="where the exports are (and go)")

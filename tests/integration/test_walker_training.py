@@ -48,10 +48,10 @@ def g1_ppo():
 
 
 def _env(contract, n: int, course: crs.CourseSettings = SHORT, random_start: bool = True, episode_s: float = 30.0,
-         stress: Stress | None = None) -> WalkerLearningEnv:
+         stress: Stress | None = None, pace: str = "course") -> WalkerLearningEnv:
     walker = WalkerModel.build(contract.card, np.asarray(contract.kp), np.asarray(contract.kd))
     batch = WalkerBatch(walker, course, METER, stress or Stress(), episode_s, n, contract.command_ranges)
-    return WalkerLearningEnv(batch, OBJECTIVE, ECONOMICS, 2.0, WEIGHTS, seed=5, random_start=random_start)
+    return WalkerLearningEnv(batch, OBJECTIVE, ECONOMICS, 2.0, WEIGHTS, seed=5, random_start=random_start, pace=pace)
 
 
 @pytest.mark.parametrize("policy", ["holosoma:g1_29dof/ppo", "holosoma:t1_29dof/ppo"])
@@ -148,9 +148,9 @@ def _report_j(raw_episode: dict) -> float:
     return objective_j(OBJECTIVE, summary, ECONOMICS)
 
 
-@pytest.mark.parametrize("random_start", [False, True])
-def test_one_j_an_episodes_economic_rewards_sum_to_its_reported_j(g1_ppo, random_start: bool) -> None:
-    env = _env(g1_ppo, 2, random_start=random_start, episode_s=6.0)
+@pytest.mark.parametrize(("random_start", "pace"), [(False, "course"), (True, "course"), (True, "walker")])
+def test_one_j_an_episodes_economic_rewards_sum_to_its_reported_j(g1_ppo, random_start: bool, pace: str) -> None:
+    env = _env(g1_ppo, 2, random_start=random_start, episode_s=6.0, pace=pace)
     env.weights = {}  # the economic part only
     obs, _ = env.reset()
     policy = batched_onnx_policy(g1_ppo)
@@ -177,9 +177,8 @@ def test_one_j_pays_each_leg_when_it_is_walked(g1_ppo) -> None:
     env.weights = {}
     obs, _ = env.reset()
     nominal = SHORT.legs * (SHORT.leg_m / SHORT.speed_m_per_s + SHORT.dwell_s)
-    assert nominal_length_s(SHORT, 0.0, 30.0) == pytest.approx(nominal)
-    assert nominal_length_s(SHORT, 2.0, 30.0) == pytest.approx(nominal - 2.0)
-    assert nominal_length_s(SHORT, 0.0, 4.0) == pytest.approx(4.0)  # within the time limit
+    assert nominal_length_s(SHORT, 30.0) == pytest.approx(nominal)
+    assert nominal_length_s(SHORT, 4.0) == pytest.approx(4.0)  # within the time limit
     policy, sums = batched_onnx_policy(g1_ppo), env.batch.sums
     walked = 0.0
     for _ in range(100):
@@ -192,6 +191,50 @@ def test_one_j_pays_each_leg_when_it_is_walked(g1_ppo) -> None:
         np.testing.assert_allclose(out.reward / env.gain, expected, rtol=1e-9, atol=1e-12)
         walked += float((sums.units[:2] - units).sum())
     assert walked > 0.05
+    env.close()
+
+
+def test_the_nominal_length_is_the_course_left_at_a_pace() -> None:
+    """``T`` from a point of the course: the distance left at the pace, the dwells left stood; at the course's
+    speed it is the nominal time the course had left where the start point counted the time already spent."""
+    walk_s, dwell_s = SHORT.leg_m / SHORT.speed_m_per_s, SHORT.dwell_s
+    assert nominal_length_s(SHORT, 99.0, x_m=1.0) == pytest.approx(3.0 / 0.8 + 2 * dwell_s)  # half-way along leg 0
+    assert nominal_length_s(SHORT, 99.0, x_m=2.0, legs_done=1.0, dwell_left_s=0.4) == pytest.approx(
+        0.4 + walk_s + dwell_s)  # in leg 0's dwell
+    assert nominal_length_s(SHORT, 99.0, x_m=1.0, speed_m_per_s=0.5) == pytest.approx(3.0 / 0.5 + 2 * dwell_s)
+    rng = np.random.default_rng(3)
+    whole_s = SHORT.legs * (walk_s + dwell_s)
+    for _ in range(50):
+        x, state, elapsed = start_point(SHORT, rng, 0.02, 1500)
+        assert nominal_length_s(SHORT, 30.0 - elapsed * 0.02, x, state.legs_done, state.dwell_left_s) == \
+            pytest.approx(whole_s - elapsed * 0.02, abs=0.021)  # the start point's elapsed steps are floored
+
+
+def test_under_the_walkers_pace_t_follows_its_finished_episodes(g1_ppo) -> None:
+    """``pace="walker"``: the speed ``T`` is taken at moves from the course's toward the walking speed of the
+    episodes that ended, and the next episodes' ``T`` is taken at it (a walker slower than the command: longer)."""
+    env = _env(g1_ppo, 2, random_start=False, pace="walker")
+    obs, _ = env.reset()
+    policy, speeds = batched_onnx_policy(g1_ppo), []
+    start_t = float(env._length_s[0])
+    assert env.pace_m_per_s == SHORT.speed_m_per_s
+    for _ in range(1500):
+        out = env.step(policy(obs))
+        obs = out.obs
+        speeds += [ep["achieved_speed_m_per_s"] for ep in out.episodes]
+        if speeds:
+            break
+    assert speeds and speeds[0] < SHORT.speed_m_per_s  # the shipped walker under-tracks the command
+    expected = SHORT.speed_m_per_s
+    for speed in speeds:  # an exponential average, in the order the episodes ended
+        expected += 0.1 * (speed - expected)
+    assert env.pace_m_per_s == pytest.approx(expected)
+    assert out.terms["pace_m_per_s"] == SHORT.speed_m_per_s  # the pace this step was paid at
+    restarted = int(np.flatnonzero(out.truncated | out.terminated)[-1])  # started after the last update
+    assert env._length_s[restarted] == pytest.approx(nominal_length_s(SHORT, 30.0, speed_m_per_s=env.pace_m_per_s))
+    assert env._length_s[restarted] > start_t
+    with pytest.raises(ValueError, match="pace"):
+        _env(g1_ppo, 2, pace="fast")
     env.close()
 
 

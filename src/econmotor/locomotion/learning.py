@@ -14,9 +14,11 @@ prices the G1 and T1: the same model, course, stress, meter and fall rule) for a
   selection and the report score an episode by (:func:`econmotor.objectives.loader.running_objective_j` on the
   meter's running sums, from ``J = 0`` at the episode's start). While the episode runs its rates are taken
   over ``T``, the episode's nominal length (:func:`nominal_length_s`: the course left from the start point at
-  the course's speed, dwells included, within the time limit), so each leg walked is paid ``3600 w_mpl / T``
-  when it is walked and each Wh when it is drawn; the step that ends the episode adds the difference between
-  its J over its own length and over ``T``. An episode's economic rewards sum to ``gain * J`` of that episode,
+  the course's speed, dwells included, within the time limit; under ``pace="walker"`` at the walker's own
+  walking speed instead, an average of this env's finished episodes', so ``T`` is about the length its
+  episodes take), so each leg walked is paid ``3600 w_mpl / T`` when it is walked and each Wh when it is
+  drawn; the step that ends the episode adds the difference between its J over its own length and over
+  ``T``. An episode's economic rewards sum to ``gain * J`` of that episode,
   with its own length and legs. (Paying the increments of the running rate ``3600 legs / t`` instead credits a
   leg walked at ``t`` with about ``3600 H / t^2`` within the discount's horizon ``H``: far too much in an
   episode's first seconds and almost nothing later, and a fall, which keeps the rate, would cost next to
@@ -48,6 +50,10 @@ from econmotor.robots.observation import projected_gravity, rotate_inverse
 
 #: width of :meth:`WalkerLearningEnv.privileged`
 PRIVILEGED_DIM = 9
+#: the walking speeds ``T`` may be taken at: the course's commanded one, or the walker's own (module docstring)
+PACES = ("course", "walker")
+#: a finished episode's weight in the walker's pace (an exponential average over its last ten or so)
+PACE_WEIGHT = 0.1
 
 
 def course_point(course: crs.CourseSettings, u: Any, control_dt_s: float, limit_steps: int,
@@ -74,13 +80,18 @@ def course_point(course: crs.CourseSettings, u: Any, control_dt_s: float, limit_
     return x, state, steps
 
 
-def nominal_length_s(course: crs.CourseSettings, elapsed_s: float, limit_s: float) -> float:
-    """The seconds an episode started ``elapsed_s`` into the course would last walking at the course's speed
-    with every dwell stood (the course's nominal time left; an endless course's: the time limit left),
-    within the time limit; at least a millisecond."""
-    walk_s = course.leg_m / max(course.speed_m_per_s, 1e-6)
-    whole_s = course.legs * (walk_s + course.dwell_s) if course.legs > 0 else limit_s
-    return max(min(whole_s, limit_s) - elapsed_s, 1e-3)
+def nominal_length_s(course: crs.CourseSettings, time_left_s: float, x_m: float = 0.0, legs_done: float = 0.0,
+                     dwell_left_s: float = 0.0, speed_m_per_s: float | None = None) -> float:
+    """The seconds the course left from a point (the base ``x_m`` along it, ``legs_done`` legs walked,
+    ``dwell_left_s`` of a dwell still to stand) takes walking at ``speed_m_per_s`` (None: the course's) with
+    every dwell stood, within the episode's ``time_left_s`` (an endless course's: that time); at least a
+    millisecond."""
+    if course.legs <= 0:
+        return max(time_left_s, 1e-3)
+    speed = max(speed_m_per_s if speed_m_per_s is not None else course.speed_m_per_s, 1e-6)
+    left_s = max(course.legs * course.leg_m - x_m, 0.0) / speed + (course.legs - legs_done) * course.dwell_s \
+        + dwell_left_s
+    return max(min(left_s, time_left_s), 1e-3)
 
 
 def start_point(course: crs.CourseSettings, rng: np.random.Generator, control_dt_s: float,
@@ -121,14 +132,19 @@ class WalkerLearningEnv:
 
     def __init__(self, batch: WalkerBatch, objective: EconomicObjectiveSpec, economics: Any, gain: float,
                  weights: Mapping[str, float], params: Mapping[str, Mapping[str, Any]] | None = None, seed: int = 0,
-                 random_start: bool = True, seed_stride: int = 1) -> None:
+                 random_start: bool = True, seed_stride: int = 1, pace: str = "course") -> None:
+        if pace not in PACES:
+            raise ValueError(f"pace must be one of {list(PACES)}, got {pace!r}")
         unknown = sorted(set(weights) - set(lr.TERMS))
         if unknown:
             raise ValueError(f"unknown locomotion terms {unknown}; the walker trainer has {list(lr.TERMS)}")
         self.batch, self.objective, self.economics, self.gain = batch, objective, economics, float(gain)
         self._j = np.zeros(batch.n)  # each slot's episode J so far, over its nominal length
         self._limit_s = batch.control_steps * batch.card.control_dt_s
-        self._length_s = np.full(batch.n, nominal_length_s(batch.course, 0.0, self._limit_s))
+        #: the walking speed ``T`` is taken at (module docstring): the course's, or under ``pace: walker`` an
+        #: average of this env's finished episodes' own
+        self.pace, self.pace_m_per_s = pace, float(batch.course.speed_m_per_s)
+        self._length_s = np.full(batch.n, nominal_length_s(batch.course, self._limit_s))
         self.weights, self.params = dict(weights), {k: dict(v) for k, v in (params or {}).items()}
         self.next_seed, self.random_start, self.seed_stride = int(seed), bool(random_start), int(seed_stride)
         self.slots = np.arange(batch.n)
@@ -143,12 +159,14 @@ class WalkerLearningEnv:
     def _start(self, slot: int) -> None:
         b = self.batch
         b.start(slot, self.next_seed, self.next_seed)
-        self._j[slot], elapsed = 0.0, 0
+        self._j[slot], x, legs_done, dwell_left_s, elapsed = 0.0, 0.0, 0.0, 0.0, 0
         if self.random_start:
             rng = np.random.default_rng([self.next_seed, 1])  # the episode's own draws stay the evaluator's
             x, state, elapsed = start_point(b.course, rng, b.card.control_dt_s, b.control_steps)
             b.place(slot, x, state, elapsed)
-        self._length_s[slot] = nominal_length_s(b.course, elapsed * b.card.control_dt_s, self._limit_s)
+            legs_done, dwell_left_s = state.legs_done, state.dwell_left_s
+        self._length_s[slot] = nominal_length_s(b.course, self._limit_s - elapsed * b.card.control_dt_s, x,
+                                                legs_done, dwell_left_s, self.pace_m_per_s)
         self.next_seed += self.seed_stride
 
     def reset(self) -> tuple[np.ndarray, np.ndarray]:
@@ -226,14 +244,18 @@ class WalkerLearningEnv:
                       reward=loco + econ, terminated=np.zeros(n, bool), truncated=np.zeros(n, bool),
                       terminal_obs=np.zeros((n, dim), np.float32),
                       terminal_privileged=np.zeros((n, PRIVILEGED_DIM), np.float32),
-                      terms={**terms, "locomotion": float(loco.mean()), "economic": float(econ.mean())})
+                      terms={**terms, "locomotion": float(loco.mean()), "economic": float(econ.mean()),
+                             **({"pace_m_per_s": self.pace_m_per_s} if self.pace == "walker" else {})})
         if len(ended):
             out.terminal_obs[ended] = b.observation(ended)
             out.terminal_privileged[ended] = self.privileged(ended)
             fell = b.sums.errors[slots][ended] > errors_before[ended]
             out.terminated[ended], out.truncated[ended] = fell, ~fell
             for slot in ended:
-                out.episodes.append(b.finish(int(slot)))
+                episode = b.finish(int(slot))
+                out.episodes.append(episode)
+                if self.pace == "walker" and episode["walking_s"] >= 1.0:
+                    self.pace_m_per_s += PACE_WEIGHT * (episode["achieved_speed_m_per_s"] - self.pace_m_per_s)
                 self._start(int(slot))
         self._obs = out.obs = b.observe(slots)
         out.privileged = self.privileged(slots)

@@ -61,3 +61,15 @@ def test_a_complete_run_is_kept_not_resumed(bench, tmp_path: Path, capsys, monke
     bench.train(args, tmp_path / "results", tmp_path / "work")
     assert "kept price_weighted_s0: a complete run, 1,003,520 env steps" in capsys.readouterr().out
     assert (tmp_path / "results" / "price_weighted_s0.onnx").read_bytes() == b"x"
+
+
+def test_a_recipe_setting_reaches_every_new_run_and_not_a_resumed_one(bench, tmp_path: Path) -> None:
+    args = bench.build_parser().parse_args(["--hyperparameters", "j_pace=walker", "--hyperparameters", "gamma=0.995"])
+    assert args.hyperparameters == ["j_pace=walker", "gamma=0.995"]
+    new = bench.train_command("price_weighted", 0, tmp_path / "r", 30.0, 1000, None, "fastsac", False,
+                              args.hyperparameters)
+    assert new[new.index("--hyperparameters") + 1] == "j_pace=walker" and new[-2:] == ["--hyperparameters",
+                                                                                         "gamma=0.995"]
+    resumed = bench.train_command("price_weighted", 0, tmp_path / "r", 30.0, 1000, None, "fastsac", True,
+                                  args.hyperparameters)
+    assert "--hyperparameters" not in resumed  # a resumed run continues with the recipe it recorded

@@ -113,6 +113,7 @@ class EnvSpec:
     gain: float
     weights: Mapping[str, float]
     params: Mapping[str, Mapping[str, Any]]
+    pace: str = "course"  # the walking speed J's rates are taken at (WalkerLearningEnv)
 
     def build(self, slots: int, seed: int, seed_stride: int = 1, walker: WalkerModel | None = None
               ) -> WalkerLearningEnv:
@@ -122,7 +123,7 @@ class EnvSpec:
                             dict(self.command_ranges))
         objective = EconomicObjectiveSpec(**self.objective)
         return WalkerLearningEnv(batch, objective, self.economics, self.gain, self.weights, self.params,
-                                 seed=seed, seed_stride=seed_stride)
+                                 seed=seed, seed_stride=seed_stride, pace=self.pace)
 
 
 @dataclass

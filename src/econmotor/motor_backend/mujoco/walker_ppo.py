@@ -236,13 +236,16 @@ class WalkerPPO:
         targets = net.value_target(returns)
         warmup = self.iterations < cfg.critic_warmup_iterations
         old_std = net.log_std.detach().exp()
+        # the starting actor's means over the batch: one pass per update (it does not move), indexed per minibatch
+        ref_mean = self._reference_mean(obs)
         totals: dict[str, float] = {}
         n, size, updates = obs.shape[0], cfg.minibatch_size, 0
         for _ in range(cfg.num_epochs):
             perm = torch.randperm(n)
             for start in range(0, n - size + 1, size):
                 idx = perm[start:start + size]
-                stats = self._step(obs[idx], priv[idx], actions[idx], old_logp[idx], adv[idx], targets[idx], warmup)
+                stats = self._step(obs[idx], priv[idx], actions[idx], old_logp[idx], adv[idx], targets[idx], warmup,
+                                   None if ref_mean is None else ref_mean[idx])
                 with torch.no_grad():
                     stats["kl"] = float(_gaussian_kl(old_mean[idx], old_std, net.actor(obs[idx]), net.log_std.exp()))
                 if not warmup:
@@ -251,8 +254,8 @@ class WalkerPPO:
                     totals[k] = totals.get(k, 0.0) + v
                 updates += 1
         out = {k: v / max(updates, 1) for k, v in totals.items()}
-        if self.reference is not None:
-            out.update(self._steer_anchor(obs, steer=not warmup))
+        if ref_mean is not None:
+            out.update(self._steer_anchor(obs, ref_mean, steer=not warmup))
         if net.normalises_values:
             out["value_scale"] = float(net.value_norm.std)
         self.iterations += 1
@@ -260,9 +263,10 @@ class WalkerPPO:
                 "critic_warmup": float(warmup)}
 
     def _step(self, obs: torch.Tensor, priv: torch.Tensor, actions: torch.Tensor, old_logp: torch.Tensor,
-              adv: torch.Tensor, target: torch.Tensor, warmup: bool) -> dict[str, float]:
-        """One minibatch's gradient step (``target``: the returns in the critic's units); its losses and
-        gradient norms."""
+              adv: torch.Tensor, target: torch.Tensor, warmup: bool, ref_mean: torch.Tensor | None = None
+              ) -> dict[str, float]:
+        """One minibatch's gradient step (``target``: the returns in the critic's units; ``ref_mean``: the starting
+        actor's means of ``obs``, under an anchor); its losses and gradient norms."""
         cfg, net = self.cfg, self.net
         if cfg.advantage_norm == "minibatch":
             adv = _standardised(adv)
@@ -275,8 +279,8 @@ class WalkerPPO:
         loss = cfg.value_coef * value_loss
         if not warmup:
             loss = loss + surrogate - cfg.entropy_coef * entropy
-            if self.reference is not None:
-                loss = loss + self.anchor_coef * self._anchor_kl(obs, mean)
+            if ref_mean is not None:
+                loss = loss + self.anchor_coef * self._anchor_kl(ref_mean, mean)
         self.optimizer.zero_grad()
         loss.backward()
         if warmup:
@@ -300,17 +304,21 @@ class WalkerPPO:
             nn.utils.clip_grad_norm_(actor + critic, limit)
         return {"grad_norm_actor": float(a), "grad_norm_critic": float(c)}
 
-    def _anchor_kl(self, obs: torch.Tensor, mean: torch.Tensor) -> torch.Tensor:
-        """``KL(pi_0 || pi)`` at the starting std: the distance of ``mean`` from the reference's."""
-        assert self.reference is not None
+    @torch.no_grad()
+    def _reference_mean(self, obs: torch.Tensor) -> torch.Tensor | None:
+        """The starting actor's means of ``obs`` (None without an anchor)."""
+        return None if self.reference is None else self.reference(obs)
+
+    def _anchor_kl(self, ref_mean: torch.Tensor, mean: torch.Tensor) -> torch.Tensor:
+        """``KL(pi_0 || pi)`` at the starting std: the distance of ``mean`` from the reference's ``ref_mean``."""
         ref_std = torch.full_like(self.net.log_std, self.reference_std)
-        return _gaussian_kl(self.reference(obs), ref_std, mean, ref_std)
+        return _gaussian_kl(ref_mean, ref_std, mean, ref_std)
 
     @torch.no_grad()
-    def _steer_anchor(self, obs: torch.Tensor, steer: bool) -> dict[str, float]:
+    def _steer_anchor(self, obs: torch.Tensor, ref_mean: torch.Tensor, steer: bool) -> dict[str, float]:
         """The anchor KL over the iteration's batch after its update; with ``steer`` and a KL target, the
         coefficient doubled above ``1.5 * anchor_kl_target``, halved below ``anchor_kl_target / 1.5``."""
-        kl = float(self._anchor_kl(obs, self.net.actor(obs)))
+        kl = float(self._anchor_kl(ref_mean, self.net.actor(obs)))
         target, (lo, hi) = self.cfg.anchor_kl_target, self.cfg.anchor_coef_bounds
         if steer and target > 0:
             if kl > 1.5 * target:

@@ -12,10 +12,11 @@ from dataclasses import asdict, dataclass, fields
 from typing import Any
 
 from econmotor.errors import ConfigError
+from econmotor.locomotion.learning import PACES
 
 #: the actor's and critic's activations (names of torch modules)
 ACTIVATIONS = ("elu", "tanh", "relu", "silu")
-_CHOICES = {"advantage_norm": ("minibatch", "batch"), "grad_clip": ("separate", "joint")}
+_CHOICES = {"advantage_norm": ("minibatch", "batch"), "grad_clip": ("separate", "joint"), "j_pace": PACES}
 _POSITIVE = ("learning_rate", "desired_kl", "clip", "max_grad_norm", "init_std", "min_std")
 _BOOLS = {"true": True, "false": False}
 
@@ -41,6 +42,9 @@ class WalkerPPOConfig:
     grad_clip: str = "separate"
     #: "minibatch": advantages standardised within each minibatch; "batch": over the whole batch
     advantage_norm: str = "minibatch"
+    #: the walking speed J's rates are taken at while an episode runs (econmotor.locomotion.learning): "course",
+    #: the course's commanded speed; "walker", the walker's own (an average of its finished episodes')
+    j_pace: str = "course"
     #: the critic predicts returns standardised by their running mean and std (PopArt)
     value_norm: bool = True
     init_std: float = 0.1

@@ -132,7 +132,7 @@ class WalkerTrainingRun:
         s = self.setup
         return wc.EnvSpec(s.card, self.kp, self.kd, s.course, s.meter, s.stress, s.episode_s,
                           dict(self.command_ranges), self.objective.to_dict(), self.economics, self.gain,
-                          dict(self.weights), {k: dict(v) for k, v in self.params.items()})
+                          dict(self.weights), {k: dict(v) for k, v in self.params.items()}, self.cfg.j_pace)
 
     def collector(self, seeds: list[int], iteration: int) -> wc.LocalCollector | wc.CollectPool:
         """The run's collection (:mod:`.walker_collect`), each worker's next episode seed ``seeds``;
@@ -179,6 +179,7 @@ class WalkerTrainingRun:
                 "wh_per_leg": energy / units if units > 0 else None,
                 "reward_locomotion": locomotion, "reward_economic": economic,
                 "mean_return": locomotion + economic,  # the reward per control step of the iteration
+                **({"j_pace_m_per_s": parts["pace_m_per_s"]} if "pace_m_per_s" in parts else {}),
                 **({"collect_s": round(collect_s, 3)} if collect_s is not None else {}),
                 **{k: float(v) for k, v in stats.items()}}
 

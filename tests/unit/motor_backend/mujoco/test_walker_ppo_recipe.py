@@ -181,6 +181,28 @@ def test_the_default_anchor_lets_the_objective_move_the_gait() -> None:
     assert moved["default"] > 3.0 and moved[1.0] < 2.0, moved
 
 
+def test_the_starting_actor_is_evaluated_once_an_update_and_pulls_as_it_did_per_minibatch() -> None:
+    """The anchor's reference does not move: its means over the batch are taken once per update (not once per
+    minibatch and epoch), and the anchor's gradient on a minibatch is the one its own pass would give."""
+    learner = _learner(anchor_coef=1.0)
+    rollout, last = _rollout(learner, 0, _toward_first_joint)
+    calls: list[int] = []
+    learner.reference.register_forward_hook(lambda module, args, out: calls.append(args[0].shape[0]))
+    learner.update(rollout, last)
+    assert calls == [learner.cfg.num_envs * learner.cfg.steps_per_iteration]  # one pass over the whole batch
+    obs = rollout.obs.reshape(-1, OBS)[:40]
+    learner.optimizer.zero_grad()
+    own = learner._anchor_kl(learner.reference(obs), learner.net.actor(obs))
+    torch.autograd.backward(own, inputs=list(learner.net.actor.parameters()))
+    per_minibatch = [p.grad.clone() for p in learner.net.actor.parameters()]
+    learner.optimizer.zero_grad()
+    batch_mean = learner._reference_mean(rollout.obs.reshape(-1, OBS))[:40]
+    torch.autograd.backward(learner._anchor_kl(batch_mean, learner.net.actor(obs)),
+                            inputs=list(learner.net.actor.parameters()))
+    for a, p in zip(per_minibatch, learner.net.actor.parameters(), strict=True):
+        torch.testing.assert_close(p.grad, a)
+
+
 def test_the_anchor_coefficient_waits_for_the_critic() -> None:
     learner = _learner(anchor_coef=1.0, critic_warmup_iterations=2)
     for i in range(2):
@@ -245,6 +267,7 @@ def test_a_checkpoint_keeps_the_recipes_state() -> None:
     ("advantage_norm", "whole"), ("grad_clip", "both"), ("value_norm", "maybe"), ("min_std", 0.0),
     ("min_std", 0.5), ("anchor_kl_target", -0.1), ("anchor_coef_bounds", [0.0, 1.0]),
     ("anchor_coef_bounds", [1.0]), ("anchor_coef", -1.0), ("anchor_coef", 1e4), ("max_grad_norm", 0.0),
+    ("j_pace", "fast"),
 ])
 def test_a_bad_recipe_setting_is_named(key: str, value: object) -> None:
     with pytest.raises(ConfigError) as caught:
