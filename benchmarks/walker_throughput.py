@@ -16,17 +16,20 @@ as control steps per wall second (50 Hz policy steps; 4 physics steps each) and 
   the same course): its robots stepped in its own process (``collect_workers: 1``) / in two collect workers
   (``collect_workers: 2``, :mod:`econmotor.motor_backend.mujoco.walker_collect`), the update in the trainer's
   process; env steps per wall second over ``--train-iterations`` iterations after a first one (the workers'
-  start-up) untimed, the update included (``collect_1`` / ``collect_2``: collection alone);
+  start-up) untimed, the update included (``collect_1`` / ``collect_2``: collection alone; under
+  ``policy_lag: 1`` the wait for the workers after the update);
   ``train_2_update_1``: ``train_2`` with its update on one torch thread (the trainer's default runs it on
   every usable CPU, the workers' cores idle while they wait for the next actor).
 
 Printed last: the trainer's ``train_2 / raw_2`` (the share of the machine's MuJoCo speed a training run
 gets on both cores; the goal is at least 0.5), then ``env_processes / raw_2``, the share a price gets.
-``--trainer-only`` measures the raw floors and the trainer's arms alone. On idle cores:
+``--trainer-only`` measures the raw floors and the trainer's arms alone; ``--hyperparameters KEY=VALUE``
+(repeatable) sets a recipe setting of every trainer arm over the catalog's. On idle cores:
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/walker_throughput.py
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/walker_throughput.py --trainer-only
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/walker_throughput.py --policy holosoma:t1_29dof/ppo
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/walker_throughput.py --trainer-only --hyperparameters policy_lag=1
 """
 
 from __future__ import annotations
@@ -154,7 +157,7 @@ def one_robot(ev, episodes: int) -> float:
 
 
 def train_rate(ev, workers: int, num_envs: int, steps: int, iterations: int,
-               update_threads: int | None = None) -> tuple[float, float]:
+               update_threads: int | None = None, overrides: dict[str, str] | None = None) -> tuple[float, float]:
     """(env steps per wall second, of collection alone) of the trainer's iterations with ``workers`` collect
     workers (after a first iteration, untimed: the workers' start-up); ``update_threads``: the update's torch
     threads (None: the trainer's default)."""
@@ -174,7 +177,7 @@ def train_rate(ev, workers: int, num_envs: int, steps: int, iterations: int,
     task = "humanoid_locomotion_g1" if c.card.name.startswith("g1") else "humanoid_locomotion_t1"
     spec = get_task(task)
     trainer = walker_train_settings(spec)
-    recipe = {**trainer.ppo, "num_envs": num_envs, "steps_per_iteration": steps}
+    recipe = {**trainer.ppo, **(overrides or {}), "num_envs": num_envs, "steps_per_iteration": steps}
     if (num_envs * steps) % int(recipe.get("num_minibatches", 1)):
         recipe["num_minibatches"] = 1
     setup = WalkerSetup(contract=c, card=c.card, course=ev.course, meter=ev.meter, stress=ev.stress,
@@ -209,9 +212,12 @@ def main() -> None:
     parser.add_argument("--train-steps", type=int, default=128,
                         help="the trainer's control steps per iteration (the catalog's: 128)")
     parser.add_argument("--train-iterations", type=int, default=4, help="timed trainer iterations per arm")
+    parser.add_argument("--hyperparameters", action="append", default=[], metavar="KEY=VALUE",
+                        help="a recipe setting for every trainer arm, over the catalog's (repeatable)")
     parser.add_argument("--trainer-only", action="store_true",
                         help="the raw floors and the trainer's arms only (no evaluator arms)")
     args = parser.parse_args()
+    overrides = dict(kv.split("=", 1) for kv in args.hyperparameters)
 
     from econmotor.locomotion.evaluation import evaluate
 
@@ -243,12 +249,14 @@ def main() -> None:
         rates["env_processes"] = control_steps / max(wall - startup_s, 1e-9)
     for workers in (1, 2):
         rates[f"train_{workers}"], rates[f"collect_{workers}"] = train_rate(
-            ev, workers, args.train_envs, args.train_steps, args.train_iterations)
+            ev, workers, args.train_envs, args.train_steps, args.train_iterations, overrides=overrides)
     # the same two-worker trainer with its update on one torch thread (one core idle while the workers wait)
-    rates["train_2_update_1"], _ = train_rate(ev, 2, args.train_envs, args.train_steps, args.train_iterations, 1)
+    rates["train_2_update_1"], _ = train_rate(ev, 2, args.train_envs, args.train_steps, args.train_iterations, 1,
+                                              overrides)
     print(f"policy {args.policy}: {args.episodes} episodes x {args.episode_s:g} s = {sim_s:g} simulated s, "
           f"{control_steps} control steps; {args.slots} robots per process; cores: {os.cpu_count()}; trainer: "
-          f"{args.train_envs} robots x {args.train_steps} steps per iteration, {args.train_iterations} timed")
+          f"{args.train_envs} robots x {args.train_steps} steps per iteration, {args.train_iterations} timed"
+          + (f"; recipe {overrides}" if overrides else ""))
     for name, rate in rates.items():
         print(f"{name:>14}: {rate:8.0f} control steps/s  {rate * 0.02:6.1f} x real time")
     ratio = {name: rates[name] / rates["raw_1" if name.endswith("_1") or name == "one_robot" else "raw_2"]

@@ -5,7 +5,10 @@ motor_backend/mujoco/walker_collect.py).
   robot's episodes seeded from the run's range and no seed twice;
 - a run with two workers is reproducible: the same seed collects the same rollouts, before and after an update;
 - the workers end when the trainer's process is killed (SIGKILL: no cleanup runs in it);
-- a run with two workers resumes from its checkpoint with two workers, from the seeds the checkpoint kept.
+- a run with two workers resumes from its checkpoint with two workers, from the seeds the checkpoint kept;
+- under ``policy_lag: 1`` the next batch is stepped while the update runs: an update learns from the batch the
+  actor one update back collected (in one process and in workers), and a run closed with a batch in flight
+  leaves no worker behind.
 
 Small robots counts and short iterations of the shipped G1 PPO walker; every pool is closed (the trainer's
 ``close``) and the killed trainer's process group is killed whatever happens.
@@ -13,6 +16,7 @@ Small robots counts and short iterations of the shipped G1 PPO walker; every poo
 
 from __future__ import annotations
 
+import copy
 import json
 import os
 import signal
@@ -283,3 +287,25 @@ def test_the_update_runs_on_every_usable_cpu_while_the_workers_wait_and_gives_th
         torch.set_num_threads(before)
     # with workers, their cores are idle while the update runs; in one process it keeps the process's threads
     assert during == [wc.usable_cpus(), 1]
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_policy_lag_one_learns_from_the_batch_the_previous_actor_collected(tmp_path: Path, workers: int) -> None:
+    learner = WalkerLearner(_run(tmp_path, workers, policy="holosoma:g1_29dof/fastsac", policy_lag=1))
+    net = learner.ppo.net
+    behaviour = copy.deepcopy(net.actor)  # the actor that collected the batch the next collect() returns
+    try:
+        for iteration in range(3):
+            rollout, last_value, *_ = learner.collect()
+            assert learner.collection is not None and learner.collection.pending  # the next batch, stepping
+            with torch.no_grad():
+                np.testing.assert_allclose(rollout.means.numpy(), behaviour(rollout.obs).numpy(), atol=1e-5)
+                if iteration:  # the actor has moved since: its means are not the batch's
+                    assert not np.allclose(rollout.means.numpy(), net.actor(rollout.obs).numpy(), atol=1e-4)
+            behaviour = copy.deepcopy(net.actor)
+            assert learner.ppo.update(rollout, last_value)["kl"] > 0.0
+        procs = list(getattr(learner.collection, "procs", []))
+    finally:
+        learner.close()  # a batch in flight: the workers are stopped, not waited for
+    assert learner.collection is None
+    assert not any(p.is_alive() for p in procs)

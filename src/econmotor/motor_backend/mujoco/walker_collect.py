@@ -242,11 +242,27 @@ class LocalCollector:
         self.env = spec.build(num_envs, seed, 1, walker)
         self.steps = steps
         self.obs = self.env.reset()
+        self._pending: list[Chunk] | None = None
 
-    def collect(self, net: ActorCritic) -> list[Chunk]:
+    def request(self, net: ActorCritic) -> None:
+        """Collect the next chunk under ``net``'s actor now (this process has no other worker to do it)."""
         chunk = collect(self.env, Sampler(net.actor, net.log_std.detach()), self.steps, *self.obs)
         self.obs = (chunk.last_obs, chunk.last_privileged)
-        return [chunk]
+        self._pending = [chunk]
+
+    def receive(self) -> list[Chunk]:
+        chunks, self._pending = self._pending, None
+        if chunks is None:
+            raise RuntimeError("receive() before request()")
+        return chunks
+
+    @property
+    def pending(self) -> bool:
+        return self._pending is not None
+
+    def collect(self, net: ActorCritic) -> list[Chunk]:
+        self.request(net)
+        return self.receive()
 
     @property
     def next_seeds(self) -> list[int]:
@@ -331,8 +347,9 @@ class CollectPool:
     def next_seeds(self) -> list[int]:
         return list(self._seeds)
 
-    def collect(self, net: ActorCritic) -> list[Chunk]:
-        """Every worker's chunk under ``net``'s actor (the workers step at once)."""
+    def request(self, net: ActorCritic) -> None:
+        """Ask every worker for its next chunk under ``net``'s actor (they step at once, while this process goes
+        on: :meth:`receive` waits for them)."""
         weights = actor_weights(net)
         self._in_flight = True
         for w, conn in enumerate(self.conns):
@@ -341,10 +358,24 @@ class CollectPool:
             except OSError:  # it is gone: its error, or how it died
                 self._receive(w)
                 raise BackendError(f"walker collect worker {w} stopped reading") from None
+
+    @property
+    def pending(self) -> bool:
+        return self._in_flight
+
+    def receive(self) -> list[Chunk]:
+        """The chunks asked for by :meth:`request`, in the workers' order."""
+        if not self._in_flight:
+            raise RuntimeError("receive() before request()")
         chunks = [self._receive(w) for w in range(self.workers)]
         self._in_flight = False
         self._seeds = [c.next_seed for c in chunks]
         return chunks
+
+    def collect(self, net: ActorCritic) -> list[Chunk]:
+        """Every worker's chunk under ``net``'s actor (the workers step at once)."""
+        self.request(net)
+        return self.receive()
 
     def _receive(self, w: int) -> Chunk:
         conn, proc, start = self.conns[w], self.procs[w], time.monotonic()

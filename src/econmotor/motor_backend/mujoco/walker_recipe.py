@@ -16,7 +16,8 @@ from econmotor.locomotion.learning import PACES
 
 #: the actor's and critic's activations (names of torch modules)
 ACTIVATIONS = ("elu", "tanh", "relu", "silu")
-_CHOICES = {"advantage_norm": ("minibatch", "batch"), "grad_clip": ("separate", "joint"), "j_pace": PACES}
+_CHOICES = {"advantage_norm": ("minibatch", "batch"), "grad_clip": ("separate", "joint"), "j_pace": PACES,
+            "policy_lag": (0, 1)}
 _POSITIVE = ("learning_rate", "desired_kl", "clip", "max_grad_norm", "init_std", "min_std")
 _BOOLS = {"true": True, "false": False}
 
@@ -59,6 +60,11 @@ class WalkerPPOConfig:
     anchor_kl_target: float = 10.0
     anchor_coef_bounds: tuple[float, float] = (1e-3, 1e3)
     critic_warmup_iterations: int = 20
+    #: 0: each iteration's robots step under the actor its update starts from, the update waiting for them;
+    #: 1: the robots step the next iteration under the current actor while the update runs (Sample Factory's
+    #: policy lag of one iteration: the update's batch was collected by the actor one update back, its stored
+    #: log-probabilities that actor's), so collection and the update share the cores
+    policy_lag: int = 0
     critic_hidden_sizes: tuple[int, ...] = (512, 256, 128)
     hidden_sizes: tuple[int, ...] = (512, 256, 128)
     activation: str = "elu"

@@ -18,7 +18,9 @@ What a run does (:class:`WalkerTrainingRun`):
    or in this process with ``collect_workers: 1``; by default one worker per usable CPU with at least 8
    robots each (:func:`~.walker_collect.default_workers`); while the workers wait for the next actor, the
    critic's values and the update run on ``update_threads`` torch threads (by default every usable CPU when
-   the robots are in workers: their cores are idle meanwhile);
+   the robots are in workers: their cores are idle meanwhile); with ``policy_lag: 1`` the workers step the
+   next iteration under the current actor while the update runs (on one thread by default), so the update
+   learns from a batch its actor's previous version collected;
 4. checkpoints (``checkpoints/latest.pt``: learner, iteration, env steps, each worker's next seed) every
    ``checkpoint_every_s`` of wall time, at the end and when interrupted: ``--resume`` continues from it;
 5. held-out selection (:mod:`econmotor.motor_backend.selection`): at its cadence, the actor exported as
@@ -108,8 +110,8 @@ class WalkerTrainingRun:
     collect_workers: int | None = None
     #: processes a held-out look's episodes run in (None: every usable CPU: the collection is idle meanwhile)
     select_workers: int | None = None
-    #: torch threads of the critic's values and the update, which run while the collect workers wait (None:
-    #: every usable CPU with collect workers, else the process's own setting)
+    #: torch threads of the critic's values and the update (None: every usable CPU when collect workers wait for
+    #: the update, one when they step beside it (``policy_lag: 1``), else the process's own setting)
     update_threads: int | None = None
 
     def __post_init__(self) -> None:
@@ -124,7 +126,8 @@ class WalkerTrainingRun:
             raise ValueError(f"collect_workers must be between 1 and num_envs ({n}), got {workers}")
         self.collect_workers = workers
         if self.update_threads is None:
-            self.update_threads = wc.usable_cpus() if workers > 1 else torch.get_num_threads()
+            beside = 1 if self.cfg.policy_lag else wc.usable_cpus()  # more threads than cores left: 0.72x
+            self.update_threads = beside if workers > 1 else torch.get_num_threads()
 
     # ------------------------------------------------------------------ the pieces
     def env_spec(self) -> wc.EnvSpec:
@@ -284,8 +287,12 @@ class WalkerLearner(LoopLearner):
         next seeds (the start's, or the restored checkpoint's)."""
         if self.collection is None:
             self.collection = self.run.collector(self.next_seeds, self.iteration)
-        chunks = self.collection.collect(self.ppo.net)
+        if not self.collection.pending:
+            self.collection.request(self.ppo.net)
+        chunks = self.collection.receive()
         self.next_seeds = self.collection.next_seeds
+        if self.run.cfg.policy_lag:  # the next batch under this actor, stepped while the update runs
+            self.collection.request(self.ppo.net)
         with torch_threads(int(self.run.update_threads)):
             return wc.assemble(chunks, self.ppo.net, self.run.cfg.gamma)
 

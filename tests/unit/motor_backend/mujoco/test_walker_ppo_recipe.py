@@ -267,7 +267,7 @@ def test_a_checkpoint_keeps_the_recipes_state() -> None:
     ("advantage_norm", "whole"), ("grad_clip", "both"), ("value_norm", "maybe"), ("min_std", 0.0),
     ("min_std", 0.5), ("anchor_kl_target", -0.1), ("anchor_coef_bounds", [0.0, 1.0]),
     ("anchor_coef_bounds", [1.0]), ("anchor_coef", -1.0), ("anchor_coef", 1e4), ("max_grad_norm", 0.0),
-    ("j_pace", "fast"),
+    ("j_pace", "fast"), ("policy_lag", 2), ("policy_lag", "one"),
 ])
 def test_a_bad_recipe_setting_is_named(key: str, value: object) -> None:
     with pytest.raises(ConfigError) as caught:
