@@ -57,6 +57,7 @@ FIGURES = {
     "registry_episode_reads.py": "ratio records/arrays",
     "shadow_overhead.py": "SAC steps/s with shadow / without",
     "walker_throughput.py": "env_processes / raw_2:",
+    "walker_energy_phases.py": "walking:",
     "solver_throughput.py": "speed-up (loop / vectorised)",
     "time_to_deployable.py": "ratio median demo / median old",
     "training_throughput.py": "ratio",
