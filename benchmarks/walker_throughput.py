@@ -156,7 +156,7 @@ def one_robot(ev, episodes: int) -> float:
     return time.perf_counter() - t0
 
 
-def train_rate(ev, workers: int, num_envs: int, steps: int, iterations: int,
+def train_rate(ev, workers: int, num_envs: int | None, steps: int, iterations: int,
                update_threads: int | None = None, overrides: dict[str, str] | None = None) -> tuple[float, float]:
     """(env steps per wall second, of collection alone) of the trainer's iterations with ``workers`` collect
     workers (after a first iteration, untimed: the workers' start-up); ``update_threads``: the update's torch
@@ -177,6 +177,7 @@ def train_rate(ev, workers: int, num_envs: int, steps: int, iterations: int,
     task = "humanoid_locomotion_g1" if c.card.name.startswith("g1") else "humanoid_locomotion_t1"
     spec = get_task(task)
     trainer = walker_train_settings(spec)
+    num_envs = int(num_envs or {**trainer.ppo, **(overrides or {})}.get("num_envs", 32))
     recipe = {**trainer.ppo, **(overrides or {}), "num_envs": num_envs, "steps_per_iteration": steps}
     if (num_envs * steps) % int(recipe.get("num_minibatches", 1)):
         recipe["num_minibatches"] = 1
@@ -208,7 +209,8 @@ def main() -> None:
     parser.add_argument("--episode-s", type=float, default=20.0, help="simulated seconds per episode")
     parser.add_argument("--episodes", type=int, default=16)
     parser.add_argument("--slots", type=int, default=8, help="robots per process")
-    parser.add_argument("--train-envs", type=int, default=32, help="the trainer's robots (the catalog's: 32)")
+    parser.add_argument("--train-envs", type=int, default=None,
+                        help="the trainer's robots (default: the catalog's recipe's, 64 on the G1, 32 on the T1)")
     parser.add_argument("--train-steps", type=int, default=128,
                         help="the trainer's control steps per iteration (the catalog's: 128)")
     parser.add_argument("--train-iterations", type=int, default=4, help="timed trainer iterations per arm")
@@ -255,7 +257,8 @@ def main() -> None:
                                               overrides)
     print(f"policy {args.policy}: {args.episodes} episodes x {args.episode_s:g} s = {sim_s:g} simulated s, "
           f"{control_steps} control steps; {args.slots} robots per process; cores: {os.cpu_count()}; trainer: "
-          f"{args.train_envs} robots x {args.train_steps} steps per iteration, {args.train_iterations} timed"
+          f"{args.train_envs or 'the recipe'} robots x {args.train_steps} steps per iteration, "
+          f"{args.train_iterations} timed"
           + (f"; recipe {overrides}" if overrides else ""))
     for name, rate in rates.items():
         print(f"{name:>14}: {rate:8.0f} control steps/s  {rate * 0.02:6.1f} x real time")
