@@ -177,8 +177,9 @@ def train_rate(ev, workers: int, num_envs: int | None, steps: int, iterations: i
     task = "humanoid_locomotion_g1" if c.card.name.startswith("g1") else "humanoid_locomotion_t1"
     spec = get_task(task)
     trainer = walker_train_settings(spec)
-    num_envs = int(num_envs or {**trainer.ppo, **(overrides or {})}.get("num_envs", 32))
-    recipe = {**trainer.ppo, **(overrides or {}), "num_envs": num_envs, "steps_per_iteration": steps}
+    recipe = {**trainer.ppo, **(overrides or {})}
+    num_envs = int(num_envs or recipe.get("num_envs", 32))
+    recipe.update(num_envs=num_envs, steps_per_iteration=steps)
     if (num_envs * steps) % int(recipe.get("num_minibatches", 1)):
         recipe["num_minibatches"] = 1
     setup = WalkerSetup(contract=c, card=c.card, course=ev.course, meter=ev.meter, stress=ev.stress,

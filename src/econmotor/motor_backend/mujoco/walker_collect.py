@@ -260,10 +260,6 @@ class LocalCollector:
     def pending(self) -> bool:
         return self._pending is not None
 
-    def collect(self, net: ActorCritic) -> list[Chunk]:
-        self.request(net)
-        return self.receive()
-
     @property
     def next_seeds(self) -> list[int]:
         return [self.env.next_seed]
@@ -371,11 +367,6 @@ class CollectPool:
         self._in_flight = False
         self._seeds = [c.next_seed for c in chunks]
         return chunks
-
-    def collect(self, net: ActorCritic) -> list[Chunk]:
-        """Every worker's chunk under ``net``'s actor (the workers step at once)."""
-        self.request(net)
-        return self.receive()
 
     def _receive(self, w: int) -> Chunk:
         conn, proc, start = self.conns[w], self.procs[w], time.monotonic()

@@ -126,7 +126,7 @@ class WalkerTrainingRun:
             raise ValueError(f"collect_workers must be between 1 and num_envs ({n}), got {workers}")
         self.collect_workers = workers
         if self.update_threads is None:
-            beside = 1 if self.cfg.policy_lag else wc.usable_cpus()  # more threads than cores left: 0.72x
+            beside = 1 if self.cfg.policy_lag else wc.usable_cpus()  # beside the workers: no thread to spare
             self.update_threads = beside if workers > 1 else torch.get_num_threads()
 
     # ------------------------------------------------------------------ the pieces
