@@ -309,3 +309,25 @@ def test_policy_lag_one_learns_from_the_batch_the_previous_actor_collected(tmp_p
         learner.close()  # a batch in flight: the workers are stopped, not waited for
     assert learner.collection is None
     assert not any(p.is_alive() for p in procs)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_the_noise_a_run_explores_with_is_correlated_as_its_recipe_says(tmp_path: Path, workers: int) -> None:
+    """``noise_corr_s`` 0.2 s: each robot's noise (its action less its mean, in stds) is correlated
+    ``exp(-0.02 / 0.2)`` = 0.90 from one control step to the next across iterations, and afresh after an episode
+    ends; the default is white."""
+    for corr_s, expected in ((0.2, np.exp(-0.02 / 0.2)), (0.0, 0.0)):
+        learner = WalkerLearner(_run(tmp_path / f"{corr_s}", workers, noise_corr_s=corr_s))
+        try:
+            std = learner.ppo.net.log_std.detach().exp()
+            rollouts = [learner.collect()[0] for _ in range(6)]  # no update: one actor, one std
+        finally:
+            learner.close()
+        eps = torch.cat([(r.actions - r.means) / std for r in rollouts]).numpy()  # [T, N, joints]
+        dones = torch.cat([r.dones for r in rollouts]).numpy()[:-1].astype(bool)  # step t ended an episode
+        now, before = eps[1:], eps[:-1]
+        assert dones.sum() >= 6
+        within = np.corrcoef(now[~dones].ravel(), before[~dones].ravel())[0, 1]
+        across = np.corrcoef(now[dones].ravel(), before[dones].ravel())[0, 1]
+        assert within == pytest.approx(expected, abs=0.03)
+        assert abs(across) < 0.25

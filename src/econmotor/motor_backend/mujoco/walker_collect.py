@@ -35,6 +35,7 @@ workers itself). A worker that fails or dies is a BackendError in the trainer.
 
 from __future__ import annotations
 
+import math
 import multiprocessing as mp
 import os
 import signal
@@ -148,19 +149,51 @@ class Chunk:
     next_seed: int = 0
 
 
-class Sampler:
-    """The Gaussian actor's draws: ``obs -> (action, log_prob, mean)`` (NumPy in and out), from ``generator``
-    (None: torch's global one, as :meth:`WalkerPPO.act` draws)."""
+class Noise:
+    """Each robot's exploration noise, standard normal per joint: white (``corr`` 0, a fresh draw every step, as
+    torch's ``randn`` gives it) or an AR(1) process, ``eps_t = corr eps_(t-1) + sqrt(1 - corr^2) xi_t`` (an
+    Ornstein-Uhlenbeck process sampled at the control rate: a probe held for about ``1 / (1 - corr)`` steps,
+    the marginal still standard normal, so the Gaussian's log-probabilities stay the policy's), started afresh
+    with every episode (:meth:`restart`). ``generator`` None: torch's global one."""
 
-    def __init__(self, actor: torch.nn.Module, log_std: torch.Tensor, generator: torch.Generator | None = None
-                 ) -> None:
-        self.actor, self.log_std, self.generator = actor, log_std, generator
+    def __init__(self, corr: float = 0.0, generator: torch.Generator | None = None) -> None:
+        if not 0.0 <= corr < 1.0:
+            raise ValueError(f"noise correlation must be in [0, 1), got {corr}")
+        self.corr, self.generator = float(corr), generator
+        self.eps: torch.Tensor | None = None
+        self.fresh: np.ndarray | None = None  # rows whose next draw starts a new process
+
+    def draw(self, shape: torch.Size) -> torch.Tensor:
+        xi = torch.randn(shape, generator=self.generator)
+        if self.corr == 0.0:
+            return xi
+        if self.eps is None or self.eps.shape != xi.shape:
+            self.eps, self.fresh = xi, None
+            return xi
+        eps = self.corr * self.eps + math.sqrt(1.0 - self.corr ** 2) * xi
+        if self.fresh is not None and len(self.fresh):
+            eps[self.fresh] = xi[self.fresh]
+        self.eps, self.fresh = eps, None
+        return eps
+
+    def restart(self, rows: np.ndarray) -> None:
+        """The robots ``rows`` start new episodes: their next draw is independent of the last."""
+        if self.corr and len(rows):
+            self.fresh = rows if self.fresh is None else np.union1d(self.fresh, rows)
+
+
+class Sampler:
+    """The Gaussian actor's draws: ``obs -> (action, log_prob, mean)`` (NumPy in and out), its noise from
+    ``noise`` (default: white, from torch's global generator, as :meth:`WalkerPPO.act` draws)."""
+
+    def __init__(self, actor: torch.nn.Module, log_std: torch.Tensor, noise: Noise | None = None) -> None:
+        self.actor, self.log_std, self.noise = actor, log_std, noise or Noise()
 
     @torch.no_grad()
     def __call__(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         mean = self.actor(torch.from_numpy(obs))
         std = self.log_std.exp()
-        action = mean + std * torch.randn(mean.shape, generator=self.generator)
+        action = mean + std * self.noise.draw(mean.shape)
         log_prob = torch.distributions.Normal(mean, std).log_prob(action).sum(-1)
         return action.numpy(), log_prob.numpy(), mean.numpy()
 
@@ -181,6 +214,7 @@ def collect(env: WalkerLearningEnv, sample: Sampler, steps: int, obs: np.ndarray
         c.actions[t], c.log_probs[t], c.means[t] = sample(obs)
         out = env.step(c.actions[t])
         c.rewards[t], c.terminated[t], c.truncated[t] = out.reward, out.terminated, out.truncated
+        sample.noise.restart(np.flatnonzero(out.terminated | out.truncated))
         rows = np.flatnonzero(out.truncated)
         if len(rows):
             at.append(t * n + rows)
@@ -233,20 +267,22 @@ def actor_weights(net: ActorCritic) -> dict[str, Any]:
 
 
 class LocalCollector:
-    """Collection in this process: one learning env of every robot, torch's global generator."""
+    """Collection in this process: one learning env of every robot, torch's global generator (its noise
+    correlated step to step by ``noise_corr``: :class:`Noise`)."""
 
     workers = 1
 
-    def __init__(self, spec: EnvSpec, num_envs: int, seed: int, steps: int, walker: WalkerModel | None = None
-                 ) -> None:
+    def __init__(self, spec: EnvSpec, num_envs: int, seed: int, steps: int, walker: WalkerModel | None = None,
+                 noise_corr: float = 0.0) -> None:
         self.env = spec.build(num_envs, seed, 1, walker)
         self.steps = steps
+        self.noise = Noise(noise_corr)
         self.obs = self.env.reset()
         self._pending: list[Chunk] | None = None
 
     def request(self, net: ActorCritic) -> None:
         """Collect the next chunk under ``net``'s actor now (this process has no other worker to do it)."""
-        chunk = collect(self.env, Sampler(net.actor, net.log_std.detach()), self.steps, *self.obs)
+        chunk = collect(self.env, Sampler(net.actor, net.log_std.detach(), self.noise), self.steps, *self.obs)
         self.obs = (chunk.last_obs, chunk.last_privileged)
         self._pending = [chunk]
 
@@ -268,7 +304,8 @@ class LocalCollector:
         self.env.close()
 
 
-def _worker(conn: Any, spec: EnvSpec, slots: int, seed: int, stride: int, rng_seed: int, steps: int) -> None:
+def _worker(conn: Any, spec: EnvSpec, slots: int, seed: int, stride: int, rng_seed: int, steps: int,
+            noise_corr: float = 0.0) -> None:
     """A collect worker: builds its env, then answers ``("collect", actor_weights)`` with ``("chunk", Chunk)``
     until ``("close", None)`` or the trainer's end; a failure is ``("error", traceback)``."""
     exit_with_parent()
@@ -278,7 +315,7 @@ def _worker(conn: Any, spec: EnvSpec, slots: int, seed: int, stride: int, rng_se
     try:
         env = spec.build(slots, seed, stride)
         obs = env.reset()
-        generator = torch.Generator().manual_seed(rng_seed)
+        noise = Noise(noise_corr, torch.Generator().manual_seed(rng_seed))
         actor: torch.nn.Module | None = None
         while True:
             kind, weights = conn.recv()
@@ -288,7 +325,7 @@ def _worker(conn: Any, spec: EnvSpec, slots: int, seed: int, stride: int, rng_se
                 actor = actor_module(weights["network"]).requires_grad_(False)
             else:
                 load_network(actor, weights["network"])
-            sample = Sampler(actor, torch.from_numpy(weights["log_std"]), generator)
+            sample = Sampler(actor, torch.from_numpy(weights["log_std"]), noise)
             chunk = collect(env, sample, steps, *obs)
             obs = (chunk.last_obs, chunk.last_privileged)
             conn.send(("chunk", chunk))
@@ -315,11 +352,12 @@ class CollectPool:
     Args:
         spec: the env each worker builds; ``sizes``: robots per worker; ``seeds``: each worker's next episode
             seed (it then steps by the worker count); ``rng_seeds``: each worker's action generator's seed;
-        steps: control steps per chunk.
+        steps: control steps per chunk; ``noise_corr``: the exploration noise's step-to-step correlation
+            (:class:`Noise`).
     """
 
     def __init__(self, spec: EnvSpec, sizes: Sequence[int], seeds: Sequence[int], rng_seeds: Sequence[int],
-                 steps: int, chunk_timeout_s: float = CHUNK_TIMEOUT_S) -> None:
+                 steps: int, chunk_timeout_s: float = CHUNK_TIMEOUT_S, noise_corr: float = 0.0) -> None:
         ctx = mp.get_context("spawn")
         self.workers, self.timeout_s = len(sizes), float(chunk_timeout_s)
         self._seeds = [int(s) for s in seeds]
@@ -329,7 +367,8 @@ class CollectPool:
         try:
             for w, (n, seed, rng_seed) in enumerate(zip(sizes, seeds, rng_seeds, strict=True)):
                 mine, theirs = ctx.Pipe()
-                proc = ctx.Process(target=_worker, args=(theirs, spec, n, seed, self.workers, rng_seed, steps),
+                proc = ctx.Process(target=_worker, args=(theirs, spec, n, seed, self.workers, rng_seed, steps,
+                                                                    noise_corr),
                                    daemon=True, name=f"econmotor-collect-{w}")
                 self.conns.append(mine)
                 self.procs.append(proc)

@@ -51,6 +51,10 @@ class WalkerPPOConfig:
     init_std: float = 0.1
     #: the exploration std's floor (log_std clamped after every step)
     min_std: float = 0.02
+    #: the exploration noise's correlation time in seconds (walker_collect.Noise: each robot's noise an
+    #: Ornstein-Uhlenbeck process sampled at the control rate, correlated exp(-dt / noise_corr_s) from one step to
+    #: the next, its marginal the Gaussian's); 0: white noise, a fresh draw every step
+    noise_corr_s: float = 0.0
     #: the anchor's starting coefficient (0: no anchor)
     anchor_coef: float = 0.0
     #: the anchor KL the coefficient steers to (nats per sample, summed over the action's dimensions; walker_ppo's
@@ -106,6 +110,8 @@ class WalkerPPOConfig:
         if self.anchor_coef < 0 or (steered and not bounds[0] <= self.anchor_coef <= bounds[1]):
             raise ConfigError(source, "anchor_coef", f"must be 0 (no anchor) or, under a KL target, within "
                               f"anchor_coef_bounds {list(bounds)}, got {self.anchor_coef}")
+        if self.noise_corr_s < 0:
+            raise ConfigError(source, "noise_corr_s", f"must be >= 0 (0: white noise), got {self.noise_corr_s}")
         if self.anchor_kl_target < 0:
             raise ConfigError(source, "anchor_kl_target", f"must be >= 0, got {self.anchor_kl_target}")
         if (self.num_envs * self.steps_per_iteration) % self.num_minibatches:

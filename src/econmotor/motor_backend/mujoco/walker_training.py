@@ -42,6 +42,7 @@ Seeds: training episodes ``TRAIN_SEED_BASE + seed * 10**6 + i`` (worker ``w`` of
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
@@ -143,10 +144,17 @@ class WalkerTrainingRun:
         cfg, workers = self.cfg, int(self.collect_workers or 1)
         if workers == 1:
             return wc.LocalCollector(self.env_spec(), cfg.num_envs, seeds[0], cfg.steps_per_iteration,
-                                     self.walker)
+                                     self.walker, self.noise_corr)
         rng_seeds = [wc.worker_rng_seed(self.seed, w, workers, iteration) for w in range(workers)]
         return wc.CollectPool(self.env_spec(), wc.split(cfg.num_envs, workers), seeds, rng_seeds,
-                              cfg.steps_per_iteration)
+                              cfg.steps_per_iteration, noise_corr=self.noise_corr)
+
+    @property
+    def noise_corr(self) -> float:
+        """The exploration noise's correlation from one control step to the next: ``exp(-dt / noise_corr_s)``
+        (0: white noise)."""
+        tau = self.cfg.noise_corr_s
+        return math.exp(-self.setup.card.control_dt_s / tau) if tau > 0 else 0.0
 
     def learner(self) -> WalkerPPO:
         card = self.setup.card
