@@ -367,9 +367,8 @@ class CollectPool:
         try:
             for w, (n, seed, rng_seed) in enumerate(zip(sizes, seeds, rng_seeds, strict=True)):
                 mine, theirs = ctx.Pipe()
-                proc = ctx.Process(target=_worker, args=(theirs, spec, n, seed, self.workers, rng_seed, steps,
-                                                                    noise_corr),
-                                   daemon=True, name=f"econmotor-collect-{w}")
+                args = (theirs, spec, n, seed, self.workers, rng_seed, steps, noise_corr)
+                proc = ctx.Process(target=_worker, args=args, daemon=True, name=f"econmotor-collect-{w}")
                 self.conns.append(mine)
                 self.procs.append(proc)
                 proc.start()
