@@ -176,9 +176,10 @@ class Noise:
         self.eps, self.fresh = eps, None
         return eps
 
-    def restart(self, rows: np.ndarray) -> None:
-        """The robots ``rows`` start new episodes: their next draw is independent of the last."""
-        if self.corr and len(rows):
+    def restart(self, ended: np.ndarray) -> None:
+        """The robots where ``ended`` (a mask) start new episodes: their next draw is independent of the last."""
+        if self.corr and ended.any():
+            rows = np.flatnonzero(ended)
             self.fresh = rows if self.fresh is None else np.union1d(self.fresh, rows)
 
 
@@ -214,7 +215,7 @@ def collect(env: WalkerLearningEnv, sample: Sampler, steps: int, obs: np.ndarray
         c.actions[t], c.log_probs[t], c.means[t] = sample(obs)
         out = env.step(c.actions[t])
         c.rewards[t], c.terminated[t], c.truncated[t] = out.reward, out.terminated, out.truncated
-        sample.noise.restart(np.flatnonzero(out.terminated | out.truncated))
+        sample.noise.restart(out.terminated | out.truncated)
         rows = np.flatnonzero(out.truncated)
         if len(rows):
             at.append(t * n + rows)

@@ -44,7 +44,9 @@ def test_a_robot_whose_episode_ended_draws_afresh() -> None:
     noise = Noise(0.95, torch.Generator().manual_seed(2))
     before = _stream(noise, 50)[-1]
     rows = np.arange(0, SHAPE[0], 2)
-    noise.restart(rows)
+    ended = np.zeros(SHAPE[0], bool)
+    ended[rows] = True
+    noise.restart(ended)
     after = noise.draw(SHAPE).numpy()
     kept = np.setdiff1d(np.arange(SHAPE[0]), rows)
     assert abs(float(np.corrcoef(before[rows].ravel(), after[rows].ravel())[0, 1])) < 0.05
